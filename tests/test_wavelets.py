@@ -1,0 +1,138 @@
+"""Wavelet analysis and synthesis: reconstruction, containment, the PyWavelets oracle."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import pywt
+from hypothesis import given
+from hypothesis import strategies as st
+
+from tests.conftest import height_grids
+from zwcore import sampling
+from zwcore.errors import InvalidInputError
+from zwcore.wavelets import WAVELETS, analyse, analysis_step, level_count, synthesis_step
+
+
+def _rounding(z: np.ndarray, depth: int) -> float:
+    return 64 * np.finfo(float).eps * max(1.0, float(np.abs(z).max())) * max(depth, 1)
+
+
+@pytest.mark.parametrize("wavelet", WAVELETS)
+@pytest.mark.parametrize("lifted", [True, False])
+@given(z=height_grids())
+def test_perfect_reconstruction(z: np.ndarray, wavelet: str, lifted: bool) -> None:
+    mrr = analyse(z, wavelet, lifted=lifted)
+    back = mrr.synthesize()
+    assert back.shape == z.shape
+    np.testing.assert_allclose(back, z, rtol=0, atol=_rounding(z, mrr.depth))
+    # Every intermediate level is rebuilt too, not only the finest.
+    for j, approx in enumerate(mrr.approximations):
+        np.testing.assert_allclose(mrr.synthesize(to_level=j), approx, rtol=0,
+                                   atol=_rounding(z, mrr.depth))
+
+
+@pytest.mark.parametrize("wavelet", WAVELETS)
+@given(z=height_grids())
+def test_lifted_levels_contain_the_part(z: np.ndarray, wavelet: str) -> None:
+    mrr = analyse(z, wavelet)
+    for j, approx in enumerate(mrr.approximations):
+        on_fine = sampling.at_fine_nodes(approx, mrr.scale(j), z.shape, mrr.interpolation)
+        assert (on_fine - z).min() >= 0.0, f"level {j} cuts into the part"
+
+
+@pytest.mark.parametrize("wavelet", WAVELETS)
+@given(z=height_grids())
+def test_lifted_levels_nest(z: np.ndarray, wavelet: str) -> None:
+    # Each coarser model contains the next finer one on the finer one's nodes.
+    mrr = analyse(z, wavelet)
+    for j in range(mrr.depth):
+        fine = mrr.approximations[j + 1]
+        coarse = sampling.at_fine_nodes(mrr.approximations[j], 2, fine.shape, mrr.interpolation)
+        assert (coarse - fine).min() >= 0.0
+
+
+def test_unlifted_single_knot_undercuts_somewhere() -> None:
+    # The lift is what makes containment hold: without it a peak is cut off.
+    z = np.zeros((5, 5))
+    z[1, 1] = 1.0
+    mrr = analyse(z, "single_knot", lifted=False, levels=1)
+    on_fine = sampling.bilinear_at_fine_nodes(mrr.approximations[0], 2, z.shape)
+    assert (on_fine - z).min() < 0
+    lifted = analyse(z, "single_knot", levels=1)
+    assert (sampling.bilinear_at_fine_nodes(lifted.approximations[0], 2, z.shape) - z).min() >= 0
+
+
+def test_lifted_haar_is_block_maximum() -> None:
+    z = np.random.default_rng(3).normal(size=(16, 8))
+    ll, _ = analysis_step(z, "haar")
+    np.testing.assert_array_equal(ll, z.reshape(8, 2, 4, 2).max(axis=(1, 3)))
+
+
+@pytest.mark.filterwarnings("ignore:Level value")
+@given(z=height_grids(max_side=17))
+def test_unlifted_haar_matches_pywavelets(z: np.ndarray) -> None:
+    mrr = analyse(z, "haar", lifted=False)
+    coeffs = pywt.wavedec2(z, "haar", mode="symmetric", level=mrr.depth)
+    # pywt's orthonormal Haar carries a factor sqrt(2) per 1-D step: 2 per 2-D level,
+    # so level j's approximation is 2**(J-j) times ours and every detail band 2 times
+    # ours at its level (cH = lh, cV = hl, cD = hh).
+    np.testing.assert_allclose(coeffs[0], mrr.approximations[0] * 2.0 ** mrr.depth, atol=1e-9)
+    for j, (ch, cv, cd) in enumerate(coeffs[1:]):
+        bands = mrr.details[j]
+        gain = 2.0 ** (mrr.depth - j)
+        np.testing.assert_allclose(ch, bands.lh * gain, atol=1e-9)
+        np.testing.assert_allclose(cv, bands.hl * gain, atol=1e-9)
+        np.testing.assert_allclose(cd, bands.hh * gain, atol=1e-9)
+
+
+def test_single_knot_definition_in_one_dimension() -> None:
+    # A row grid checks the filters literally: a_i = z_2i, w_i = z_2i+1 - (z_2i + z_2i+2)/2.
+    row = np.array([1.0, 4.0, 2.0, 2.0, 6.0])
+    z = np.vstack([row, row, row])
+    ll, bands = analysis_step(z, "single_knot", lifted=False)
+    np.testing.assert_allclose(ll[0], [1.0, 2.0, 6.0])
+    np.testing.assert_allclose(bands.hl[0], [4.0 - 1.5, 2.0 - 4.0])
+    lifted, _ = analysis_step(z, "single_knot")
+    # a'_i = a_i + max(0, w_i-1, w_i): 1 + 2.5, 2 + 2.5, 6 + 0
+    np.testing.assert_allclose(lifted[0], [3.5, 4.5, 6.0], atol=1e-12)
+
+
+@pytest.mark.parametrize(("shape", "wavelet", "expected"), [
+    ((2, 2), "haar", 1), ((1024, 1024), "haar", 10), ((3, 5), "haar", 3),
+    ((2, 2), "single_knot", 0), ((3, 3), "single_knot", 1), ((1025, 1025), "single_knot", 10),
+    ((1024, 4), "single_knot", 10),
+])
+def test_level_count(shape: tuple[int, int], wavelet: str, expected: int) -> None:
+    assert level_count(shape, wavelet) == expected  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize("wavelet", WAVELETS)
+def test_padding_is_reported_and_removed(wavelet: str) -> None:
+    z = np.arange(30.0).reshape(5, 6)
+    ll, bands = analysis_step(z, wavelet)  # type: ignore[arg-type]
+    expected = (1, 0) if wavelet == "haar" else (0, 1)
+    assert bands.padding == expected
+    back = synthesis_step(ll, bands, wavelet)  # type: ignore[arg-type]
+    np.testing.assert_allclose(back, z, atol=1e-12)
+
+
+@pytest.mark.parametrize(("levels", "message"), [(-1, "between 0"), (99, "between 0"),
+                                                 (1.5, "integer")])
+def test_bad_levels_are_rejected(levels: object, message: str) -> None:
+    with pytest.raises(InvalidInputError, match=message) as err:
+        analyse(np.zeros((4, 4)), "haar", levels=levels)  # type: ignore[arg-type]
+    assert err.value.field == "levels"
+
+
+def test_unknown_wavelet_lists_the_valid_ones() -> None:
+    with pytest.raises(InvalidInputError, match="haar, single_knot"):
+        analyse(np.zeros((4, 4)), "db4")
+
+
+@given(levels=st.integers(0, 3))
+def test_partial_depth(levels: int) -> None:
+    z = np.random.default_rng(levels).normal(size=(9, 9))
+    mrr = analyse(z, "single_knot", levels=levels)
+    assert mrr.depth == levels and len(mrr.approximations) == levels + 1
+    np.testing.assert_allclose(mrr.synthesize(), z, atol=1e-12)

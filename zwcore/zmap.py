@@ -1,0 +1,116 @@
+"""The z-map: a regular height grid of the finished part.
+
+``z[i, k]`` is the height at ``(x0 + k*dx, y0 + i*dy)``: rows run along y,
+columns along x (design section 1).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from zwcore.errors import InvalidInputError
+
+__all__ = ["INTERPOLATIONS", "MAX_ABS_HEIGHT", "Interpolation", "ZMap", "as_heights"]
+
+#: Heights beyond a kilometre are not a part on a machine tool; rejecting them
+#: also keeps every sum and difference of heights far from overflow.
+MAX_ABS_HEIGHT = 1.0e6
+
+Interpolation = Literal["bilinear", "cell"]
+INTERPOLATIONS: tuple[Interpolation, ...] = ("bilinear", "cell")
+
+
+def as_heights(z: ArrayLike, field: str = "z") -> NDArray[np.float64]:
+    """Normalise a height grid: 2-D, at least 2 x 2, finite, float64.
+
+    Parameters
+    ----------
+    z : (ny, nx) array_like
+        Heights, rows along y.
+    field : str
+        Name used in the error when the grid is rejected.
+
+    Returns
+    -------
+    z : (ny, nx) float64
+        C-contiguous; the input itself when it already is.
+    """
+    try:
+        arr = np.asarray(z, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise InvalidInputError(field, f"heights must be numbers ({exc})") from None
+    if arr.ndim != 2:
+        raise InvalidInputError(field, f"must be a 2-D grid of rows, got {arr.ndim} dimension(s)")
+    ny, nx = arr.shape
+    if ny < 2 or nx < 2:
+        raise InvalidInputError(field, f"grid must be at least 2 x 2 nodes, got {ny} x {nx}")
+    finite = np.isfinite(arr)
+    if not finite.all():
+        i, k = np.argwhere(~finite)[0]
+        raise InvalidInputError(
+            field, f"heights must be finite; row {i}, column {k} holds {arr[i, k]!r}"
+        )
+    big = np.abs(arr) > MAX_ABS_HEIGHT
+    if big.any():
+        i, k = np.argwhere(big)[0]
+        raise InvalidInputError(
+            field, f"heights must lie within ±{MAX_ABS_HEIGHT:g} mm; row {i}, column {k} "
+            f"holds {arr[i, k]!r}")
+    return np.ascontiguousarray(arr)
+
+
+def _positive(value: float, field: str) -> float:
+    v = float(value)
+    if not np.isfinite(v) or v <= 0.0:
+        raise InvalidInputError(field, f"must be a finite number > 0, got {value!r}")
+    return v
+
+
+def _finite(value: float, field: str) -> float:
+    v = float(value)
+    if not np.isfinite(v):
+        raise InvalidInputError(field, f"must be finite, got {value!r}")
+    return v
+
+
+@dataclass(frozen=True, eq=False)
+class ZMap:
+    """A validated z-map.
+
+    Parameters
+    ----------
+    z : (ny, nx) float64
+        Heights; node ``(k, i)`` sits at ``(x0 + k*dx, y0 + i*dy)``.
+    x0, y0 : float
+        Position of node ``(0, 0)`` in mm.
+    dx, dy : float
+        Node spacing in mm, > 0.
+    """
+
+    z: NDArray[np.float64]
+    x0: float = 0.0
+    y0: float = 0.0
+    dx: float = 1.0
+    dy: float = 1.0
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "z", as_heights(self.z))
+        object.__setattr__(self, "x0", _finite(self.x0, "x0"))
+        object.__setattr__(self, "y0", _finite(self.y0, "y0"))
+        object.__setattr__(self, "dx", _positive(self.dx, "dx"))
+        object.__setattr__(self, "dy", _positive(self.dy, "dy"))
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """``(ny, nx)``."""
+        ny, nx = self.z.shape
+        return int(ny), int(nx)
+
+    @property
+    def cell_area(self) -> float:
+        """Area one node stands for, ``dx * dy`` in mm²."""
+        return self.dx * self.dy
