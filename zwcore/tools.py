@@ -85,5 +85,5 @@ def tool_library(tools: Iterable[Tool], kind: ToolKind, field: str = "tools") ->
         for name in ("diameter", "flute_length"):
             v = getattr(tool, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-                raise InvalidInputError(f"{where}.{name}", f"must be a finite number > 0, got {v!r}")
+                raise InvalidInputError(f"{where}.{name}", f"must be finite and > 0, got {v!r}")
     return tuple(sorted(items, key=lambda t: (-t.diameter, -t.flute_length, t.id)))
