@@ -1,0 +1,129 @@
+"""Grid decoding and encoding at the HTTP boundary.
+
+Decoding turns either encoding into a validated :class:`zwcore.ZMap`; encoding
+writes a model back in the encoding the request used. Results are cached in
+one canonical form (float64 base64) and rendered per request.
+"""
+
+from __future__ import annotations
+
+import base64
+import binascii
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from service.schemas.common import Grid
+from zwcore import ZMap
+from zwcore.errors import InvalidInputError, LimitExceededError
+from zwcore.zmap import Interpolation
+
+_DTYPES = {"float32": np.dtype("<f4"), "float64": np.dtype("<f8")}
+
+
+def grid_encoding(grid: Grid) -> str:
+    """``"rows"``, ``"float32"`` or ``"float64"``: how the request sent its heights."""
+    return "rows" if grid.z is not None else str(grid.dtype)
+
+
+def decode_grid(grid: Grid, max_cells: int, field: str = "grid") -> ZMap:
+    """Validate a request grid and return it as a z-map (float64).
+
+    Raises
+    ------
+    InvalidInputError
+        Both or neither encoding, ragged rows, bad base64, a length that does not
+        match ``shape`` and ``dtype``, non-finite heights.
+    LimitExceededError
+        More cells than ``max_cells``.
+    """
+    if (grid.z is None) == (grid.z_b64 is None):
+        raise InvalidInputError(field, "give exactly one of z (rows) or z_b64 (with shape, dtype)")
+    if grid.z is not None:
+        if grid.shape is not None or grid.dtype is not None:
+            raise InvalidInputError(field, "shape and dtype go with z_b64, not with z rows")
+        rows = grid.z
+        ny = len(rows)
+        nx = len(rows[0]) if ny else 0
+        if ny * nx > max_cells:
+            raise LimitExceededError(f"{field}.z", f"{ny} x {nx} grid exceeds {max_cells} cells")
+        for i, row in enumerate(rows):
+            if len(row) != nx:
+                raise InvalidInputError(
+                    f"{field}.z[{i}]", f"ragged rows: row {i} has {len(row)} values, row 0 has {nx}")
+        z = np.array(rows, dtype=np.float64) if ny else np.zeros((0, 0))
+        where = f"{field}.z"
+    else:
+        if grid.shape is None or grid.dtype is None:
+            missing = "shape" if grid.shape is None else "dtype"
+            raise InvalidInputError(f"{field}.{missing}", "required with z_b64")
+        ny, nx = grid.shape
+        if ny < 0 or nx < 0:
+            raise InvalidInputError(f"{field}.shape", f"must be non-negative, got {[ny, nx]}")
+        if ny * nx > max_cells:
+            raise LimitExceededError(f"{field}.shape", f"{ny} x {nx} grid exceeds {max_cells} cells")
+        dtype = _DTYPES[grid.dtype]
+        try:
+            raw = base64.b64decode(grid.z_b64 or "", validate=True)
+        except (binascii.Error, ValueError):
+            raise InvalidInputError(f"{field}.z_b64", "is not valid base64") from None
+        expected = ny * nx * dtype.itemsize
+        if len(raw) != expected:
+            raise InvalidInputError(
+                f"{field}.z_b64", f"decodes to {len(raw)} bytes; shape {[ny, nx]} of "
+                f"{grid.dtype} needs {expected}")
+        z = np.frombuffer(raw, dtype=dtype).reshape(ny, nx).astype(np.float64)
+        where = f"{field}.z_b64"
+    try:
+        return ZMap(z, grid.x0, grid.y0, grid.dx, grid.dy)
+    except InvalidInputError as exc:
+        name = where if exc.field == "z" else f"{field}.{exc.field}"
+        raise InvalidInputError(name, exc.reason) from None
+
+
+def canonical_grid(z: NDArray[np.float64], *, x0: float, y0: float, dx: float, dy: float,
+                   interpolation: Interpolation) -> dict[str, Any]:
+    """A grid as cached: float64 base64, rendered per request by :func:`render_grids`."""
+    zz = np.ascontiguousarray(z, dtype="<f8")
+    ny, nx = zz.shape
+    return {"x0": x0, "y0": y0, "dx": dx, "dy": dy, "nx": nx, "ny": ny,
+            "interpolation": interpolation, "shape": [ny, nx], "dtype": "float64",
+            "z_b64": base64.b64encode(zz.tobytes()).decode("ascii")}
+
+
+def _float32_upward(z: NDArray[np.float64]) -> NDArray[np.float32]:
+    # Rounding a stage model to float32 must never move it down into the part.
+    f = z.astype(np.float32)
+    below = f.astype(np.float64) < z
+    if below.any():
+        f[below] = np.nextafter(f[below], np.float32(np.inf))
+    return f
+
+
+def _render(grid: dict[str, Any], encoding: str) -> dict[str, Any]:
+    if encoding == "float64":
+        return grid
+    ny, nx = grid["shape"]
+    z = np.frombuffer(base64.b64decode(grid["z_b64"]), dtype="<f8").reshape(ny, nx)
+    out = {k: v for k, v in grid.items() if k not in ("shape", "dtype", "z_b64")}
+    if encoding == "rows":
+        out["z"] = z.tolist()
+    else:
+        out["shape"] = [ny, nx]
+        out["dtype"] = "float32"
+        out["z_b64"] = base64.b64encode(_float32_upward(z).astype("<f4").tobytes()).decode()
+    return out
+
+
+def render_grids(node: Any, encoding: str) -> Any:
+    """Re-encode every cached grid inside a result for the requesting client."""
+    if encoding == "float64":
+        return node
+    if isinstance(node, dict):
+        if "z_b64" in node and "interpolation" in node:
+            return _render(node, encoding)
+        return {k: render_grids(v, encoding) for k, v in node.items()}
+    if isinstance(node, list):
+        return [render_grids(v, encoding) for v in node]
+    return node

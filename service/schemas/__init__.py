@@ -1,0 +1,1 @@
+"""Named request and response models (generated clients read these)."""

@@ -1,0 +1,88 @@
+"""Models shared by several operations: grids, tools, problems."""
+
+from __future__ import annotations
+
+from typing import Annotated, Literal
+
+from pydantic import BaseModel, ConfigDict, Field
+
+FiniteFloat = Annotated[float, Field(allow_inf_nan=False)]
+Dtype = Literal["float32", "float64"]
+
+
+class StrictModel(BaseModel):
+    """Request models reject unknown fields, so a typo is an error, not a silent default."""
+
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+
+
+class Grid(StrictModel):
+    """A z-map: node ``(k, i)`` sits at ``(x0 + k*dx, y0 + i*dy)`` and holds ``z[i][k]``.
+
+    Send either ``z`` (a list of rows) or ``shape``, ``dtype`` and ``z_b64``
+    (little-endian row-major bytes in base64) for large grids.
+    """
+
+    model_config = ConfigDict(json_schema_extra={"examples": [
+        {"x0": 0.0, "y0": 0.0, "dx": 1.0, "dy": 1.0, "z": [[0.0, 1.0], [2.0, 3.0]]}]})
+
+    x0: FiniteFloat = Field(0.0, description="x of node (0, 0), mm")
+    y0: FiniteFloat = Field(0.0, description="y of node (0, 0), mm")
+    dx: FiniteFloat = Field(gt=0, description="node spacing along x, mm")
+    dy: FiniteFloat = Field(gt=0, description="node spacing along y, mm")
+    z: list[list[FiniteFloat]] | None = Field(None, description="heights, one list per row (y)")
+    shape: tuple[int, int] | None = Field(None, description="[ny, nx] of z_b64")
+    dtype: Dtype | None = Field(None, description="element type of z_b64")
+    z_b64: str | None = Field(None, description="little-endian row-major heights, base64")
+
+
+class GridOut(BaseModel):
+    """A returned grid, in the encoding the request used."""
+
+    x0: float
+    y0: float
+    dx: float
+    dy: float
+    nx: int
+    ny: int
+    interpolation: Literal["bilinear", "cell"] = Field(
+        description="bilinear: surface through the nodes; cell: a flat dx x dy square per node")
+    z: list[list[float]] | None = None
+    shape: tuple[int, int] | None = None
+    dtype: Dtype | None = None
+    z_b64: str | None = None
+
+
+class ToolIn(StrictModel):
+    """An end mill in the request's tool library."""
+
+    id: str = Field(min_length=1, max_length=64)
+    diameter: FiniteFloat = Field(gt=0, le=1000, description="mm")
+    flute_length: FiniteFloat = Field(gt=0, le=1000, description="length of cut, mm")
+
+
+class ToolOut(BaseModel):
+    id: str
+    kind: Literal["ball", "flat"]
+    diameter: float
+    flute_length: float
+
+
+class ToolLibrary(BaseModel):
+    tools: list[ToolOut]
+
+
+class ProblemField(BaseModel):
+    field: str
+    reason: str
+
+
+class ProblemDetails(BaseModel):
+    """RFC 9457 problem document returned for every error."""
+
+    type: str = "about:blank"
+    title: str
+    status: int
+    detail: str
+    instance: str | None = None
+    errors: list[ProblemField] | None = None

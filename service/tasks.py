@@ -1,0 +1,81 @@
+"""Serving a task: hash, conditional request, cache, compute, respond.
+
+Every operation's route is thin: it validates its body, names the canonical
+request and hands a compute function to :func:`serve_task`.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Mapping
+from typing import Any
+
+import anyio
+import numpy as np
+import orjson
+from fastapi import Request, Response
+
+from service import metrics
+from service.compute import ComputePool
+from service.grids import render_grids
+from service.hashing import task_id as make_task_id
+from service.store import TaskStore
+
+JSON = "application/json"
+
+
+def _etag(tid: str) -> str:
+    return f'"{tid}"'
+
+
+def not_modified(request: Request, tid: str) -> bool:
+    """True when ``If-None-Match`` names this task (strong or weak, in a list, or ``*``)."""
+    header = request.headers.get("if-none-match")
+    if not header:
+        return False
+    for tag in header.split(","):
+        tag = tag.strip()
+        if tag == "*" or tag.removeprefix("W/").strip('"') == tid:
+            return True
+    return False
+
+
+def respond(body: bytes, tid: str, encoding: str, cache: str) -> Response:
+    if encoding != "float64" and b'"z_b64"' in body:
+        body = orjson.dumps(render_grids(orjson.loads(body), encoding))
+    return Response(body, media_type=JSON, headers={"ETag": _etag(tid), "X-Cache": cache})
+
+
+async def serve_task(request: Request, store: TaskStore, pool: ComputePool, *, operation: str,
+                     params: Mapping[str, Any], arrays: Mapping[str, np.ndarray] | None,
+                     compute: Callable[[], dict[str, Any]], encoding: str = "float64") -> Response:
+    """Answer one operation from the cache or by computing it.
+
+    ``compute`` returns the result as plain data with grids in canonical form
+    (:func:`service.grids.canonical_grid`); it runs in the compute pool.
+    """
+    tid = await anyio.to_thread.run_sync(make_task_id, operation, params, arrays)
+    request.state.task_id = tid
+    if not_modified(request, tid):
+        request.state.cache = "not-modified"
+        return Response(status_code=304, headers={"ETag": _etag(tid)})
+    body = await anyio.to_thread.run_sync(store.get, tid)
+    if body is not None:
+        metrics.CACHE.labels(operation, "hit").inc()
+        request.state.cache = "hit"
+        return respond(body, tid, encoding, "hit")
+
+    def job() -> bytes:
+        start = time.perf_counter()
+        result = {"task_id": tid, "operation": operation, **compute()}
+        out = orjson.dumps(result, option=orjson.OPT_SERIALIZE_NUMPY)
+        request.state.compute_ms = round((time.perf_counter() - start) * 1000, 2)
+        return out
+
+    body, shared = await pool.run_once(tid, operation, job)
+    outcome = "shared" if shared else "miss"
+    metrics.CACHE.labels(operation, outcome).inc()
+    request.state.cache = outcome
+    if not shared:
+        await anyio.to_thread.run_sync(store.put, tid, body)
+    return respond(body, tid, encoding, outcome)

@@ -1,0 +1,137 @@
+"""Geometry kernels of the arc fit: circles through a point with a fixed tangent.
+
+Every piece of a chain is described by its start point ``P``, unit tangent ``T``
+and signed curvature ``kappa`` (``> 0`` turns left / counter-clockwise, ``0`` is a
+straight line), so lines and arcs share one set of formulas. Points are handled
+in the piece's local frame ``u = (x - P) . T``, ``v = (x - P) . N`` with
+``N = T`` rotated by +90 degrees. All formulas are written so that they stay
+accurate for ``kappa -> 0`` (no ``1 / kappa`` appears without a matching factor).
+
+Units: mm and radians.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+FloatArray = NDArray[np.float64]
+
+__all__ = [
+    "arc_points",
+    "circle_gap",
+    "kappa_bounds",
+    "local_uv",
+    "point_to_arc_distance",
+    "points_to_segments_distance",
+    "sagitta",
+    "arc_length_position",
+    "rotate",
+]
+
+
+def rotate(t: FloatArray, angle: float | FloatArray) -> FloatArray:
+    """Rotate unit vector(s) ``t`` (``(2,)`` or ``(..., 2)``) by ``angle`` radians."""
+    c = np.cos(angle)
+    s = np.sin(angle)
+    x = t[..., 0]
+    y = t[..., 1]
+    return np.stack([c * x - s * y, s * x + c * y], axis=-1)
+
+
+def local_uv(p: FloatArray, t: FloatArray, pts: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Coordinates of ``pts`` ``(M, 2)`` in the frame of start ``p`` ``(2,)`` and tangent ``t``."""
+    dx = pts[..., 0] - p[..., 0]
+    dy = pts[..., 1] - p[..., 1]
+    u = dx * t[..., 0] + dy * t[..., 1]
+    v = dy * t[..., 0] - dx * t[..., 1]
+    return u, v
+
+
+def circle_gap(u: FloatArray, v: FloatArray, kappa: float | FloatArray) -> FloatArray:
+    """Signed distance of local points to the circle (or line) of curvature ``kappa``.
+
+    Positive means right of the travel direction. The magnitude is the exact
+    Euclidean distance to the full circle; the sign convention makes the value
+    increase monotonically with ``kappa``, which is what turns each point into an
+    interval of admissible curvatures (see :func:`kappa_bounds`).
+    """
+    w = kappa * (u * u + v * v) - 2.0 * v
+    # 1 + kappa*w = (1 - kappa v)^2 + (kappa u)^2 >= 0; the clip only guards rounding.
+    return w / (1.0 + np.sqrt(np.maximum(1.0 + kappa * w, 0.0)))
+
+
+def kappa_bounds(u: FloatArray, v: FloatArray, tol: float) -> tuple[FloatArray, FloatArray]:
+    """Curvature interval ``[lo, hi]`` that keeps each point within ``tol`` of the circle.
+
+    Points closer than ``tol`` to the start point impose nothing (the start point
+    is on every candidate circle), and get ``(-inf, inf)``.
+    """
+    den = u * u + v * v - tol * tol
+    ok = den > 0.0
+    safe = np.where(ok, den, 1.0)
+    lo = np.where(ok, 2.0 * (v - tol) / safe, -np.inf)
+    hi = np.where(ok, 2.0 * (v + tol) / safe, np.inf)
+    return lo, hi
+
+
+def arc_length_position(u: FloatArray, v: FloatArray, kappa: float) -> FloatArray:
+    """Arc length from the start to the foot point of each local point (not unwrapped).
+
+    For a line this is ``u``; for an arc it is the signed sweep to the point's
+    angular position divided by ``kappa``, in ``(-pi, pi] / |kappa|``.
+    """
+    if kappa == 0.0:
+        return np.array(u, dtype=np.float64, copy=True)
+    phi = np.arctan2(kappa * u, 1.0 - kappa * v)
+    return np.asarray(phi / kappa, dtype=np.float64)
+
+
+def arc_points(
+    p: FloatArray, t: FloatArray, kappa: float, sigma: FloatArray
+) -> FloatArray:
+    """Points ``(M, 2)`` at arc lengths ``sigma`` ``(M,)`` along the piece (stable for kappa=0)."""
+    sigma = np.asarray(sigma, dtype=np.float64)
+    a = kappa * sigma
+    # sin(a)/kappa = sigma*sinc(a/pi); (1-cos a)/kappa = sigma*(a/2)*sinc(a/(2 pi))^2
+    x = sigma * np.sinc(a / np.pi)
+    y = sigma * (0.5 * a) * np.sinc(a / (2.0 * np.pi)) ** 2
+    n = np.array([-t[1], t[0]])
+    return p[None, :] + x[:, None] * t[None, :] + y[:, None] * n[None, :]
+
+
+def sagitta(kappa: float, length: FloatArray) -> FloatArray:
+    """Largest distance between an arc of ``length`` and its chord (0 for lines)."""
+    b = 0.25 * kappa * np.asarray(length, dtype=np.float64)
+    # 2 sin^2(b)/|kappa| written without dividing by kappa
+    return np.abs(length) * np.abs(b) * 0.5 * np.sinc(b / np.pi) ** 2
+
+
+def point_to_arc_distance(
+    pts: FloatArray, p: FloatArray, t: FloatArray, kappa: float, length: float
+) -> FloatArray:
+    """Exact distance of ``pts`` ``(M, 2)`` to the piece of arc length ``length`` from ``p``."""
+    u, v = local_uv(p, t, pts)
+    end = arc_points(p, t, kappa, np.array([length]))[0]
+    d_ends = np.minimum(np.hypot(u, v), np.hypot(pts[:, 0] - end[0], pts[:, 1] - end[1]))
+    if kappa == 0.0:
+        inside = (u >= 0.0) & (u <= length)
+        return np.where(inside, np.abs(v), d_ends)
+    phi = np.arctan2(kappa * u, 1.0 - kappa * v)
+    sweep = abs(kappa * length)
+    ang = np.mod(phi * np.sign(kappa), 2.0 * np.pi)
+    # points at the centre itself: every arc point is at the radius
+    inside = ang <= sweep
+    gap = np.abs(circle_gap(u, v, kappa))
+    return np.where(inside, np.minimum(gap, d_ends), d_ends)
+
+
+def points_to_segments_distance(pts: FloatArray, a: FloatArray, b: FloatArray) -> FloatArray:
+    """Distance of each point ``(M, 2)`` to each segment ``a[k]-b[k]`` ``(K, 2)``: ``(M, K)``."""
+    ab = b - a
+    den = np.einsum("ij,ij->i", ab, ab)
+    den = np.where(den > 0.0, den, 1.0)
+    ap = pts[:, None, :] - a[None, :, :]
+    s = np.clip(np.einsum("mkj,kj->mk", ap, ab) / den[None, :], 0.0, 1.0)
+    d = ap - s[:, :, None] * ab[None, :, :]
+    return np.hypot(d[..., 0], d[..., 1])
