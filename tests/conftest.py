@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
+from fastapi.testclient import TestClient
 from hypothesis import HealthCheck, settings
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
@@ -32,3 +34,17 @@ def height_grids(draw: st.DrawFn, min_side: int = 2, max_side: int = 9) -> np.nd
         else:
             base[i:, k:] += h
     return base
+
+
+def make_client(tmp_path, **overrides: object) -> TestClient:  # type: ignore[no-untyped-def]
+    """A test client on a fresh app with its own embedded store."""
+    from service.main import create_app
+    from service.settings import Settings
+
+    return TestClient(create_app(Settings(data_dir=tmp_path, **overrides)))  # type: ignore[arg-type]
+
+
+@pytest.fixture
+def client(tmp_path):  # type: ignore[no-untyped-def]
+    with make_client(tmp_path) as c:
+        yield c

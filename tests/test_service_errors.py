@@ -1,0 +1,98 @@
+"""Bad input gets a 4xx problem document naming the field and the reason."""
+
+from __future__ import annotations
+
+import base64
+
+import numpy as np
+import pytest
+from fastapi.testclient import TestClient
+
+from tests.conftest import make_client
+
+PROBLEM = "application/problem+json"
+
+
+def post_raw(client: TestClient, path: str, text: str):  # type: ignore[no-untyped-def]
+    return client.post(path, content=text.encode(), headers={"content-type": "application/json"})
+
+
+def assert_problem(r, status: int, field: str, reason: str = "") -> None:  # type: ignore[no-untyped-def]
+    assert r.status_code == status, r.text
+    assert r.headers["content-type"] == PROBLEM
+    body = r.json()
+    assert body["status"] == status and body["title"] and body["detail"]
+    fields = [e["field"] for e in body.get("errors", [])]
+    assert any(f.startswith(field) for f in fields), fields
+    if reason:
+        assert reason in body["detail"] or any(reason in e["reason"] for e in body["errors"])
+
+
+B64_2x2 = base64.b64encode(np.zeros(4, "<f8").tobytes()).decode()
+
+
+@pytest.mark.parametrize(("body", "field", "reason"), [
+    ('{"grid": {"dx": 1, "dy": 1, "z": [[0, NaN], [0, 0]]}}', "grid.z", "finite"),
+    ('{"grid": {"dx": 1, "dy": 1, "z": [[0, Infinity], [0, 0]]}}', "grid.z", "finite"),
+    ('{"grid": {"dx": 1, "dy": 1, "z": [[0, 1, 2], [0, 0]]}}', "grid.z[1]", "ragged"),
+    ('{"grid": {"dx": 1, "dy": 1, "z": [[0, "a"], [0, 0]]}}', "grid.z[0][1]", "number"),
+    ('{"grid": {"dx": 0, "dy": 1, "z": [[0, 1], [0, 0]]}}', "grid.dx", "greater than 0"),
+    ('{"grid": {"dx": 1, "dy": -1, "z": [[0, 1], [0, 0]]}}', "grid.dy", ""),
+    ('{"grid": {"dx": 1, "dy": 1, "z": [[0, 1]]}}', "grid.z", "2 x 2"),
+    ('{"grid": {"dx": 1, "dy": 1, "z": []}}', "grid.z", "2 x 2"),
+    ('{"grid": {"dx": 1, "dy": 1}}', "grid", "exactly one"),
+    ('{"grid": {"dx": 1, "dy": 1, "shape": [2, 2], "dtype": "float64", "z_b64": "@@@"}}',
+     "grid.z_b64", "base64"),
+    ('{"grid": {"dx": 1, "dy": 1, "shape": [3, 2], "dtype": "float64", "z_b64": "%s"}}'
+     % B64_2x2, "grid.z_b64", "needs 48"),
+    ('{"grid": {"dx": 1, "dy": 1, "shape": [2, 2], "dtype": "int8", "z_b64": "%s"}}'
+     % B64_2x2, "grid.dtype", "float32"),
+    ('{"grid": {"dx": 1, "dy": 1, "shape": [2, 2], "z_b64": "%s"}}' % B64_2x2,
+     "grid.dtype", "required"),
+    ('{"grid": {"dx": 1, "dy": 1, "z": [[0, 1], [0, 0]]}, "wavelet": "db4"}', "wavelet",
+     "haar"),
+    ('{"grid": {"dx": 1, "dy": 1, "z": [[0, 1], [0, 0]]}, "levels": -1}', "levels", ""),
+    ('{"grid": {"dx": 1, "dy": 1, "z": [[0, 1], [0, 0]]}, "levels": 5}', "levels", "between"),
+    ('{"grid": {"dx": 1, "dy": 1, "z": [[0, 1], [0, 0]]}, "colour": 5}', "colour", ""),
+    ('[1, 2]', "body", ""),
+])
+def test_bad_mrr_requests(client: TestClient, body: str, field: str, reason: str) -> None:
+    assert_problem(post_raw(client, "/v1/mrr", body), 422, field, reason)
+
+
+def test_nan_in_base64_is_rejected(client: TestClient) -> None:
+    z = np.zeros((3, 3), "<f4")
+    z[2, 1] = np.nan
+    grid = {"dx": 1, "dy": 1, "shape": [3, 3], "dtype": "float32",
+            "z_b64": base64.b64encode(z.tobytes()).decode()}
+    assert_problem(client.post("/v1/mrr", json={"grid": grid}), 422, "grid.z_b64", "row 2")
+
+
+def test_malformed_json_is_400(client: TestClient) -> None:
+    assert_problem(post_raw(client, "/v1/mrr", '{"grid": '), 400, "body", "malformed")
+
+
+def test_body_over_the_limit_is_413(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    with make_client(tmp_path, max_body_bytes=1000) as c:
+        big = '{"grid": {"dx": 1, "dy": 1, "z": [%s]}}' % ",".join(["[0, 0]"] * 400)
+        assert_problem(post_raw(c, "/v1/mrr", big), 413, "body", "limit")
+
+        def chunks():  # type: ignore[no-untyped-def]
+            for _ in range(10):
+                yield b" " * 200  # no Content-Length: the stream is counted
+        r = c.post("/v1/mrr", content=chunks(), headers={"content-type": "application/json"})
+        assert_problem(r, 413, "body", "limit")
+
+
+def test_grid_over_the_cell_limit_is_413(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    with make_client(tmp_path, max_grid_cells=16) as c:
+        r = c.post("/v1/mrr", json={"grid": {"dx": 1, "dy": 1, "z": np.zeros((5, 5)).tolist()}})
+        assert_problem(r, 413, "grid.z", "exceeds")
+        grid = {"dx": 1, "dy": 1, "shape": [100000, 100000], "dtype": "float64", "z_b64": ""}
+        assert_problem(c.post("/v1/mrr", json={"grid": grid}), 413, "grid.shape", "exceeds")
+
+
+def test_unknown_route_is_a_problem(client: TestClient) -> None:
+    r = client.get("/v1/nothing")
+    assert r.status_code == 404 and r.headers["content-type"] == PROBLEM
+    assert client.get("/v1/mrr").status_code == 405
