@@ -1,9 +1,11 @@
 """Task ids: SHA-256 of the canonical request.
 
 The canonical request is the operation, its parameters (defaults filled in),
-the core version and the numeric content of every array as little-endian
-float64, so the same grid sent as JSON rows or as float32/float64 base64 is
-the same task.
+the core version and the numeric content of every array, so the same grid
+sent as JSON rows or as float32/float64 base64 is the same task. An array
+whose every value is exactly a float32 is hashed as little-endian float32
+(half the bytes to hash, and float32 uploads need no check); any other as
+little-endian float64.
 """
 
 from __future__ import annotations
@@ -18,14 +20,29 @@ import orjson
 import zwcore
 
 
+def canonical_bytes(a: np.ndarray, exact_float32: bool | None = None) -> tuple[str, memoryview]:
+    """The dtype name and bytes an array is hashed as (see the module docstring).
+
+    ``exact_float32`` may be passed when already known (the upload was float32).
+    """
+    a64 = np.ascontiguousarray(a, dtype="<f8")
+    a32 = a64.astype("<f4")
+    if exact_float32 is None:
+        exact_float32 = bool(np.array_equal(a32, a64))
+    chosen = a32 if exact_float32 else a64
+    return str(chosen.dtype), memoryview(chosen).cast("B")
+
+
 def task_id(operation: str, params: Mapping[str, Any],
-            arrays: Mapping[str, np.ndarray] | None = None) -> str:
+            arrays: Mapping[str, np.ndarray] | None = None,
+            exact_float32: Mapping[str, bool] | None = None) -> str:
     """Hex SHA-256 naming the result of ``operation`` on these inputs."""
     h = hashlib.sha256()
     head = {"operation": operation, "core_version": zwcore.__version__, "params": params}
     h.update(orjson.dumps(head, option=orjson.OPT_SORT_KEYS))
     for name in sorted(arrays or {}):
-        a = np.ascontiguousarray((arrays or {})[name], dtype="<f8")
-        h.update(orjson.dumps({"array": name, "shape": list(a.shape)}))
-        h.update(memoryview(a).cast("B"))
+        a = (arrays or {})[name]
+        dtype, data = canonical_bytes(a, (exact_float32 or {}).get(name))
+        h.update(orjson.dumps({"array": name, "shape": list(a.shape), "dtype": dtype}))
+        h.update(data)
     return h.hexdigest()

@@ -96,7 +96,9 @@ class Bands:
 
     def max_abs(self) -> float:
         """Largest detail magnitude in the three bands."""
-        return float(max(np.abs(b).max(initial=0.0) for b in (self.lh, self.hl, self.hh)))
+        # max(-min, max) avoids an |b| temporary the size of the band.
+        return float(max(max(-b.min(initial=0.0), b.max(initial=0.0))
+                         for b in (self.lh, self.hl, self.hh)))
 
     def count_nonzero(self) -> int:
         """Number of non-zero detail coefficients."""

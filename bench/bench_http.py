@@ -1,0 +1,109 @@
+"""End-to-end HTTP timings against a live server, with in-run reference ratios.
+
+- POST /v1/mrr, 2048² float32 z_b64, include_models false, vs pywt.wavedec2 on the same grid;
+- POST /v1/plans/scanline on 513², 1025², 2049² (z_b64, include_models false);
+- POST /v1/plans/contour with four flat end mills on 512², 1024², 2048².
+
+Each call sends a grid not seen before (a different offset), so nothing is served from
+the cache. Run: ``.venv/bin/python bench/bench_http.py [--quick]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import base64
+import sys
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import httpx
+import numpy as np
+import orjson
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from bench._server import live_server
+
+
+def part(n: int, seed: int = 0) -> np.ndarray:
+    """A free-form part: smooth hills and a pocket, heights in mm over a 100 mm square."""
+    y, x = np.mgrid[0:1:n * 1j, 0:1:n * 1j]
+    z = (8 * np.sin(3 * np.pi * x) * np.cos(2 * np.pi * y)
+         + 10 * np.exp(-((x - .3) ** 2 + (y - .6) ** 2) * 20)
+         - 12 * np.exp(-((x - .7) ** 2 + (y - .3) ** 2) * 40))
+    return z + seed * 1e-3
+
+
+def grid_b64(z: np.ndarray, dtype: str = "float32") -> dict:
+    arr = np.ascontiguousarray(z, dtype="<f4" if dtype == "float32" else "<f8")
+    n = z.shape[1]
+    return {"x0": 0.0, "y0": 0.0, "dx": 100.0 / (n - 1), "dy": 100.0 / (n - 1),
+            "shape": list(arr.shape), "dtype": dtype,
+            "z_b64": base64.b64encode(arr.tobytes()).decode()}
+
+
+def best(fn: Callable[[int], object], repeat: int) -> float:
+    times = []
+    for k in range(repeat):
+        t = time.perf_counter()
+        fn(k)
+        times.append(time.perf_counter() - t)
+    return min(times)
+
+
+def post(client: httpx.Client, url: str, body: bytes) -> dict:
+    r = client.post(url, content=body, headers={"content-type": "application/json"}, timeout=600)
+    r.raise_for_status()
+    assert r.headers["x-cache"] != "hit"
+    return r.json()
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--quick", action="store_true")
+    ap.add_argument("--only", choices=["mrr", "scanline", "contour"], default=None)
+    args = ap.parse_args()
+    repeat = 2 if args.quick else 4
+    with live_server() as base, httpx.Client(base_url=base) as client:
+        spec = client.get("/openapi.json").json()["paths"]
+        if args.only in (None, "mrr"):
+            import pywt
+
+            n = 2048
+            z32 = part(n).astype(np.float32)
+            # Bodies are serialised before timing: an MES sends bytes it already has.
+            bodies = [orjson.dumps({"grid": grid_b64(z32 + np.float32(k)), "include_models": False})
+                      for k in range(repeat + 1)]
+            post(client, "/v1/mrr", bodies[-1])  # warm up imports and the pool
+            t_http = best(lambda k: post(client, "/v1/mrr", bodies[k]), repeat)
+            t_pywt = best(lambda k: pywt.wavedec2(z32, "haar"), repeat)
+            print(f"POST /v1/mrr 2048² float32 b64 (haar): {t_http * 1e3:8.1f} ms   "
+                  f"pywt.wavedec2 same grid: {t_pywt * 1e3:8.1f} ms   "
+                  f"ratio pywt/http = {t_pywt / t_http:5.2f} (target >= 1)")
+        for op, sizes, extra in (
+            ("scanline", (513, 1025, 2049), {}),
+            ("contour", (512, 1024, 2048), {"tools": [
+                {"id": "FEM-D20", "diameter": 20, "flute_length": 38},
+                {"id": "FEM-D10", "diameter": 10, "flute_length": 22},
+                {"id": "FEM-D6", "diameter": 6, "flute_length": 13},
+                {"id": "FEM-D3", "diameter": 3, "flute_length": 8}]}),
+        ):
+            if args.only not in (None, op) or f"/v1/plans/{op}" not in spec:
+                continue
+            if args.quick:
+                sizes = sizes[:2]
+            prev = None
+            for n in sizes:
+                z = part(n)
+                bodies = [orjson.dumps({"grid": grid_b64(z + k * 1e-3), "include_models": False,
+                                        **extra}) for k in range(repeat)]
+                url = f"/v1/plans/{op}"
+                t = best(lambda k, url=url, bodies=bodies: post(client, url, bodies[k]), repeat)
+                growth = ("" if prev is None else
+                          f"  x{t / prev[1]:4.2f} time for x{n * n / prev[0]:4.2f} cells")
+                print(f"POST /v1/plans/{op:8s} {n:5d}²: {t:7.3f} s{growth}")
+                prev = (n * n, t)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,145 @@
+"""``POST /v1/plans/scanline`` and ``POST /v1/plans/contour``: stage models and tools."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+from fastapi import APIRouter, Request, Response
+from pydantic import BaseModel
+
+from service.deps import PoolDep, SettingsDep, StoreDep
+from service.grids import canonical_grid, decode_grid, grid_encoding
+from service.routers import responses
+from service.schemas.common import ToolIn
+from service.schemas.plans import (
+    ContourChecksOut,
+    ContourPlanRequest,
+    ContourPlanResult,
+    ContourStageOut,
+    ScanlineChecksOut,
+    ScanlinePlanRequest,
+    ScanlinePlanResult,
+    ScanlineStageOut,
+)
+from service.tasks import serve_task
+from zwcore import Tool, ZMap, default_tools
+from zwcore.contour import plan_contour
+from zwcore.errors import LimitExceededError
+from zwcore.scanline import plan_scanline
+from zwcore.tools import ToolKind
+
+router = APIRouter(prefix="/v1/plans", tags=["plans"])
+
+
+def _plain(value: Any) -> Any:
+    """Dataclass fields as JSON data: tuples as lists, numpy scalars as floats, inf as null."""
+    if isinstance(value, Tool):
+        return {"id": value.id, "kind": value.kind, "diameter": value.diameter,
+                "flute_length": value.flute_length}
+    if isinstance(value, (tuple, list)):
+        return [_plain(v) for v in value]
+    if isinstance(value, (np.floating, float)):
+        f = float(value)
+        return f if math.isfinite(f) else None
+    if isinstance(value, np.integer):
+        return int(value)
+    if isinstance(value, np.bool_):
+        return bool(value)
+    return value
+
+
+def _pick(obj: Any, model: type[BaseModel], skip: tuple[str, ...] = ()) -> dict[str, Any]:
+    """The response model's fields, read off a core dataclass."""
+    return {name: _plain(getattr(obj, name)) for name in model.model_fields
+            if name not in skip and hasattr(obj, name)}
+
+
+def _tools(given: list[ToolIn] | None, kind: ToolKind, max_tools: int) -> list[Tool]:
+    if given is None:
+        return list(default_tools(kind))
+    if len(given) > max_tools:
+        raise LimitExceededError("tools", f"{len(given)} tools exceed the limit of {max_tools}")
+    return [Tool(t.id, kind, t.diameter, t.flute_length) for t in given]
+
+
+def _tool_params(tools: list[Tool]) -> list[list[Any]]:
+    return [[t.id, t.diameter, t.flute_length] for t in tools]
+
+
+def scanline_result(zmap: ZMap, tools: list[Tool], tolerance: float, stock_top: float | None,
+                    include_models: bool) -> dict[str, Any]:
+    plan = plan_scanline(zmap, tools, tolerance=tolerance, stock_top=stock_top)
+    stages = []
+    for index, stage in enumerate(plan.stages):
+        out = _pick(stage, ScanlineStageOut, skip=("model", "index"))
+        out["index"] = index
+        if include_models:
+            sx, sy = stage.spacing
+            out["model"] = canonical_grid(stage.model, x0=zmap.x0, y0=zmap.y0, dx=sx, dy=sy,
+                                          interpolation="bilinear")
+        stages.append(out)
+    checks = _pick(plan.checks, ScanlineChecksOut)
+    return {"stock_top": plan.stock_top, "stock_top_source": plan.stock_top_source,
+            "tolerance": tolerance, "tool_sequence": list(plan.tool_sequence),
+            "stages": stages, "checks": checks, "notes": list(plan.notes)}
+
+
+def contour_result(zmap: ZMap, tools: list[Tool], stock_top: float | None, strategy: str,
+                   include_models: bool) -> dict[str, Any]:
+    plan = plan_contour(zmap, tools, stock_top=stock_top, strategy=strategy)
+    stages = []
+    for index, stage in enumerate(plan.stages):
+        out = _pick(stage, ContourStageOut, skip=("model", "index"))
+        out["index"] = index
+        if include_models:
+            cx, cy = stage.cell_size
+            # A Haar cell's node sits at the centre of the block of input nodes it covers.
+            out["model"] = canonical_grid(
+                stage.model, x0=zmap.x0 + (cx - zmap.dx) / 2, y0=zmap.y0 + (cy - zmap.dy) / 2,
+                dx=cx, dy=cy, interpolation="cell")
+        stages.append(out)
+    return {"stock_top": plan.stock_top, "stock_top_source": plan.stock_top_source,
+            "strategy": plan.strategy, "contour_spacings": _plain(plan.contour_spacings),
+            "stages": stages, "checks": _pick(plan.checks, ContourChecksOut),
+            "notes": list(plan.notes)}
+
+
+@router.post("/scanline", response_model=ScanlinePlanResult, operation_id="plan_scanline",
+             summary="Scan-line plan: stage models and ball-end-mill sequence",
+             responses=responses(413))
+async def post_scanline_plan(body: ScanlinePlanRequest, request: Request, settings: SettingsDep,
+                             store: StoreDep, pool: PoolDep) -> Response:
+    """Roughing-to-finishing stage models from the lifted single-knot MRR, each with the
+    largest ball end mill that fits its concave regions; no stage cuts into the part or
+    deeper than its tool's flutes (see ``checks``)."""
+    zmap = decode_grid(body.grid, settings.max_grid_cells)
+    tools = _tools(body.tools, "ball", settings.max_tools)
+    params = {"grid": [zmap.x0, zmap.y0, zmap.dx, zmap.dy], "tools": _tool_params(tools),
+              "tolerance": body.tolerance, "stock_top": body.stock_top,
+              "include_models": body.include_models}
+    return await serve_task(
+        request, store, pool, operation="plan_scanline", params=params, arrays={"z": zmap.z},
+        compute=lambda: scanline_result(zmap, tools, body.tolerance, body.stock_top,
+                                        body.include_models),
+        encoding=grid_encoding(body.grid))
+
+
+@router.post("/contour", response_model=ContourPlanResult, operation_id="plan_contour",
+             summary="Contour plan: equal-load contour heights and terraced stage models",
+             responses=responses(413))
+async def post_contour_plan(body: ContourPlanRequest, request: Request, settings: SettingsDep,
+                            store: StoreDep, pool: PoolDep) -> Response:
+    """Per flat end mill, the z-levels of its waterline passes (equal slab volumes) and the
+    terraced model it leaves, from the lifted Haar MRR by coefficient editing."""
+    zmap = decode_grid(body.grid, settings.max_grid_cells)
+    tools = _tools(body.tools, "flat", settings.max_tools)
+    params = {"grid": [zmap.x0, zmap.y0, zmap.dx, zmap.dy], "tools": _tool_params(tools),
+              "stock_top": body.stock_top, "strategy": body.strategy,
+              "include_models": body.include_models}
+    return await serve_task(
+        request, store, pool, operation="plan_contour", params=params, arrays={"z": zmap.z},
+        compute=lambda: contour_result(zmap, tools, body.stock_top, body.strategy,
+                                       body.include_models),
+        encoding=grid_encoding(body.grid))

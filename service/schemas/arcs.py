@@ -1,0 +1,63 @@
+"""Models of ``POST /v1/arcs``."""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import BaseModel, Field
+
+from service.schemas.common import FiniteFloat, StrictModel
+
+Point = tuple[FiniteFloat, FiniteFloat]
+
+
+class ArcsRequest(StrictModel):
+    points: list[Point] = Field(min_length=2, description="ordered curve points [[x, y], ...], mm")
+    tolerance: FiniteFloat = Field(0.1, gt=0, description="two-sided band half-width, mm")
+    closed: bool = Field(False, description="the curve closes on itself")
+    corner_angle_deg: FiniteFloat = Field(
+        30.0, gt=0, lt=180, description="turns sharper than this stay sharp corners")
+    max_radius: FiniteFloat | None = Field(
+        None, gt=0, description="arcs flatter than this radius become lines, mm")
+    offset: FiniteFloat = Field(
+        0.0, description="signed tool offset, mm (> 0: left of the direction of travel)")
+    gcode: bool = Field(False, description="also return the NC program")
+    feed: FiniteFloat = Field(1000.0, gt=0, description="feed rate for the program, mm/min")
+
+
+class SegmentOut(BaseModel):
+    kind: Literal["arc", "line"]
+    start: tuple[float, float]
+    end: tuple[float, float]
+    center: tuple[float, float] | None = None
+    radius: float | None = None
+    ccw: bool | None = None
+    sweep: float | None = Field(None, description="signed sweep, rad (> 0 counter-clockwise)")
+
+
+class ArcsSummary(BaseModel):
+    n_segments: int
+    n_arcs: int
+    n_lines: int
+    max_deviation_points: float = Field(description="max distance input polyline -> chain, mm")
+    max_deviation_chain: float = Field(description="max distance chain -> input polyline, mm")
+    max_kink_smooth_deg: float = Field(description="largest tangent kink at smooth junctions")
+    corners: list[int] = Field(description="junctions kept sharp (i: between segment i and i+1)")
+
+
+class OffsetOut(BaseModel):
+    distance: float
+    segments: list[SegmentOut]
+    vanished_arcs: list[int] = Field(
+        description="arcs of the fitted chain whose radius would vanish or invert at this offset")
+
+
+class ArcsResult(BaseModel):
+    task_id: str
+    operation: Literal["arcs"]
+    tolerance: float
+    closed: bool
+    segments: list[SegmentOut]
+    summary: ArcsSummary
+    offset: OffsetOut | None = None
+    gcode: str | None = None

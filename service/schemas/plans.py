@@ -1,0 +1,112 @@
+"""Models of the plan operations: scan-line (ball end mills) and contour (flat end mills)."""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import BaseModel, Field
+
+from service.schemas.common import FiniteFloat, Grid, GridOut, StrictModel, ToolIn, ToolOut
+
+
+class ScanlinePlanRequest(StrictModel):
+    grid: Grid
+    tools: list[ToolIn] | None = Field(
+        None, description="ball end mills; default: the shipped library (GET /v1/tools)")
+    tolerance: FiniteFloat = Field(0.01, gt=0, description="finishing scallop height, mm")
+    stock_top: FiniteFloat | None = Field(
+        None, description="top of the stock, mm; default: part top + first tool's flute length")
+    include_models: bool = Field(False, description="return each stage's model grid")
+
+
+class ScanlineStageOut(BaseModel):
+    index: int
+    tool: ToolOut
+    level: int
+    spacing: tuple[float, float] = Field(description="[dx, dy] of the stage's level, mm")
+    pick_feed: float = Field(description="distance between scan lines, mm")
+    pick_feed_reduced: bool
+    pick_feed_reason: str | None = None
+    scallop_height: float = Field(description="predicted scallop at the pick-feed, mm")
+    concave_radius: float | None = Field(
+        description="smallest concave radius of the stage model, mm (null: no concave region)")
+    max_depth_of_cut: float
+    mean_depth_of_cut: float
+    removed_volume: float = Field(description="mm³")
+    max_stock_left: float = Field(description="max height over the part after the stage, mm")
+    passes: int
+    model: GridOut | None = None
+
+
+class ScanlineChecksOut(BaseModel):
+    ok: bool
+    containment: bool
+    min_containment_margin: float
+    depth_of_cut: bool
+    max_depth_over_flute: float
+    tool_radii_non_increasing: bool
+    finishing_tolerance_met: bool
+    last_model_is_part: bool
+
+
+class ScanlinePlanResult(BaseModel):
+    task_id: str
+    operation: Literal["plan_scanline"]
+    stock_top: float
+    stock_top_source: Literal["request", "default"]
+    tolerance: float
+    tool_sequence: list[str]
+    stages: list[ScanlineStageOut]
+    checks: ScanlineChecksOut
+    notes: list[str]
+
+
+class ContourPlanRequest(StrictModel):
+    grid: Grid
+    tools: list[ToolIn] | None = Field(
+        None, description="flat end mills; default: the shipped library (GET /v1/tools)")
+    stock_top: FiniteFloat | None = Field(
+        None, description="top of the stock, mm; default: part top + first tool's flute length")
+    strategy: Literal["uniform_load", "scallop"] = Field(
+        "uniform_load", description="uniform_load: equal slab volumes (the seed's method)")
+    include_models: bool = Field(False, description="return each stage's terraced model")
+
+
+class ContourStageOut(BaseModel):
+    index: int
+    tool: ToolOut
+    level: int
+    cell_size: tuple[float, float] = Field(description="[x, y] size of a model cell, mm")
+    level_rule: str
+    z_levels: list[float] = Field(description="contour heights, descending, mm")
+    spacings: list[float] = Field(description="distance between consecutive z_levels, mm")
+    slab_volumes: list[float] = Field(description="volume each slab removes, mm³")
+    volume_spread: float = Field(description="max/min - 1 over slabs the flute cap does not bind")
+    flute_cap_binds: list[bool]
+    removed_volume: float
+    max_stock_left: float
+    mean_stock_left: float
+    model: GridOut | None = None
+
+
+class ContourChecksOut(BaseModel):
+    ok: bool
+    containment: bool
+    min_containment_margin: float
+    spacings_positive: bool
+    spacings_within_flute: bool
+    max_volume_spread: float
+    volumes_add_up: bool
+    terraces_from_coefficients: bool
+
+
+class ContourPlanResult(BaseModel):
+    task_id: str
+    operation: Literal["plan_contour"]
+    stock_top: float
+    stock_top_source: Literal["request", "default"]
+    strategy: str
+    contour_spacings: list[float]
+    stages: list[ContourStageOut]
+    checks: ContourChecksOut
+    notes: list[str]
