@@ -19,7 +19,8 @@ from zwcore import ZMap
 from zwcore.errors import InvalidInputError, LimitExceededError
 from zwcore.zmap import Interpolation
 
-_DTYPES = {"float32": np.dtype("<f4"), "float64": np.dtype("<f8")}
+_DTYPES: dict[str, np.dtype[np.floating]] = {"float32": np.dtype("<f4"),
+                                              "float64": np.dtype("<f8")}
 
 
 def grid_encoding(grid: Grid) -> str:
@@ -50,8 +51,8 @@ def decode_grid(grid: Grid, max_cells: int, field: str = "grid") -> ZMap:
             raise LimitExceededError(f"{field}.z", f"{ny} x {nx} grid exceeds {max_cells} cells")
         for i, row in enumerate(rows):
             if len(row) != nx:
-                raise InvalidInputError(
-                    f"{field}.z[{i}]", f"ragged rows: row {i} has {len(row)} values, row 0 has {nx}")
+                raise InvalidInputError(f"{field}.z[{i}]",
+                                        f"ragged rows: row {i} has {len(row)} values, row 0 {nx}")
         z = np.array(rows, dtype=np.float64) if ny else np.zeros((0, 0))
         where = f"{field}.z"
     else:
@@ -62,7 +63,8 @@ def decode_grid(grid: Grid, max_cells: int, field: str = "grid") -> ZMap:
         if ny < 0 or nx < 0:
             raise InvalidInputError(f"{field}.shape", f"must be non-negative, got {[ny, nx]}")
         if ny * nx > max_cells:
-            raise LimitExceededError(f"{field}.shape", f"{ny} x {nx} grid exceeds {max_cells} cells")
+            raise LimitExceededError(f"{field}.shape",
+                                     f"{ny} x {nx} grid exceeds {max_cells} cells")
         dtype = _DTYPES[grid.dtype]
         try:
             raw = base64.b64decode(grid.z_b64 or "", validate=True)

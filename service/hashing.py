@@ -30,7 +30,8 @@ def canonical_bytes(a: np.ndarray, exact_float32: bool | None = None) -> tuple[s
     if exact_float32 is None:
         exact_float32 = bool(np.array_equal(a32, a64))
     chosen = a32 if exact_float32 else a64
-    return str(chosen.dtype), memoryview(chosen).cast("B")
+    return str(chosen.dtype), memoryview(chosen.tobytes() if not chosen.flags.c_contiguous
+                                         else chosen.data).cast("B")
 
 
 def task_id(operation: str, params: Mapping[str, Any],

@@ -14,7 +14,7 @@ from service import problems
 from service.compute import ComputePool
 from service.deps import require_api_key
 from service.middleware import JsonFormatter, ServiceMiddleware
-from service.routers import health, mrr, tasks, tools
+from service.routers import arcs, health, mrr, plans, tasks, tools
 from service.settings import Settings, get_settings
 from service.store import open_store
 
@@ -54,6 +54,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     problems.install(app)
     secured = [Depends(require_api_key)]
     app.include_router(mrr.router, dependencies=secured)
+    app.include_router(plans.router, dependencies=secured)
+    app.include_router(arcs.router, dependencies=secured)
     app.include_router(tasks.router, dependencies=secured)
     app.include_router(tools.router, dependencies=secured)
     app.include_router(health.router)

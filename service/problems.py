@@ -84,12 +84,86 @@ def _validation_problem(request: Request, exc: RequestValidationError) -> Respon
                             instance=request.url.path, errors=errors)
 
 
+def _link_results_to_tasks(schema: dict[str, Any]) -> None:
+    """An OpenAPI link from every operation's result to ``get_task`` with its ``task_id``.
+
+    Clients (and schemathesis' stateful tests) learn from the document that a
+    result can be fetched again by its task id.
+    """
+    ops = [op for item in schema.get("paths", {}).values() for op in item.values()]
+    if not any(op.get("operationId") == "get_task" for op in ops):
+        return
+    component_schemas = schema.get("components", {}).get("schemas", {})
+    for op in ops:
+        ok = op.get("responses", {}).get("200", {})
+        ref = ok.get("content", {}).get("application/json", {}).get("schema", {}).get("$ref", "")
+        result = component_schemas.get(ref.rsplit("/", 1)[-1], {})
+        if op.get("operationId") != "get_task" and "task_id" in result.get("required", []):
+            ok.setdefault("links", {})["GetTask"] = {
+                "operationId": "get_task",
+                "parameters": {"task_id": "$response.body#/task_id"},
+                "description": "The stored result, by the task id this call returned."}
+
+
+def _problem_media_type_in_openapi(app: FastAPI) -> None:
+    """Declare the ProblemDetails schema under ``application/problem+json``, the type sent.
+
+    FastAPI files an error response's ``model`` under ``application/json``;
+    left so, the document promised a JSON body and an untyped problem+json one,
+    and generated clients parsed every error as nothing.
+    """
+    build = app.openapi
+
+    def openapi() -> dict[str, Any]:
+        cached = app.openapi_schema is not None
+        schema = build()
+        if not cached:
+            for item in schema.get("paths", {}).values():
+                for op in item.values():
+                    for response in op.get("responses", {}).values():
+                        content = response.get("content", {})
+                        if PROBLEM_JSON in content and "application/json" in content:
+                            content[PROBLEM_JSON] = content.pop("application/json")
+            _link_results_to_tasks(schema)
+        return schema
+
+    app.openapi = openapi  # type: ignore[method-assign]
+
+
+def _auth_first(request: Request) -> Response | None:
+    """The 401/403 a secured route owes a caller without a valid key, if it does.
+
+    FastAPI parses the JSON body before it runs the route's dependencies, so a
+    malformed body would otherwise get a 400 ahead of the API-key check.
+    """
+    from fastapi.security import HTTPAuthorizationCredentials
+    from fastapi.security.utils import get_authorization_scheme_param
+
+    from service.deps import require_api_key  # deps imports this module
+
+    # The contract: every /v1 call needs the key (main.py secures each /v1 router).
+    if not request.url.path.startswith("/v1/"):
+        return None
+    scheme, token = get_authorization_scheme_param(request.headers.get("authorization"))
+    credentials = (HTTPAuthorizationCredentials(scheme=scheme, credentials=token)
+                   if scheme and token else None)
+    try:
+        require_api_key(request.app.state.settings, credentials)
+    except Problem as exc:
+        return problem_response(exc.status, exc.title, exc.detail, kind=exc.kind,
+                                instance=request.url.path, errors=exc.errors,
+                                headers=exc.headers)
+    return None
+
+
 def install(app: FastAPI) -> None:
     """Register the handlers that turn every error into a problem document."""
 
+    _problem_media_type_in_openapi(app)
+
     @app.exception_handler(RequestValidationError)
     async def _on_validation(request: Request, exc: RequestValidationError) -> Response:
-        return _validation_problem(request, exc)
+        return _auth_first(request) or _validation_problem(request, exc)
 
     @app.exception_handler(LimitExceededError)
     async def _on_limit(request: Request, exc: LimitExceededError) -> Response:

@@ -32,7 +32,8 @@ class Settings(BaseSettings):
     max_points: int = Field(2_000_000, gt=0, description="Largest point curve for /v1/arcs.")
     max_tools: int = Field(64, gt=0, description="Largest tool library in a plan request.")
     workers: int = Field(default_factory=_cpu_count, gt=0, description="Compute pool threads.")
-    max_pending: int = Field(16, ge=0, description="Computations queued beyond the pool before shedding.")
+    max_pending: int = Field(16, ge=0,
+                             description="Computations queued beyond the pool before shedding.")
     log_level: str = Field("INFO", description="Python logging level.")
 
     @field_validator("cache_url")
@@ -47,4 +48,4 @@ class Settings(BaseSettings):
 
 @lru_cache
 def get_settings() -> Settings:
-    return Settings()
+    return Settings()  # type: ignore[call-arg]  # every field has a default

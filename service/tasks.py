@@ -72,10 +72,10 @@ async def serve_task(request: Request, store: TaskStore, pool: ComputePool, *, o
         request.state.compute_ms = round((time.perf_counter() - start) * 1000, 2)
         return out
 
-    body, shared = await pool.run_once(tid, operation, job)
+    result, shared = await pool.run_once(tid, operation, job)
     outcome = "shared" if shared else "miss"
     metrics.CACHE.labels(operation, outcome).inc()
     request.state.cache = outcome
     if not shared:
-        await anyio.to_thread.run_sync(store.put, tid, body)
-    return respond(body, tid, encoding, outcome)
+        await anyio.to_thread.run_sync(store.put, tid, result)
+    return respond(result, tid, encoding, outcome)

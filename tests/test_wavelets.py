@@ -2,6 +2,13 @@
 
 from __future__ import annotations
 
+import contextlib
+import os
+import signal
+import time
+import warnings
+from collections.abc import Iterator
+
 import numpy as np
 import pytest
 import pywt
@@ -9,9 +16,16 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from tests.conftest import height_grids
-from zwcore import sampling
+from zwcore import _pyramid, sampling
 from zwcore.errors import InvalidInputError
-from zwcore.wavelets import WAVELETS, analyse, analysis_step, level_count, synthesis_step
+from zwcore.wavelets import (
+    WAVELETS,
+    _reference_step,
+    analyse,
+    analysis_step,
+    level_count,
+    synthesis_step,
+)
 
 
 def _rounding(z: np.ndarray, depth: int) -> float:
@@ -136,3 +150,123 @@ def test_partial_depth(levels: int) -> None:
     mrr = analyse(z, "single_knot", levels=levels)
     assert mrr.depth == levels and len(mrr.approximations) == levels + 1
     np.testing.assert_allclose(mrr.synthesize(), z, atol=1e-12)
+
+
+# --------------------------------------------------------------------------
+# The fast path (zwcore._pyramid: strips, Haar level pipeline, two threads)
+# must reproduce the literal definition (wavelets._reference_step) bit for bit.
+# --------------------------------------------------------------------------
+
+
+def _reference_mrr(z: np.ndarray, wavelet: str, lifted: bool, levels: int) -> list:
+    out = []
+    cur = z
+    for _ in range(levels):
+        cur, bands = _reference_step(cur, wavelet, lifted=lifted)  # type: ignore[arg-type]
+        out.append((cur, bands))
+    return out
+
+
+def _assert_bitwise_equal(z: np.ndarray, wavelet: str, lifted: bool) -> None:
+    mrr = analyse(z, wavelet, lifted=lifted)
+    ref = _reference_mrr(z, wavelet, lifted, mrr.depth)
+    assert len(ref) == mrr.depth
+    for k, (ll, bands) in enumerate(ref):  # k = 0 is the finest step
+        j = mrr.depth - 1 - k
+        got = mrr.details[j]
+        assert mrr.approximations[j].tobytes() == ll.tobytes()
+        assert mrr.approximations[j].shape == ll.shape
+        for name in ("lh", "hl", "hh"):
+            assert getattr(got, name).shape == getattr(bands, name).shape, name
+            assert getattr(got, name).tobytes() == getattr(bands, name).tobytes(), name
+        assert (got.fine_shape, got.padding, got.guard) == \
+            (bands.fine_shape, bands.padding, bands.guard)
+
+
+@contextlib.contextmanager
+def _tiny_strips_and_threads() -> Iterator[None]:
+    """Force the fast path's every branch onto small grids: 2-row strips (so the
+    Haar pipeline runs strip by strip across levels), two threads from 0 nodes,
+    Haar bands down to 2 rows."""
+    saved = (_pyramid.STRIP_ELEMENTS, _pyramid.THREAD_MIN_ELEMENTS, _pyramid.MIN_BAND_ROWS,
+             _pyramid.worker_count)
+    _pyramid.STRIP_ELEMENTS, _pyramid.THREAD_MIN_ELEMENTS, _pyramid.MIN_BAND_ROWS = 1, 0, 1
+    _pyramid.worker_count = lambda: 2
+    try:
+        yield
+    finally:
+        (_pyramid.STRIP_ELEMENTS, _pyramid.THREAD_MIN_ELEMENTS, _pyramid.MIN_BAND_ROWS,
+         _pyramid.worker_count) = saved
+
+
+@pytest.mark.parametrize("wavelet", WAVELETS)
+@pytest.mark.parametrize("lifted", [True, False])
+@given(z=height_grids(max_side=40))
+def test_fast_path_equals_definition_bit_for_bit(z: np.ndarray, wavelet: str,
+                                                 lifted: bool) -> None:
+    _assert_bitwise_equal(z, wavelet, lifted)
+    with _tiny_strips_and_threads():
+        _assert_bitwise_equal(z, wavelet, lifted)
+
+
+@pytest.mark.parametrize("wavelet", WAVELETS)
+@pytest.mark.parametrize("lifted", [True, False])
+@pytest.mark.parametrize("shape", [(515, 513), (514, 1030), (1025, 256), (300, 1001)])
+def test_threaded_path_equals_definition_bit_for_bit(shape: tuple[int, int], wavelet: str,
+                                                     lifted: bool) -> None:
+    # Large enough for the default thresholds: real strips, bands and threads.
+    assert shape[0] * shape[1] >= _pyramid.THREAD_MIN_ELEMENTS
+    z = np.random.default_rng(shape[0]).normal(size=shape).cumsum(axis=0) * 10
+    _assert_bitwise_equal(z, wavelet, lifted)
+
+
+@pytest.mark.parametrize("wavelet", WAVELETS)
+def test_analysis_step_takes_any_layout(wavelet: str) -> None:
+    z = np.random.default_rng(5).normal(size=(9, 14)).T  # not C-contiguous
+    ll, bands = analysis_step(z, wavelet)  # type: ignore[arg-type]
+    ref_ll, ref = _reference_step(np.ascontiguousarray(z), wavelet)  # type: ignore[arg-type]
+    np.testing.assert_array_equal(ll, ref_ll)
+    np.testing.assert_array_equal(bands.hh, ref.hh)
+
+
+@pytest.mark.parametrize("wavelet", WAVELETS)
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf, 2e6, -2e6])
+@pytest.mark.parametrize("shape", [(5, 7), (600, 520)])
+def test_bad_heights_are_rejected_without_warnings(wavelet: str, bad: float,
+                                                   shape: tuple[int, int]) -> None:
+    # A plain float64 Haar grid is validated while it is transformed; the error
+    # is the one as_heights gives, before any error about levels.
+    for pos in [(0, 0), (3, 4), (-1, -1)]:
+        z = np.zeros(shape)
+        z[pos] = bad
+        for levels in (None, 0, 1, 99):
+            with warnings.catch_warnings():
+                warnings.simplefilter("error")
+                with pytest.raises(InvalidInputError) as err:
+                    analyse(z, wavelet, levels=levels)
+            assert err.value.field == "z"
+
+
+@pytest.mark.skipif(not hasattr(os, "fork"), reason="needs os.fork")
+def test_threaded_path_works_in_a_forked_child() -> None:
+    # A pre-fork server may fork after the parent used the helper thread; the
+    # child must not wait forever on a thread it never inherited.
+    z = np.random.default_rng(8).normal(size=(600, 600))
+    analyse(z)  # starts the helper thread here
+    pid = os.fork()
+    if pid == 0:  # pragma: no cover - runs in the child
+        code = 1
+        try:
+            code = 0 if analyse(z).depth == level_count(z.shape, "haar") else 1
+        finally:
+            os._exit(code)
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline:
+        done, status = os.waitpid(pid, os.WNOHANG)
+        if done:
+            assert os.waitstatus_to_exitcode(status) == 0
+            return
+        time.sleep(0.05)
+    os.kill(pid, signal.SIGKILL)
+    os.waitpid(pid, 0)
+    pytest.fail("analyse hung in a forked child")

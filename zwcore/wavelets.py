@@ -20,6 +20,13 @@ Every analysis step needs an even node count (Haar) or an odd one
 (single-knot); a grid that does not halve evenly is padded by repeating its
 last row/column (the part's edge extended flat). The padding is recorded per
 level and synthesis removes it, so nothing inside the input changes.
+
+Implementation: :func:`_reference_step` is the definition, written literally
+(pad, x step, y step). :func:`analyse` and :func:`analysis_step` run the fast
+kernels of :mod:`zwcore._pyramid` (row strips kept in cache, the Haar levels
+pipelined strip by strip, two threads on large grids), which perform the same
+floating-point operations on the same operands and so give bit-identical
+results; the tests compare the two bit for bit.
 """
 
 from __future__ import annotations
@@ -31,8 +38,9 @@ from typing import Literal
 import numpy as np
 from numpy.typing import NDArray
 
+from zwcore import _pyramid
 from zwcore.errors import InvalidInputError
-from zwcore.zmap import Interpolation, as_heights
+from zwcore.zmap import MAX_ABS_HEIGHT, Interpolation, as_heights
 
 __all__ = [
     "WAVELETS",
@@ -173,9 +181,13 @@ def _hat_merge(a: F64, w: F64, axis: int, lifted: bool, guard: float = 0.0) -> F
 
 
 def _rounding_guard(z: F64) -> float:
+    return _guard_for(float(np.abs(z).max()))
+
+
+def _guard_for(max_abs: float) -> float:
     # 16 ulps of the level's magnitude covers the rounding of the prediction,
     # the lift and a later bilinear evaluation, with room to spare.
-    scale = float(max(np.abs(z).max(), 1.0))
+    scale = float(max(max_abs, 1.0))
     return 16.0 * float(np.finfo(np.float64).eps) * scale
 
 
@@ -200,6 +212,67 @@ def _pad_edge(z: F64, padding: tuple[int, int]) -> F64:
 
 def analysis_step(z: F64, wavelet: Wavelet, *, lifted: bool = True) -> tuple[F64, Bands]:
     """One level of the non-standard 2-D analysis.
+
+    Parameters
+    ----------
+    z : (ny, nx) float64
+        Approximation at level ``j``.
+    wavelet : {"haar", "single_knot"}
+    lifted : bool
+        Apply the overcut-free lift, so the result contains ``z``.
+
+    Returns
+    -------
+    ll : (my, mx) float64
+        Approximation at level ``j - 1``; ``m = ceil(n/2)`` for Haar and
+        ``floor(n/2) + 1`` for single-knot.
+    bands : Bands
+        The detail bands and the padding used.
+    """
+    zz = np.ascontiguousarray(z, dtype=np.float64)
+    if wavelet == "haar":
+        return _haar_steps(zz, 1, lifted)[0][0]
+    return _hat_steps(zz, 1, lifted, max(-float(zz.min()), float(zz.max())))[0]
+
+
+def _haar_steps(z: F64, steps: int, lifted: bool, track: bool = False,
+                ) -> tuple[list[tuple[F64, Bands]], tuple[float, float]]:
+    """``steps`` Haar analysis steps from ``z`` down, finest first; bit-identical
+    to repeating :func:`_reference_step` (see :mod:`zwcore._pyramid`). With
+    ``track``, also ``(z.min(), z.max())`` for input validation (NaN when
+    ``steps`` is 0 or ``z`` holds a NaN)."""
+    out: list[tuple[F64, Bands]] = []
+    shape = z.shape
+    if steps == 0:
+        return out, (np.nan, np.nan)
+    pyramid, extremes = _pyramid.haar_pyramid(z, steps, lifted, track)
+    for ll, lh, hl, hh in pyramid:
+        padding = (_pad_for("haar", shape[0]), _pad_for("haar", shape[1]))
+        out.append((ll, Bands(lh=lh, hl=hl, hh=hh, fine_shape=shape, padding=padding)))
+        shape = ll.shape
+    return out, extremes
+
+
+def _hat_steps(z: F64, steps: int, lifted: bool, max_abs: float) -> list[tuple[F64, Bands]]:
+    """``steps`` single-knot analysis steps from ``z`` (whose largest magnitude is
+    ``max_abs``) down, finest first; bit-identical to repeating
+    :func:`_reference_step`."""
+    out = []
+    cur = z
+    for _ in range(steps):
+        guard = _guard_for(max_abs) if lifted else 0.0
+        ll, lh, hl, hh, lo, hi = _pyramid.hat_step(cur, lifted, guard)
+        padding = (_pad_for("single_knot", cur.shape[0]), _pad_for("single_knot", cur.shape[1]))
+        out.append((ll, Bands(lh=lh, hl=hl, hh=hh, fine_shape=cur.shape, padding=padding,
+                              guard=guard)))
+        cur, max_abs = ll, max(-lo, hi)
+    return out
+
+
+def _reference_step(z: F64, wavelet: Wavelet, *, lifted: bool = True) -> tuple[F64, Bands]:
+    """One level of the non-standard 2-D analysis, literally as defined: pad, x step,
+    y step. The definition the fast path (:mod:`zwcore._pyramid`) must reproduce
+    bit for bit; :func:`analysis_step` documents the parameters.
 
     Parameters
     ----------
@@ -321,6 +394,33 @@ class Multiresolution:
         return z
 
 
+def _plain_grid(z: object) -> bool:
+    """A grid :func:`zwcore.zmap.as_heights` would return unchanged if its values
+    pass: a C-contiguous 2-D float64 ndarray of at least 2 x 2."""
+    return (type(z) is np.ndarray and z.dtype == np.float64 and z.ndim == 2
+            and min(z.shape) >= 2 and bool(z.flags.c_contiguous))
+
+
+def _within_limits(lo: float, hi: float) -> bool:
+    """Whether extremes ``lo``, ``hi`` pass as_heights' checks (finite, within
+    ``MAX_ABS_HEIGHT``); NaN fails every comparison."""
+    return -MAX_ABS_HEIGHT <= lo and hi <= MAX_ABS_HEIGHT
+
+
+def _checked_heights(z: object) -> tuple[F64, float, float]:
+    """:func:`zwcore.zmap.as_heights` and the grid's min and max. A plain grid is
+    checked by its extremes alone, without as_heights' full-size temporaries;
+    anything else, or a grid that fails, goes through as_heights, which raises
+    the documented error."""
+    if _plain_grid(z):
+        assert isinstance(z, np.ndarray)
+        lo, hi = _pyramid.extremes(z)
+        if _within_limits(lo, hi):
+            return z, lo, hi
+    zz = as_heights(z)  # type: ignore[arg-type]
+    return zz, float(zz.min()), float(zz.max())
+
+
 def analyse(z: NDArray[np.floating] | Sequence[Sequence[float]], wavelet: str = "haar", *,
             levels: int | None = None, lifted: bool = True) -> Multiresolution:
     """Multiresolution analysis of a z-map.
@@ -341,23 +441,36 @@ def analyse(z: NDArray[np.floating] | Sequence[Sequence[float]], wavelet: str = 
     Multiresolution
     """
     name = wavelet_name(wavelet)
-    zz = as_heights(z)
+    # A plain Haar grid is validated by the extremes of its first level's strips,
+    # gathered while the transform reads them (as_heights is called if they fail).
+    fused = name == "haar" and _plain_grid(z)
+    zz: F64
+    if fused:
+        assert isinstance(z, np.ndarray)
+        zz, lo, hi = z.astype(np.float64, copy=False), np.nan, np.nan
+    else:
+        zz, lo, hi = _checked_heights(z)
     most = level_count(zz.shape, name)
     if levels is None:
         levels = most
     if isinstance(levels, bool) or not isinstance(levels, (int, np.integer)):
+        if fused:
+            _checked_heights(zz)  # a bad grid is reported before bad levels
         raise InvalidInputError("levels", f"must be an integer, got {levels!r}")
     if levels < 0 or levels > most:
+        if fused:
+            _checked_heights(zz)
         raise InvalidInputError(
             "levels", f"must be between 0 and {most} for a {zz.shape[0]} x {zz.shape[1]} "
             f"grid with the {name} wavelet, got {levels}")
-    approximations = [zz]
-    details: list[Bands] = []
-    cur = zz
-    for _ in range(int(levels)):
-        cur, bands = analysis_step(cur, name, lifted=lifted)
-        approximations.append(cur)
-        details.append(bands)
+    if name == "haar":
+        steps, (lo, hi) = _haar_steps(zz, int(levels), lifted, track=fused)
+        if fused and not _within_limits(lo, hi):
+            _checked_heights(zz)  # raises for a bad grid; passes when levels == 0
+    else:
+        steps = _hat_steps(zz, int(levels), lifted, max(-lo, hi))
+    approximations = [zz] + [ll for ll, _ in steps]
+    details = [bands for _, bands in steps]
     approximations.reverse()
     details.reverse()
     return Multiresolution(name, lifted, approximations, details)

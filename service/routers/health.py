@@ -49,6 +49,7 @@ async def get_readiness(store: StoreDep, pool: PoolDep, response: Response) -> R
 
 @router.get("/metrics", operation_id="get_metrics", summary="Prometheus metrics",
             response_class=Response,
-            responses={200: {"content": {"text/plain": {}}, "description": "Prometheus text"}})
+            responses={200: {"content": {"text/plain": {"schema": {"type": "string"}}},
+                            "description": "Prometheus text"}})
 async def get_metrics() -> Response:
     return Response(generate_latest(REGISTRY), media_type=CONTENT_TYPE_LATEST)

@@ -24,7 +24,7 @@ from service.schemas.plans import (
     ScanlineStageOut,
 )
 from service.tasks import serve_task
-from zwcore import Tool, ZMap, default_tools
+from zwcore import Tool, ZMap, default_tools, tool_library
 from zwcore.contour import plan_contour
 from zwcore.errors import LimitExceededError
 from zwcore.scanline import plan_scanline
@@ -57,11 +57,14 @@ def _pick(obj: Any, model: type[BaseModel], skip: tuple[str, ...] = ()) -> dict[
 
 
 def _tools(given: list[ToolIn] | None, kind: ToolKind, max_tools: int) -> list[Tool]:
+    """The validated library, largest first: the order a client lists tools in is not
+    part of the task (the planner sorts them anyway)."""
     if given is None:
         return list(default_tools(kind))
     if len(given) > max_tools:
         raise LimitExceededError("tools", f"{len(given)} tools exceed the limit of {max_tools}")
-    return [Tool(t.id, kind, t.diameter, t.flute_length) for t in given]
+    return list(tool_library([Tool(t.id, kind, t.diameter, t.flute_length) for t in given],
+                             kind))
 
 
 def _tool_params(tools: list[Tool]) -> list[list[Any]]:
@@ -95,10 +98,9 @@ def contour_result(zmap: ZMap, tools: list[Tool], stock_top: float | None, strat
         out["index"] = index
         if include_models:
             cx, cy = stage.cell_size
-            # A Haar cell's node sits at the centre of the block of input nodes it covers.
-            out["model"] = canonical_grid(
-                stage.model, x0=zmap.x0 + (cx - zmap.dx) / 2, y0=zmap.y0 + (cy - zmap.dy) / 2,
-                dx=cx, dy=cy, interpolation="cell")
+            ox, oy = stage.origin  # centre of the first cell's block of input nodes
+            out["model"] = canonical_grid(stage.model, x0=ox, y0=oy, dx=cx, dy=cy,
+                                          interpolation="cell")
         stages.append(out)
     return {"stock_top": plan.stock_top, "stock_top_source": plan.stock_top_source,
             "strategy": plan.strategy, "contour_spacings": _plain(plan.contour_spacings),

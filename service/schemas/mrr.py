@@ -30,7 +30,8 @@ class MrrLevel(BaseModel):
     containment_margin: float = Field(
         description="min over input nodes of this level minus the input, in the level's "
         "own interpolation; >= 0 means no overcut")
-    max_abs_detail: float = Field(description="largest |detail| refining this level; 0 at the input")
+    max_abs_detail: float = Field(
+        description="largest |detail| refining this level; 0 at the input")
     nonzero_details: int = Field(description="non-zero detail coefficients refining this level")
     grid: GridOut | None = None
 

@@ -27,14 +27,23 @@ class ScanlineStageOut(BaseModel):
     pick_feed: float = Field(description="distance between scan lines, mm")
     pick_feed_reduced: bool
     pick_feed_reason: str | None = None
+    scan_direction: Literal["x", "y"] = Field(description="scan lines run along this axis")
+    scan_lines: int = Field(description="number of scan lines at the pick-feed")
+    steepest_slope_deg: float = Field(description="steepest slope of the stage model")
     scallop_height: float = Field(description="predicted scallop at the pick-feed, mm")
     concave_radius: float | None = Field(
         description="smallest concave radius of the stage model, mm (null: no concave region)")
-    max_depth_of_cut: float
-    mean_depth_of_cut: float
+    max_depth_of_cut: float = Field(description="max of previous model minus this one, mm")
+    mean_depth_of_cut: float = Field(description="removed volume over the grid area, mm")
+    max_engagement: float = Field(
+        description="deepest flute engagement incl. the previous stage's scallops and rest, mm")
+    rest_height: float = Field(description="material the ball cannot reach in corners, mm")
     removed_volume: float = Field(description="mm³")
     max_stock_left: float = Field(description="max height over the part after the stage, mm")
-    passes: int
+    pass_index: int = Field(description="1-based pass of this tool at this level")
+    pass_count: int = Field(description="passes this tool makes at this level")
+    passes: int = Field(description="same as pass_count")
+    merged_levels: list[int] = Field(description="MRR levels that got this tool and merged")
     model: GridOut | None = None
 
 
@@ -47,6 +56,8 @@ class ScanlineChecksOut(BaseModel):
     tool_radii_non_increasing: bool
     finishing_tolerance_met: bool
     last_model_is_part: bool
+    tools_fit: bool = Field(description="informative: some library ball fits the sharpest "
+                            "concave corner (false: the finishing ball leaves rest there)")
 
 
 class ScanlinePlanResult(BaseModel):
@@ -67,8 +78,9 @@ class ContourPlanRequest(StrictModel):
         None, description="flat end mills; default: the shipped library (GET /v1/tools)")
     stock_top: FiniteFloat | None = Field(
         None, description="top of the stock, mm; default: part top + first tool's flute length")
-    strategy: Literal["uniform_load", "scallop"] = Field(
-        "uniform_load", description="uniform_load: equal slab volumes (the seed's method)")
+    strategy: Literal["uniform_load", "even_step"] = Field(
+        "uniform_load", description="uniform_load: equal slab volumes (the seed's method); "
+        "even_step: equal spacings")
     include_models: bool = Field(False, description="return each stage's terraced model")
 
 
@@ -78,6 +90,9 @@ class ContourStageOut(BaseModel):
     level: int
     cell_size: tuple[float, float] = Field(description="[x, y] size of a model cell, mm")
     level_rule: str
+    spacing_rule: str
+    nominal_step: float | None = Field(description="target slab volume or step the rule aimed at")
+    edited_coefficients: int = Field(description="Haar coefficients edited to make the terraces")
     z_levels: list[float] = Field(description="contour heights, descending, mm")
     spacings: list[float] = Field(description="distance between consecutive z_levels, mm")
     slab_volumes: list[float] = Field(description="volume each slab removes, mm³")

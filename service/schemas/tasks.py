@@ -6,7 +6,12 @@ from typing import Annotated
 
 from pydantic import Field
 
+from service.schemas.arcs import ArcsResult
 from service.schemas.mrr import MrrResult
+from service.schemas.plans import ContourPlanResult, ScanlinePlanResult
 
-# Each operation adds its result model here as it lands; `operation` tells them apart.
-TaskResult = Annotated[MrrResult, Field(discriminator=None)]
+# `operation` tells the results apart, so generated clients get a tagged union.
+TaskResult = Annotated[
+    MrrResult | ScanlinePlanResult | ContourPlanResult | ArcsResult,
+    Field(discriminator="operation"),
+]

@@ -1,0 +1,65 @@
+"""Time plan_scanline on 513², 1025², 2049² synthetic parts and on Mount Rushmore.
+
+Prints the per-phase breakdown (the plan's own timings) and the time ratios
+between sizes in the same run. Usage: ``python bench/bench_scanline_core.py``.
+"""
+
+from __future__ import annotations
+
+import pathlib
+import time
+
+import numpy as np
+
+from zwcore.scanline import plan_scanline
+from zwcore.zmap import ZMap
+
+DATA = pathlib.Path(__file__).resolve().parents[2] / "shared" / "data"
+
+
+def synthetic(n: int) -> ZMap:
+    """A 100 mm free-form part at any resolution: bumps, a fillet pocket, a wall."""
+    x = np.linspace(0.0, 100.0, n)
+    xx, yy = np.meshgrid(x, x)
+    z = 8.0 * np.sin(xx / 9.0) * np.cos(yy / 13.0) + 0.002 * (xx - 50.0) ** 2
+    pocket = np.hypot(xx - 60.0, yy - 40.0)
+    z = np.where(pocket < 15.0, np.minimum(z, -12.0 + 15.0 - np.sqrt(
+        np.maximum(15.0**2 - pocket**2, 0.0))), z)
+    z = np.where(xx > 85.0, z + 10.0, z)
+    step = 100.0 / (n - 1)
+    return ZMap(z, dx=step, dy=step)
+
+
+def run(name: str, zmap: ZMap, repeat: int = 3) -> float:
+    best = float("inf")
+    plan = None
+    for _ in range(repeat):
+        t = time.perf_counter()
+        plan = plan_scanline(zmap)
+        best = min(best, time.perf_counter() - t)
+    assert plan is not None
+    phases = ", ".join(f"{k} {v * 1e3:.0f}" for k, v in plan.timings)
+    print(f"{name:>22s} {zmap.shape[0]}x{zmap.shape[1]}: {best:.3f} s  "
+          f"[{phases} ms]  stages {len(plan.stages)}  tools {' > '.join(plan.tool_sequence)}  "
+          f"ok {plan.checks.ok}")
+    return best
+
+
+def main() -> None:
+    times = {n: run(f"synthetic {n}", synthetic(n)) for n in (513, 1025, 2049)}
+    print(f"ratios: 1025/513 {times[1025] / times[513]:.2f}, 2049/1025 "
+          f"{times[2049] / times[1025]:.2f} (cells x4 each)")
+    path = DATA / "mount_rush_zmap_0.1mm.npy"
+    if path.exists():
+        z = np.load(path).astype(np.float64)
+        rush = ZMap(z, x0=-40.958, y0=-24.696, dx=0.1, dy=0.1)
+        run("Mount Rushmore", rush)
+        plan = plan_scanline(rush)
+        print("Rushmore tool sequence:", plan.tool_sequence, "stages", len(plan.stages),
+              "stock_top", round(plan.stock_top, 4))
+        for n in plan.notes:
+            print("  note:", n)
+
+
+if __name__ == "__main__":
+    main()

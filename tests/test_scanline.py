@@ -1,0 +1,262 @@
+"""Scan-line plan: invariants on many surfaces, known answers, real data, bad input."""
+
+from __future__ import annotations
+
+import itertools
+import math
+import pathlib
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from tests.conftest import height_grids
+from zwcore.errors import InvalidInputError, PlanningError
+from zwcore.sampling import bilinear_at_fine_nodes
+from zwcore.scanline import ScanlinePlan, plan_scanline, scallop_height
+from zwcore.tools import Tool, default_tools
+from zwcore.zmap import ZMap
+
+DATA = pathlib.Path(__file__).resolve().parents[2] / "shared" / "data"
+BALLS = default_tools("ball")
+
+
+def _check_invariants(zmap: ZMap, plan: ScanlinePlan, tolerance: float) -> None:
+    """Recompute every invariant independently at the input nodes."""
+    part = zmap.z
+    assert plan.stages
+    assert plan.checks.ok, plan.checks
+    prev = np.full(part.shape, plan.stock_top)
+    leaves = 0.0
+    radii = []
+    for s in plan.stages:
+        assert s.model.dtype == np.float64
+        on = bilinear_at_fine_nodes(s.model, 1 << (plan.depth - s.level), part.shape)
+        cut = prev - on
+        assert cut.min() >= 0.0, "a stage lies above the previous one"
+        assert (on - part).min() >= 0.0, "a stage cuts into the part"
+        assert cut.max() + leaves <= s.tool.flute_length, "deeper than the flutes"
+        assert s.max_depth_of_cut == pytest.approx(cut.max(), abs=1e-9)
+        assert s.removed_volume >= 0.0 and s.mean_depth_of_cut >= 0.0
+        assert s.pick_feed > 0 and s.scallop_height >= 0 and s.scan_lines >= 2
+        assert s.pick_feed_reduced == (s.pick_feed_reason is not None)
+        assert s.pick_feed <= min(s.spacing) * (1 + 1e-12)
+        assert 1 <= s.pass_index <= s.pass_count
+        radii.append(s.tool.radius)
+        prev = on
+        leaves = s.scallop_height + s.rest_height
+    assert np.array_equal(plan.stages[-1].model, part)
+    assert all(a >= b for a, b in itertools.pairwise(radii))
+    assert plan.stages[-1].scallop_height <= tolerance
+    assert plan.stock_top >= part.max()
+    # Total removed volume is the stock over the part, by the trapezoid rule.
+    wy = np.ones(part.shape[0])
+    wy[[0, -1]] = 0.5
+    wx = np.ones(part.shape[1])
+    wx[[0, -1]] = 0.5
+    total = float(wy @ (plan.stock_top - part) @ wx) * zmap.cell_area
+    assert sum(s.removed_volume for s in plan.stages) == pytest.approx(total, rel=1e-9, abs=1e-9)
+    seq = [s.tool.id for s in plan.stages]
+    assert list(plan.tool_sequence) == [t for n, t in enumerate(seq) if n == 0 or seq[n - 1] != t]
+
+
+@st.composite
+def libraries(draw: st.DrawFn) -> list[Tool] | None:
+    if draw(st.booleans()):
+        return None
+    n = draw(st.integers(1, 4))
+    dias = draw(st.lists(st.floats(0.2, 30.0), min_size=n, max_size=n, unique=True))
+    return [Tool(f"T{k}", "ball", d, draw(st.floats(max(1.0, 0.5 * d), 40.0)))
+            for k, d in enumerate(dias)]
+
+
+@st.composite
+def hard_surfaces(draw: st.DrawFn) -> np.ndarray:
+    """Steps, spikes, steep walls and pockets deeper than the flute lengths."""
+    ny = draw(st.integers(2, 40))
+    nx = draw(st.integers(2, 40))
+    z = np.full((ny, nx), draw(st.floats(-20, 20)))
+    for _ in range(draw(st.integers(1, 4))):
+        kind = draw(st.sampled_from(["step", "spike", "wall", "pocket", "ramp"]))
+        i0 = draw(st.integers(0, ny - 1))
+        k0 = draw(st.integers(0, nx - 1))
+        i1 = draw(st.integers(i0, ny - 1))
+        k1 = draw(st.integers(k0, nx - 1))
+        h = draw(st.floats(-45, 45))
+        if kind == "step":
+            z[i0:, k0:] += h
+        elif kind == "spike":
+            z[i0, k0] += h
+        elif kind == "wall":
+            z[:, k0:] += abs(h)
+        elif kind == "pocket":
+            z[i0:i1 + 1, k0:k1 + 1] -= abs(h) + 40.0
+        else:
+            z += np.linspace(0, h, nx)[None, :]
+    return z
+
+
+@given(z=height_grids(max_side=17), dx=st.floats(0.05, 5.0), dy=st.floats(0.05, 5.0),
+       tools=libraries(), tol=st.floats(1e-4, 0.5))
+def test_invariants_on_random_grids(z: np.ndarray, dx: float, dy: float,
+                                    tools: list[Tool] | None, tol: float) -> None:
+    zmap = ZMap(z, dx=dx, dy=dy)
+    _check_invariants(zmap, plan_scanline(zmap, tools, tolerance=tol), tol)
+
+
+@settings(max_examples=80)
+@given(z=hard_surfaces(), d=st.floats(0.1, 4.0), tools=libraries(),
+       above=st.one_of(st.none(), st.floats(0.0, 60.0)))
+def test_invariants_on_steps_spikes_walls_pockets(z: np.ndarray, d: float,
+                                                  tools: list[Tool] | None,
+                                                  above: float | None) -> None:
+    zmap = ZMap(z, dx=d, dy=d)
+    stock = None if above is None else float(z.max()) + above
+    plan = plan_scanline(zmap, tools, tolerance=0.01, stock_top=stock)
+    _check_invariants(zmap, plan, 0.01)
+    assert plan.stock_top_source == ("default" if stock is None else "request")
+
+
+def test_deep_pocket_gets_extra_passes_not_violations() -> None:
+    z = np.zeros((65, 65))
+    z[20:45, 20:45] = -100.0  # far deeper than any flute in the library
+    zmap = ZMap(z, dx=0.5, dy=0.5)
+    plan = plan_scanline(zmap)
+    _check_invariants(zmap, plan, 0.01)
+    assert len(plan.stages) > len(plan.tool_sequence)
+    assert any(s.pass_count > 1 for s in plan.stages)
+    assert plan.checks.max_depth_over_flute <= 0.0
+
+
+def test_default_stock_is_top_plus_first_flute() -> None:
+    z = np.zeros((9, 9))
+    z[4, 4] = 3.0
+    plan = plan_scanline(ZMap(z))
+    first = plan.stages[0].tool
+    assert plan.stock_top == pytest.approx(3.0 + first.flute_length, abs=1e-9)
+    assert plan.stock_top <= 3.0 + first.flute_length
+    assert plan.stock_top_source == "default"
+
+
+def test_flat_part_single_stage() -> None:
+    plan = plan_scanline(ZMap(np.full((5, 5), 2.0)))
+    assert len(plan.stages) == 1
+    assert plan.tool_sequence == (BALLS[0].id,)
+    assert plan.stages[0].max_depth_of_cut == pytest.approx(BALLS[0].flute_length)
+
+
+# --------------------------------------------------------------------------
+# Known answers
+# --------------------------------------------------------------------------
+
+
+def _largest_within(r: float) -> Tool:
+    return next(t for t in BALLS if t.radius <= r)
+
+
+@pytest.mark.parametrize("r", [3.5, 7.0])
+def test_spherical_bowl_finished_with_largest_fitting_ball(r: float) -> None:
+    h = r / 70.0
+    half = r * np.sin(np.radians(55.0)) / np.sqrt(2.0)
+    x = np.arange(-half, half + 1e-9, h)
+    xx, yy = np.meshgrid(x, x)
+    zmap = ZMap(r - np.sqrt(r * r - xx**2 - yy**2), dx=h, dy=h)
+    plan = plan_scanline(zmap)
+    _check_invariants(zmap, plan, 0.01)
+    assert plan.stages[-1].tool == _largest_within(r)
+    assert plan.checks.tools_fit
+
+
+@pytest.mark.parametrize("wall_deg", [45.0, 60.0])
+def test_fillet_finished_with_largest_fitting_ball(wall_deg: float) -> None:
+    r, h = 7.0, 0.1
+    al = np.radians(wall_deg)
+    x = np.arange(0.0, 40.0, h)
+    xt = 10.0 + r * np.sin(al)
+    zt = r - r * np.cos(al)
+    prof = np.where(x < 10.0, 0.0,
+                    np.where(x < xt, r - np.sqrt(np.maximum(r * r - (x - 10.0) ** 2, 0.0)),
+                             zt + np.tan(al) * (x - xt)))
+    zmap = ZMap(np.tile(prof, (41, 1)), dx=h, dy=h)
+    plan = plan_scanline(zmap)
+    _check_invariants(zmap, plan, 0.01)
+    assert plan.stages[-1].tool == _largest_within(r)
+
+
+@pytest.mark.parametrize("tools", [None, [Tool("A", "ball", 6.0, 12.0),
+                                          Tool("B", "ball", 2.0, 4.0)]])
+def test_convex_dome_finished_with_largest_tool(tools: list[Tool] | None) -> None:
+    h = 0.25
+    x = np.arange(-30.0, 30.0 + 1e-9, h)
+    xx, yy = np.meshgrid(x, x)
+    zmap = ZMap(np.sqrt(50.0**2 - xx**2 - yy**2), dx=h, dy=h)
+    plan = plan_scanline(zmap, tools, tolerance=0.005)
+    _check_invariants(zmap, plan, 0.005)
+    largest = (BALLS if tools is None else tools)[0]
+    assert plan.stages[-1].tool.id == largest.id
+    assert plan.tool_sequence == (largest.id,)
+    last = plan.stages[-1]
+    # Steep flanks at the corners: the pick-feed is reduced to meet the tolerance.
+    slope = math.tan(math.radians(last.steepest_slope_deg))
+    assert last.scallop_height == pytest.approx(
+        scallop_height(last.pick_feed, slope, largest.radius))
+
+
+def test_finishing_pick_feed_reduced_on_steep_wall() -> None:
+    z = np.zeros((17, 17))
+    z[:, 8:] = 5.0  # a one-cell 78.7 degree wall
+    plan = plan_scanline(ZMap(z), tolerance=0.001)
+    last = plan.stages[-1]
+    assert last.pick_feed_reduced and last.pick_feed < 1.0
+    assert "steepest slope" in (last.pick_feed_reason or "")
+    assert last.scallop_height <= 0.001
+    assert any("no tool fits" in n for n in plan.notes)
+
+
+def test_scallop_formula() -> None:
+    assert scallop_height(2.0, 0.0, 5.0) == pytest.approx(5.0 - math.sqrt(24.0))
+    assert scallop_height(2.0, 1.0, 5.0) == pytest.approx(5.0 - math.sqrt(25.0 - 2.0))
+    assert scallop_height(20.0, 0.0, 5.0) == math.inf
+
+
+# --------------------------------------------------------------------------
+# Real data and bad input
+# --------------------------------------------------------------------------
+
+
+@pytest.mark.skipif(not (DATA / "mount_rush_zmap_0.1mm.npy").exists(), reason="no shared data")
+def test_mount_rushmore_downsampled() -> None:
+    z = np.load(DATA / "mount_rush_zmap_0.1mm.npy").astype(np.float64)[::2, ::2]
+    zmap = ZMap(z, x0=-40.958, y0=-24.696, dx=0.2, dy=0.2)
+    plan = plan_scanline(zmap)
+    _check_invariants(zmap, plan, 0.01)
+    high = plan_scanline(zmap, stock_top=float(z.max()) + 60.0)
+    _check_invariants(zmap, high, 0.01)
+
+
+@pytest.mark.parametrize("bad", [0.0, -1.0, math.nan, math.inf, "x"])
+def test_bad_tolerance(bad: object) -> None:
+    with pytest.raises(InvalidInputError) as err:
+        plan_scanline(ZMap(np.zeros((3, 3))), tolerance=bad)  # type: ignore[arg-type]
+    assert err.value.field == "tolerance"
+
+
+@pytest.mark.parametrize("bad", [math.nan, math.inf, 0.5])
+def test_bad_stock_top(bad: float) -> None:
+    with pytest.raises(InvalidInputError) as err:
+        plan_scanline(ZMap(np.ones((3, 3))), stock_top=bad)
+    assert err.value.field == "stock_top"
+
+
+def test_bad_tools() -> None:
+    with pytest.raises(InvalidInputError):
+        plan_scanline(ZMap(np.zeros((3, 3))), [])
+    with pytest.raises(InvalidInputError) as err:
+        plan_scanline(ZMap(np.zeros((3, 3))), [Tool("F", "flat", 4.0, 10.0)])
+    assert err.value.field.startswith("tools[0]")
+
+
+def test_too_many_passes_is_a_planning_error() -> None:
+    with pytest.raises(PlanningError):
+        plan_scanline(ZMap(np.zeros((3, 3))), [Tool("T", "ball", 1.0, 1.0)], stock_top=1e5)

@@ -1,0 +1,385 @@
+"""Fast kernels behind :func:`zwcore.wavelets.analyse` (private).
+
+Every function here computes *exactly* what the reference steps in
+:mod:`zwcore.wavelets` compute (``_haar_split``, ``_hat_split`` on an edge-padded
+grid): the same floating-point operations on the same operands in the same
+order, so the results are bit-identical (the tests check this). Only the
+schedule differs:
+
+- no padded copies: a level's padded last row/column is handled by pairing it
+  with itself, which is what edge padding means;
+- row strips: each strip's temporaries stay in cache, and per-strip outputs are
+  written straight into the result arrays;
+- Haar cache blocking: a Haar coarse row depends on exactly two finer rows, so
+  the ``ll`` rows a strip produces are fed to the next level while they are
+  still in cache (a pipeline over levels);
+- two threads over row bands (numpy releases the GIL inside ufuncs) for large
+  grids. Bands start on a multiple of ``2**k`` rows, so Haar bands stay
+  aligned through ``k`` levels; single-knot bands are computed level by level,
+  each strip reading the two rows of halo it needs.
+
+Arrays are float64 and C-contiguous.
+"""
+
+from __future__ import annotations
+
+import itertools
+import os
+import threading
+from collections.abc import Callable
+from concurrent.futures import Future, ThreadPoolExecutor
+
+import numpy as np
+from numpy.typing import NDArray
+
+F64 = NDArray[np.float64]
+
+#: Elements of a level's input processed per ufunc call (about 1 MiB), so a
+#: strip and its temporaries stay in the per-core cache.
+STRIP_ELEMENTS = 1 << 17
+#: Grids smaller than this (input nodes) stay single-threaded: below it the
+#: hand-off to a second thread costs more than it saves.
+THREAD_MIN_ELEMENTS = 1 << 18
+#: Fewest rows a Haar band may have at its last threaded step.
+MIN_BAND_ROWS = 16
+
+_pool: ThreadPoolExecutor | None = None
+_pool_lock = threading.Lock()
+
+
+def worker_count() -> int:
+    """Threads used for large grids: 2 when the machine has 2+ cores, else 1."""
+    return 2 if (os.cpu_count() or 1) >= 2 else 1
+
+
+def _executor() -> ThreadPoolExecutor:
+    global _pool
+    with _pool_lock:
+        if _pool is None:
+            _pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="zw-pyramid")
+        return _pool
+
+
+def _forget_pool() -> None:
+    # A forked child inherits the pool object but not its thread: start afresh.
+    global _pool, _pool_lock
+    _pool, _pool_lock = None, threading.Lock()
+
+
+os.register_at_fork(after_in_child=_forget_pool)
+
+
+def _run_both(first: Callable[[], object], second: Callable[[], object]) -> None:
+    """Run ``second`` on the helper thread and ``first`` here; re-raise errors."""
+    fut: Future[object] = _executor().submit(second)
+    try:
+        first()
+    finally:
+        fut.result()
+
+
+def _strip_rows(width: int) -> int:
+    """Even number of rows per strip for a level ``width`` nodes wide."""
+    rows = max(2, STRIP_ELEMENTS // max(width, 1))
+    return rows + (rows & 1)
+
+
+# --------------------------------------------------------------------------
+# Haar
+# --------------------------------------------------------------------------
+
+
+def _haar_pair(e: F64, o: F64, low: F64 | None, high: F64, lifted: bool) -> None:
+    """One Haar split of the pairs ``(e, o)``, as ``_haar_split`` computes it:
+    ``low = max(e, o)`` (lifted) or ``(e + o) * 0.5``; ``high = (e - o) * 0.5``.
+    Contiguous operands are passed as 1-D: numpy's 1-D loops are much faster
+    than its 2-D ones over the same elements."""
+    arrays = (e, o, high) if low is None else (e, o, low, high)
+    if all(a.flags.c_contiguous for a in arrays):
+        e, o, high = e.reshape(-1), o.reshape(-1), high.reshape(-1)
+        low = None if low is None else low.reshape(-1)
+    if low is not None:
+        if lifted:
+            np.maximum(e, o, out=low)
+        else:
+            np.add(e, o, out=low)
+            low *= 0.5
+    np.subtract(e, o, out=high)
+    high *= 0.5
+
+
+class _HaarLevel:
+    """One Haar step over one band of rows: the outputs, the strip scratch, and
+    how far the band has got."""
+
+    def __init__(self, fine: F64, out: tuple[F64, F64, F64, F64], rows: tuple[int, int],
+                 lifted: bool, track: bool = False) -> None:
+        self.fine = fine
+        self.ll, self.lh, self.hl, self.hh = out
+        self.lifted = lifted
+        self.start, self.stop = rows  # fine rows of this band
+        self.done = rows[0]
+        nx = fine.shape[1]
+        self.strip = _strip_rows(nx)
+        pairs = (min(self.strip, rows[1] - rows[0]) + 1) // 2
+        mx = (nx + 1) // 2
+        # z's four phases (even/odd row, even/odd column), then the x step's low
+        # and high outputs on even and odd rows: each contiguous, so the ufuncs
+        # run as flat 1-D loops.
+        self.phases = [np.empty((pairs, nx // 2)) for _ in range(4)]
+        self.xstep = [np.empty((pairs, mx)) for _ in range(4)]
+        # min and max of the fine rows seen (input validation), when tracked
+        self.track = track
+        self.extremes: list[float] = []
+
+    def run(self, r0: int, r1: int) -> None:
+        """Analyse fine rows ``[r0, r1)`` (``r0`` even; ``r1`` odd only at the
+        grid's last row, which is then paired with itself)."""
+        z = self.fine[r0:r1]
+        n, nx = z.shape
+        half = nx // 2
+        p, q = n // 2, (n + 1) // 2  # odd rows, even rows (= coarse rows)
+        if self.track:
+            self.extremes.append(float(z.min()))
+            if not self.lifted:  # lifted, the coarsest ll holds the max
+                self.extremes.append(float(z.max()))
+        ee, eo, oe, oo = (b[:q] for b in self.phases)
+        lo_e, lo_o, hi_e, hi_o = (b[:q] for b in self.xstep)
+        # x step on even rows and on odd rows: pairs (z[:, 2k], z[:, 2k+1]); an
+        # odd last column pairs with itself.
+        np.copyto(ee, z[0::2, 0:2 * half:2])
+        np.copyto(eo, z[0::2, 1:2 * half:2])
+        np.copyto(oe[:p], z[1::2, 0:2 * half:2])
+        np.copyto(oo[:p], z[1::2, 1:2 * half:2])
+        _haar_pair(ee, eo, lo_e[:, :half], hi_e[:, :half], self.lifted)
+        _haar_pair(oe[:p], oo[:p], lo_o[:p, :half], hi_o[:p, :half], self.lifted)
+        if nx % 2:
+            last_e, last_o = z[0::2, -1:], z[1::2, -1:]
+            _haar_pair(last_e, last_e, lo_e[:, -1:], hi_e[:, -1:], self.lifted)
+            _haar_pair(last_o, last_o, lo_o[:p, -1:], hi_o[:p, -1:], self.lifted)
+        if q > p:  # an odd last row pairs with itself
+            lo_o[p] = lo_e[p]
+            hi_o[p] = hi_e[p]
+        # y step: row pairs. hl and hh are never lifted.
+        c0 = r0 // 2
+        rows = slice(c0, c0 + q)
+        _haar_pair(lo_e, lo_o, self.ll[rows], self.lh[rows], self.lifted)
+        _haar_pair(hi_e, hi_o, self.hl[rows], self.hh[rows], False)
+        self.done = r1
+
+    def produced(self) -> int:
+        """Coarse rows written so far (absolute index, exclusive)."""
+        return (self.done + 1) // 2
+
+
+def _haar_band(levels: list[_HaarLevel]) -> None:
+    """Run a band through consecutive Haar steps as a pipeline: after each strip
+    of the finest step, every coarser step consumes the whole strips now
+    available, while they are still in cache."""
+    first = levels[0]
+    while first.done < first.stop:
+        first.run(first.done, min(first.done + first.strip, first.stop))
+        for finer, lev in itertools.pairwise(levels):
+            avail = finer.produced()
+            while lev.done < lev.stop:
+                end = min(lev.done + lev.strip, lev.stop)
+                if end > avail:
+                    break
+                lev.run(lev.done, end)
+
+
+def haar_pyramid(z: F64, steps: int, lifted: bool, track: bool = False,
+                 ) -> tuple[list[tuple[F64, F64, F64, F64]], tuple[float, float]]:
+    """``steps >= 1`` Haar analysis steps of ``z``.
+
+    Returns ``[(ll, lh, hl, hh), ...]`` from the finest step to the coarsest and,
+    when ``track``, ``(z.min(), z.max())`` (NaN if ``z`` holds one), gathered
+    while the strips are in cache; else ``(nan, nan)``.
+    """
+    shapes = [z.shape]
+    for _ in range(steps):
+        ny, nx = shapes[-1]
+        shapes.append(((ny + 1) // 2, (nx + 1) // 2))
+    out = [(np.empty(s), np.empty(s), np.empty(s), np.empty(s)) for s in shapes[1:]]
+    fines = [z] + [o[0] for o in out[:-1]]
+    first_steps: list[_HaarLevel] = []
+
+    def band(s0: int, s1: int, top: int, bottom: int) -> None:
+        """Steps ``[s0, s1)`` over the step-``s0`` rows ``[top, bottom)``."""
+        levels = []
+        for s in range(s0, s1):
+            k = s - s0
+            rows = (top >> k, -(-bottom // (1 << k)))  # top is a multiple of 2**k
+            levels.append(_HaarLevel(fines[s], out[s], rows, lifted, track and s == 0))
+        if s0 == 0:
+            first_steps.append(levels[0])
+        if track:  # a grid that fails validation may hold inf: no warnings for it
+            with np.errstate(all="ignore"):
+                _haar_band(levels)
+        else:
+            _haar_band(levels)
+
+    ny, nx = z.shape
+    done = 0
+    if worker_count() > 1 and ny * nx >= THREAD_MIN_ELEMENTS:
+        # Two bands split at a multiple of 2**k rows stay aligned for k steps;
+        # each band keeps at least MIN_BAND_ROWS rows at its last threaded step.
+        k = 0
+        while k < steps and (ny >> (k + 1)) >= 2 * MIN_BAND_ROWS:
+            k += 1
+        if k > 0:
+            split = (ny // 2) >> k << k
+            _run_both(lambda: band(0, k, 0, split), lambda: band(0, k, split, ny))
+            done = k
+    if done < steps:
+        band(done, steps, 0, shapes[done][0])
+    if not track:
+        return out, (np.nan, np.nan)
+    seen = [v for lev in first_steps for v in lev.extremes]
+    # The lifted coarsest level is the max over the grid, exactly (NaN included).
+    top = float(out[-1][0].max()) if lifted else float(np.max(seen))
+    return out, (float(np.min(seen)), top)
+
+
+# --------------------------------------------------------------------------
+# Single-knot
+# --------------------------------------------------------------------------
+
+
+def _hat_w(e0: F64, e1: F64, odd: F64, out: F64) -> None:
+    """``w = (e0 + e1) * -0.5 + odd``, the operations of ``_hat_split``."""
+    np.add(e0, e1, out=out)
+    out *= -0.5
+    out += odd
+
+
+class _HatLevel:
+    """One single-knot step: the grid, its outputs and the lift's guard."""
+
+    def __init__(self, z: F64, lifted: bool, guard: float) -> None:
+        self.z, self.lifted, self.guard = z, lifted, guard
+        ny, nx = z.shape
+        self.ny, self.nx = ny, nx
+        big_y, big_x = ny + 1 - ny % 2, nx + 1 - nx % 2  # padded to odd counts
+        self.big_y = big_y
+        self.my, self.mx = (big_y + 1) // 2, (big_x + 1) // 2
+        my, mx = self.my, self.mx
+        self.ll = np.empty((my, mx))
+        self.lh = np.empty((my - 1, mx))
+        self.hl = np.empty((my, mx - 1))
+        self.hh = np.empty((my - 1, mx - 1))
+        self.strip = _strip_rows(big_x) // 2  # coarse rows per strip
+
+    def band(self, c0: int, c1: int) -> tuple[float, float]:
+        """Coarse rows ``[c0, c1)`` strip by strip; returns the min and max of ``ll``
+        over them."""
+        rows = min(self.strip, c1 - c0)
+        fine = 2 * rows + 3  # 2 rows of halo above, the shared row below
+        mx = self.mx
+        scratch = {name: np.empty((fine, width)) for name, width in
+                   (("e", mx), ("hi", mx - 1), ("lo", mx), ("wg", mx - 1))}
+        scratch["wgy"] = np.empty((rows + 1, mx))
+        scratch["lift"] = np.empty((rows, mx))
+        lo_v, hi_v = np.inf, -np.inf
+        for s0 in range(c0, c1, rows):
+            s1 = min(s0 + rows, c1)
+            self._strip(s0, s1, scratch)
+            part = self.ll[s0:s1]
+            lo_v = min(lo_v, float(part.min()))
+            hi_v = max(hi_v, float(part.max()))
+        return lo_v, hi_v
+
+    def _strip(self, c0: int, c1: int, scratch: dict[str, F64]) -> None:
+        z, ny, nx, my, guard = self.z, self.ny, self.nx, self.my, self.guard
+        # Fine rows [f0, f1) of the padded grid: coarse row i is fine row 2i and its
+        # lift needs w_{i-1} and w_i, i.e. fine rows 2i-2 .. 2i+2.
+        f0 = max(0, 2 * c0 - 2)
+        f1 = min(2 * c1 + 1, self.big_y)
+        n = f1 - f0
+        real = min(f1, ny) - f0  # rows of z; a padded last row repeats row ny-1
+        zr = z[f0:f0 + real]
+        # x step on every row: even columns (the padded last one repeats column nx-1)
+        e, hi = scratch["e"][:n], scratch["hi"][:n]
+        np.copyto(e[:real, :(nx + 1) // 2], zr[:, 0::2])
+        if nx % 2 == 0:
+            e[:real, -1] = zr[:, -1]
+        _hat_w(e[:real, :-1], e[:real, 1:], zr[:, 1::2], hi[:real])
+        if self.lifted:
+            lo = scratch["lo"][:n]
+            wg = scratch["wg"][:real]
+            np.add(hi[:real], guard, out=wg)
+            # lift = max(guard, w_{k-1} + guard, w_k + guard), then lo = even + lift
+            np.maximum(wg, guard, out=lo[:real, :-1])
+            lo[:real, -1] = guard
+            np.maximum(lo[:real, 1:], wg, out=lo[:real, 1:])
+            lo[:real] += e[:real]
+        else:
+            lo = e
+        if real < n:  # the padded row
+            lo[real] = lo[real - 1]
+            hi[real] = hi[real - 1]
+        # y step. Local even rows are coarse rows g0 .. ; w rows g0 .. too.
+        g0 = f0 // 2
+        lo_e, lo_o, hi_e, hi_o = lo[0::2], lo[1::2], hi[0::2], hi[1::2]
+        a, b = c0 - g0, c1 - g0  # local indices of the strip's coarse rows
+        nh = min(c1, my - 1) - c0  # w rows written by this strip
+        _hat_w(lo_e[a:a + nh], lo_e[a + 1:a + nh + 1], lo_o[a:a + nh], self.lh[c0:c0 + nh])
+        np.copyto(self.hl[c0:c1], hi_e[a:b])
+        _hat_w(hi_e[a:a + nh], hi_e[a + 1:a + nh + 1], hi_o[a:a + nh], self.hh[c0:c0 + nh])
+        if not self.lifted:
+            np.copyto(self.ll[c0:c1], lo_e[a:b])
+            return
+        # lift_i = max(guard, w_{i-1} + guard, w_i + guard) over the w that exist
+        halo = 1 if c0 > 0 else 0
+        wgy = scratch["wgy"][:halo + nh]
+        if halo:
+            _hat_w(lo_e[0:1], lo_e[1:2], lo_o[0:1], wgy[0:1])
+            wgy[0:1] += guard
+        np.add(self.lh[c0:c0 + nh], guard, out=wgy[halo:])
+        lift = scratch["lift"][:b - a]
+        lift.fill(guard)
+        np.maximum(lift[:nh], wgy[halo:], out=lift[:nh])
+        t = 1 - halo  # row 0 has no w_{-1}
+        np.maximum(lift[t:], wgy[:b - a - t], out=lift[t:])
+        np.add(lo_e[a:b], lift, out=self.ll[c0:c1])
+
+
+def hat_step(z: F64, lifted: bool, guard: float,
+             ) -> tuple[F64, F64, F64, F64, float, float]:
+    """One single-knot analysis step of ``z``: ``(ll, lh, hl, hh, min, max)``, the
+    last two over ``ll`` (the next level's guard needs them)."""
+    lev = _HatLevel(z, lifted, guard)
+    my = lev.my
+    threaded = worker_count() > 1 and z.size >= THREAD_MIN_ELEMENTS and my >= 4 * lev.strip
+    if threaded:
+        split = my // 2
+        res: list[tuple[float, float]] = []
+        _run_both(lambda: res.append(lev.band(0, split)),
+                  lambda: res.append(lev.band(split, my)))
+        lo_v, hi_v = min(r[0] for r in res), max(r[1] for r in res)
+    else:
+        lo_v, hi_v = lev.band(0, my)
+    return lev.ll, lev.lh, lev.hl, lev.hh, lo_v, hi_v
+
+
+def extremes(z: F64) -> tuple[float, float]:
+    """``(z.min(), z.max())`` (NaN if ``z`` holds one), strip by strip so each
+    strip is read from memory once, on two threads for large grids."""
+
+    def part(r0: int, r1: int, res: list[tuple[float, float]]) -> None:
+        rows = max(1, STRIP_ELEMENTS // z.shape[1])
+        lo, hi = [], []
+        for s in range(r0, r1, rows):
+            strip = z[s:min(s + rows, r1)]
+            lo.append(strip.min())
+            hi.append(strip.max())
+        res.append((float(np.min(lo)), float(np.max(hi))))
+
+    ny = z.shape[0]
+    res: list[tuple[float, float]] = []
+    if worker_count() > 1 and z.size >= THREAD_MIN_ELEMENTS and ny >= 2:
+        split = ny // 2
+        _run_both(lambda: part(0, split, res), lambda: part(split, ny, res))
+    else:
+        part(0, ny, res)
+    return float(np.min([r[0] for r in res])), float(np.max([r[1] for r in res]))

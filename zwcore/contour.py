@@ -1,0 +1,465 @@
+"""The contour plan: flat end mills, waterline roughing and semi-finishing
+(design section 4; seed 000, sections 5.2 and 6.3, Fig. 7 and 8).
+
+Pipeline:
+
+1. Lifted Haar MRR of the part: level ``j`` holds block maxima, so every
+   level model contains the part (design 2).
+2. Each tool works at the finest level whose cell is at least its diameter, so
+   every region of the stage model is wide enough for it. Tools that land on
+   the same level are redundant: the largest is kept.
+3. Heavy roughing (first, largest tool): evenly spaced contour heights from the
+   stock top down to the lowest point of its level model, the fewest slabs no
+   thicker than the flute length.
+4. Later stages: contour heights between the previous stage model and the own
+   level model such that every slab removes the same volume (``uniform_load``),
+   or evenly spaced (``even_step``). The slab count aims at a nominal step-down
+   of ``min(diameter, flute length)`` (an axial depth of about one diameter, the
+   usual limit for solid-carbide end mills in full engagement); no spacing
+   exceeds the flute length, and a slab the cap would exceed is split evenly.
+5. The stage model is the level model terraced up to the contour heights,
+   produced by editing the Haar coefficients and synthesising
+   (:mod:`zwcore.terraces`).
+
+Models use ``cell`` semantics: a level-``j`` value is a flat cell over a
+``2**s x 2**s`` block of input nodes (``s = J - j``), and models are compared at
+every input node.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+from typing import Literal
+
+import numpy as np
+from numpy.typing import NDArray
+
+from zwcore.contour_heights import (
+    QUANTUM,
+    SlabVolumes,
+    ceil_units,
+    even_heights,
+    floor_units,
+    place_equal_volume,
+    removed_between,
+    volume_spread,
+)
+from zwcore.errors import InvalidInputError
+from zwcore.sampling import cells_at_fine_nodes
+from zwcore.terraces import cell_weights, edit_coefficients, terrace
+from zwcore.tools import Tool, default_tools, tool_library
+from zwcore.wavelets import analyse
+from zwcore.zmap import MAX_ABS_HEIGHT, ZMap
+
+__all__ = [
+    "STRATEGIES",
+    "VOLUME_SPREAD_LIMIT",
+    "ContourChecks",
+    "ContourPlan",
+    "ContourStage",
+    "level_for_tool",
+    "plan_contour",
+]
+
+F64 = NDArray[np.float64]
+Strategy = Literal["uniform_load", "even_step"]
+
+#: ``uniform_load``: the seed's equal-volume heights (default). ``even_step``:
+#: a constant step-down per stage, as most CAM systems offer.
+STRATEGIES: tuple[Strategy, ...] = ("uniform_load", "even_step")
+
+#: Largest accepted spread of equal-volume slabs (``max/min - 1``) for ``ok``.
+VOLUME_SPREAD_LIMIT = 0.10
+
+# Relative tolerance for "cell at least the diameter" (0.1 mm x 64 vs 6.4 mm).
+_SIZE_RTOL = 1e-12
+
+
+@dataclass(frozen=True, eq=False)
+class ContourStage:
+    """One stage of a contour plan.
+
+    Attributes
+    ----------
+    tool : Tool
+    level : int
+        MRR level the stage works at (0 = coarsest).
+    scale : int
+        Input nodes per model cell along an axis, ``2**(J - level)``.
+    cell_size : (float, float)
+        Cell size ``(x, y)`` in mm.
+    origin : (float, float)
+        Centre of model cell ``(0, 0)``: the stage grid's ``(x0, y0)``.
+    level_rule : str
+        Why this level, in words.
+    spacing_rule : {"even_flute", "equal_volume", "even_step"}
+        How the heights were placed: heavy roughing (fewest slabs within the
+        flute length), equal slab volumes, or a constant step-down.
+    nominal_step : float
+        Step-down that set the slab count, mm.
+    z_levels : tuple of float
+        Contour heights, descending; the first is the top of the stock the
+        stage starts from, each later one is a waterline pass.
+    spacings : tuple of float
+        ``z_levels[i] - z_levels[i + 1]``.
+    slab_volumes : tuple of float
+        Volume each slab really removes (between the previous and this model,
+        inside the slab), mm³.
+    volume_spread : float
+        ``max/min - 1`` of the slab volumes where the flute cap does not bind.
+    flute_cap_binds : tuple of bool
+        Per slab: the flute length, not the volume target, set it, which exempts
+        it from equal volume: heavy-roughing slabs when the range needs more
+        than one flute length; the even pieces of a would-be slab thicker than
+        the flute; a last slab that could not remove the target volume even if
+        it were a full flute length thick (too little area at the bottom).
+    removed_volume : float
+        Sum of the slab volumes, mm³.
+    max_stock_left, mean_stock_left : float
+        Stock over the part after the stage, over the input nodes, mm.
+    edited_coefficients : int
+        Haar coefficients edited to produce the terraces.
+    model : (my, mx) float64
+        Terrace heights, one flat cell per node at the stage level.
+    """
+
+    tool: Tool
+    level: int
+    scale: int
+    cell_size: tuple[float, float]
+    origin: tuple[float, float]
+    level_rule: str
+    spacing_rule: str
+    nominal_step: float
+    z_levels: tuple[float, ...]
+    spacings: tuple[float, ...]
+    slab_volumes: tuple[float, ...]
+    volume_spread: float
+    flute_cap_binds: tuple[bool, ...]
+    removed_volume: float
+    max_stock_left: float
+    mean_stock_left: float
+    edited_coefficients: int
+    model: F64
+
+
+@dataclass(frozen=True)
+class ContourChecks:
+    """The invariants of design section 4, verified on the plan.
+
+    Attributes
+    ----------
+    containment : bool
+        Every stage model contains the next and the last contains the part, at
+        every input node.
+    min_containment_margin : float
+        Smallest of those differences, mm (>= 0 when ``containment``).
+    spacings_within_flute : bool
+        No spacing exceeds its stage tool's flute length.
+    spacings_positive : bool
+    max_volume_spread : float
+        Largest ``volume_spread`` of the equal-volume stages.
+    volumes_add_up : bool
+        Each stage's slab volumes add up to the volume between its models,
+        summed independently over the input nodes.
+    terraces_from_coefficients : bool
+        Synthesis of every stage's edited coefficients reproduced its terraces
+        bit for bit.
+    """
+
+    containment: bool
+    min_containment_margin: float
+    spacings_within_flute: bool
+    spacings_positive: bool
+    max_volume_spread: float
+    volumes_add_up: bool
+    terraces_from_coefficients: bool
+
+    @property
+    def ok(self) -> bool:
+        return (self.containment and self.spacings_within_flute and self.spacings_positive
+                and self.max_volume_spread <= VOLUME_SPREAD_LIMIT and self.volumes_add_up
+                and self.terraces_from_coefficients)
+
+
+@dataclass(frozen=True, eq=False)
+class ContourPlan:
+    """A contour plan.
+
+    Attributes
+    ----------
+    stock_top : float
+        Top of the stock, mm (as requested, or the default).
+    stock_top_source : {"request", "default"}
+    strategy : str
+    stages : tuple of ContourStage
+        In machining order.
+    contour_spacings : tuple of float
+        Every spacing of every stage, in machining order.
+    checks : ContourChecks
+    notes : tuple of str
+        Rules applied and decisions taken, in words.
+    """
+
+    stock_top: float
+    stock_top_source: Literal["request", "default"]
+    strategy: str
+    stages: tuple[ContourStage, ...]
+    contour_spacings: tuple[float, ...]
+    checks: ContourChecks
+    notes: tuple[str, ...]
+
+
+def _strategy(name: str) -> Strategy:
+    key = str(name).strip().lower().replace("-", "_")
+    for s in STRATEGIES:
+        if key == s:
+            return s
+    raise InvalidInputError("strategy", f"unknown strategy {name!r}; valid: "
+                            f"{', '.join(STRATEGIES)}")
+
+
+def level_for_tool(tool: Tool, depth: int, dx: float, dy: float) -> tuple[int, str]:
+    """The finest level whose cell is at least the tool's diameter.
+
+    Parameters
+    ----------
+    tool : Tool
+    depth : int
+        ``J``, the input's level.
+    dx, dy : float
+        Input node spacing, mm.
+
+    Returns
+    -------
+    level : int
+    rule : str
+        The rule in words, with the cell size. When even the coarsest cell
+        (which covers the whole part) is narrower than the tool, the coarsest
+        level is used and the rule says so.
+    """
+    need = tool.diameter * (1.0 - _SIZE_RTOL)
+    for j in range(depth, -1, -1):
+        s = 1 << (depth - j)
+        cx, cy = dx * s, dy * s
+        if min(cx, cy) >= need:
+            return j, (f"finest level whose cell ({cx:g} x {cy:g} mm) is at least the tool "
+                       f"diameter ({tool.diameter:g} mm)")
+    s = 1 << depth
+    return 0, (f"coarsest level (cell {dx * s:g} x {dy * s:g} mm): no level's cell reaches "
+               f"the tool diameter ({tool.diameter:g} mm); the whole part is one cell")
+
+
+def _stock_top(value: float | None, part_top: float, first: Tool,
+               ) -> tuple[float, Literal["request", "default"], str]:
+    if value is None:
+        top = part_top + first.flute_length
+        return top, "default", (f"stock_top defaults to the part's highest point "
+                                f"({part_top:g} mm) plus the first tool's flute length "
+                                f"({first.flute_length:g} mm): {top:g} mm")
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise InvalidInputError("stock_top", f"must be a number, got {value!r}") from None
+    if not math.isfinite(v):
+        raise InvalidInputError("stock_top", f"must be finite, got {value!r}")
+    if abs(v) > MAX_ABS_HEIGHT:
+        raise InvalidInputError("stock_top", f"must lie within ±{MAX_ABS_HEIGHT:g} mm, got {v!r}")
+    if v < part_top:
+        raise InvalidInputError("stock_top", f"must be at or above the part's highest point "
+                                f"({part_top!r} mm), got {v!r}")
+    return v, "request", f"stock_top {v:g} mm as requested"
+
+
+def _select(tools: Sequence[Tool], depth: int, dx: float, dy: float,
+            ) -> tuple[list[tuple[Tool, int, str]], list[str]]:
+    """Keep the largest tool per level (the library is sorted largest first)."""
+    kept: dict[int, tuple[Tool, int, str]] = {}
+    notes = []
+    for tool in tools:
+        j, rule = level_for_tool(tool, depth, dx, dy)
+        if j in kept:
+            notes.append(f"{tool.id} not used: it lands on level {j} with {kept[j][0].id}, "
+                         f"and the largest tool on a level is kept")
+            continue
+        kept[j] = (tool, j, rule)
+    return sorted(kept.values(), key=lambda t: t[1]), notes
+
+
+@dataclass
+class _Heights:
+    units: list[int]
+    capped: list[bool]
+    rule: str
+    nominal: float
+
+
+def _heights(k: int, strategy: Strategy, tool: Tool, level_model: F64, previous: F64,
+             weight: F64) -> _Heights:
+    """Contour heights of one stage, in units of QUANTUM (descending)."""
+    cut = level_model < previous
+    if not cut.any():  # the previous model already is this level's model here
+        return _Heights([], [], "even_flute" if k == 0 else strategy, tool.flute_length)
+    lower, upper = level_model[cut], previous[cut]
+    top_u = floor_units(float(upper.max()))  # previous heights are on the quantum grid
+    bottom_u = ceil_units(float(lower.min()))
+    cap_u = max(1, floor_units(tool.flute_length))
+    span = top_u - bottom_u
+    if k == 0:
+        n = -(-span // cap_u)
+        return _Heights(even_heights(top_u, bottom_u, n) if n else [top_u],
+                        [n > 1] * n, "even_flute", tool.flute_length)
+    nominal = min(tool.flute_length, tool.diameter)
+    step_u = max(1, floor_units(nominal))
+    n = max(1, -(-span // step_u))
+    if span <= 0:
+        return _Heights([top_u], [], strategy, nominal)
+    if strategy == "even_step":
+        return _Heights(even_heights(top_u, bottom_u, n), [False] * n, "even_step", nominal)
+    sv = SlabVolumes(lower, upper, weight[cut])
+    res = place_equal_volume(sv, top_u, bottom_u, cap_u, n)
+    return _Heights(res.heights, res.capped, "equal_volume", nominal)
+
+
+def plan_contour(zmap: ZMap, tools: Sequence[Tool] | None = None, *,
+                 stock_top: float | None = None, strategy: str = "uniform_load",
+                 timings: dict[str, float] | None = None) -> ContourPlan:
+    """Plan waterline roughing and semi-finishing with flat end mills.
+
+    Parameters
+    ----------
+    zmap : ZMap
+        The finished part, ``(ny, nx)`` heights.
+    tools : sequence of Tool, optional
+        Flat end mills (default: the shipped library). Sorted largest first; the
+        largest tool per level is used.
+    stock_top : float, optional
+        Top of the stock, at or above the part's highest point (default: that
+        point plus the first tool's flute length).
+    strategy : {"uniform_load", "even_step"}
+        Height placement of the stages after heavy roughing.
+    timings : dict, optional
+        When given, receives the seconds spent per phase (``mrr``, ``heights``,
+        ``terraces``, ``checks``).
+
+    Returns
+    -------
+    ContourPlan
+
+    Raises
+    ------
+    InvalidInputError
+        Unknown strategy, bad stock top, bad tool library.
+    """
+    t0 = time.perf_counter()
+    strat = _strategy(strategy)
+    lib = default_tools("flat") if tools is None else tool_library(tools, "flat")
+    if not isinstance(zmap, ZMap):
+        raise InvalidInputError("grid", "must be a ZMap")
+    z = zmap.z
+    part_top = float(z.max())
+    top, source, top_note = _stock_top(stock_top, part_top, lib[0])
+    mrr = analyse(z, "haar")
+    depth = mrr.depth
+    chosen, notes = _select(lib, depth, zmap.dx, zmap.dy)
+    notes = [top_note, *notes]
+    phase = {"mrr": time.perf_counter() - t0, "heights": 0.0, "terraces": 0.0, "checks": 0.0}
+
+    stages: list[ContourStage] = []
+    exact_flags: list[bool] = []
+    prev_model: F64 | None = None
+    prev_level = 0
+    top_q = ceil_units(top) * QUANTUM
+    for k, (tool, j, rule) in enumerate(chosen):
+        t1 = time.perf_counter()
+        level_model = mrr.approximations[j]
+        s = mrr.scale(j)
+        weight = cell_weights(level_model.shape, s, z.shape, zmap.cell_area)
+        if prev_model is None:
+            previous = np.full(level_model.shape, top_q)
+        else:
+            previous = cells_at_fine_nodes(prev_model, 1 << (j - prev_level), level_model.shape)
+        h = _heights(k, strat, tool, level_model, previous, weight)
+        z_levels = np.array(h.units, dtype=np.float64) * QUANTUM
+        t2 = time.perf_counter()
+        target = terrace(level_model, previous, z_levels)
+        edited = edit_coefficients(mrr, j, target)
+        model = edited.synthesize(mrr)
+        exact = bool(model.shape == target.shape and np.array_equal(model, target))
+        vols = removed_between(previous.ravel(), model.ravel(), weight.ravel(), z_levels)
+        t3 = time.perf_counter()
+        stages.append(ContourStage(
+            tool=tool, level=j, scale=s, cell_size=(zmap.dx * s, zmap.dy * s),
+            origin=(zmap.x0 + 0.5 * (s - 1) * zmap.dx, zmap.y0 + 0.5 * (s - 1) * zmap.dy),
+            level_rule=rule, spacing_rule=h.rule, nominal_step=float(h.nominal),
+            z_levels=tuple(float(v) for v in z_levels),
+            spacings=tuple(float(v) for v in (z_levels[:-1] - z_levels[1:])),
+            slab_volumes=tuple(float(v) for v in vols),
+            volume_spread=volume_spread(vols, h.capped),
+            flute_cap_binds=tuple(bool(c) for c in h.capped), removed_volume=float(vols.sum()),
+            max_stock_left=0.0, mean_stock_left=0.0,
+            edited_coefficients=edited.edited, model=model))
+        exact_flags.append(exact)
+        phase["heights"] += t2 - t1
+        phase["terraces"] += t3 - t2
+        prev_model, prev_level = model, j
+
+    t4 = time.perf_counter()
+    stages, checks = _check(zmap, stages, exact_flags, top_q)
+    phase["checks"] = time.perf_counter() - t4
+    if timings is not None:
+        timings.update(phase)
+    if chosen and chosen[-1][1] < depth:
+        last = stages[-1]
+        notes.append(f"the smallest tool works at level {last.level} (cell "
+                     f"{last.cell_size[0]:g} x {last.cell_size[1]:g} mm); up to "
+                     f"{last.max_stock_left:g} mm of stock is left for finishing")
+    if len(stages) > 1:
+        notes.append(
+            "after heavy roughing, each stage aims at a step-down of min(diameter, flute "
+            "length) and places its heights " + ("for equal slab volumes (uniform load)"
+                                                 if strat == "uniform_load" else "evenly"))
+    notes.append(f"contour heights lie on a {QUANTUM:g} mm grid, rounded up (never into the "
+                 f"part), so the edited Haar coefficients synthesise the terraces exactly")
+    return ContourPlan(
+        stock_top=top, stock_top_source=source, strategy=strat, stages=tuple(stages),
+        contour_spacings=tuple(sp for st in stages for sp in st.spacings), checks=checks,
+        notes=tuple(notes))
+
+
+def _check(zmap: ZMap, stages: list[ContourStage], exact: list[bool], top_q: float,
+           ) -> tuple[list[ContourStage], ContourChecks]:
+    """Verify the invariants at every input node and fill in the stock left."""
+    z = zmap.z
+    prev_fine: F64 | None = None
+    margin = math.inf
+    add_up = True
+    out = []
+    for st in stages:
+        fine = cells_at_fine_nodes(st.model, st.scale, z.shape)
+        if prev_fine is None:
+            between = float((top_q - fine).sum()) * zmap.cell_area
+        else:
+            margin = min(margin, float((prev_fine - fine).min()))
+            between = float((prev_fine - fine).sum()) * zmap.cell_area
+        scale = max(abs(between), float(np.abs(fine).max()) * zmap.cell_area * z.size, 1.0)
+        add_up &= abs(st.removed_volume - between) <= 1e-9 * scale
+        left = fine - z
+        margin = min(margin, float(left.min()))
+        out.append(replace(st, max_stock_left=float(left.max()),
+                           mean_stock_left=float(left.mean())))
+        prev_fine = fine
+    spacings = [(sp, st.tool.flute_length) for st in out for sp in st.spacings]
+    spreads = [st.volume_spread for st in out if st.spacing_rule == "equal_volume"]
+    checks = ContourChecks(
+        containment=bool(margin >= 0.0),
+        min_containment_margin=float(margin) if math.isfinite(margin) else 0.0,
+        spacings_within_flute=all(sp <= fl for sp, fl in spacings),
+        spacings_positive=all(sp > 0.0 for sp, _ in spacings),
+        max_volume_spread=max(spreads, default=0.0),
+        volumes_add_up=bool(add_up),
+        terraces_from_coefficients=all(exact))
+    return out, checks
