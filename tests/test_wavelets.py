@@ -186,17 +186,18 @@ def _assert_bitwise_equal(z: np.ndarray, wavelet: str, lifted: bool) -> None:
 @contextlib.contextmanager
 def _tiny_strips_and_threads() -> Iterator[None]:
     """Force the fast path's every branch onto small grids: 2-row strips (so the
-    Haar pipeline runs strip by strip across levels), two threads from 0 nodes,
-    Haar bands down to 2 rows."""
+    Haar pipeline runs strip by strip across levels), two threads from 0 nodes
+    sharing 3 bands, Haar bands down to 2 rows."""
     saved = (_pyramid.STRIP_ELEMENTS, _pyramid.THREAD_MIN_ELEMENTS, _pyramid.MIN_BAND_ROWS,
-             _pyramid.worker_count)
-    _pyramid.STRIP_ELEMENTS, _pyramid.THREAD_MIN_ELEMENTS, _pyramid.MIN_BAND_ROWS = 1, 0, 1
+             _pyramid.BANDS, _pyramid.worker_count)
+    (_pyramid.STRIP_ELEMENTS, _pyramid.THREAD_MIN_ELEMENTS, _pyramid.MIN_BAND_ROWS,
+     _pyramid.BANDS) = 1, 0, 1, 3
     _pyramid.worker_count = lambda: 2
     try:
         yield
     finally:
         (_pyramid.STRIP_ELEMENTS, _pyramid.THREAD_MIN_ELEMENTS, _pyramid.MIN_BAND_ROWS,
-         _pyramid.worker_count) = saved
+         _pyramid.BANDS, _pyramid.worker_count) = saved
 
 
 @pytest.mark.parametrize("wavelet", WAVELETS)

@@ -13,10 +13,11 @@ schedule differs:
 - Haar cache blocking: a Haar coarse row depends on exactly two finer rows, so
   the ``ll`` rows a strip produces are fed to the next level while they are
   still in cache (a pipeline over levels);
-- two threads over row bands (numpy releases the GIL inside ufuncs) for large
-  grids. Bands start on a multiple of ``2**k`` rows, so Haar bands stay
-  aligned through ``k`` levels; single-knot bands are computed level by level,
-  each strip reading the two rows of halo it needs.
+- two threads (numpy releases the GIL inside ufuncs) taking row bands in turn,
+  for large grids. Haar bands start on a multiple of ``2**k`` rows, so they
+  stay aligned through ``k`` levels; single-knot bands are computed level by
+  level (each level's guard needs the previous level's extremes), each strip
+  reading the two rows of halo it needs.
 
 Arrays are float64 and C-contiguous.
 """
@@ -26,8 +27,9 @@ from __future__ import annotations
 import itertools
 import os
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
+from functools import partial
 
 import numpy as np
 from numpy.typing import NDArray
@@ -40,6 +42,8 @@ STRIP_ELEMENTS = 1 << 17
 #: Grids smaller than this (input nodes) stay single-threaded: below it the
 #: hand-off to a second thread costs more than it saves.
 THREAD_MIN_ELEMENTS = 1 << 18
+#: Row bands a large grid is cut into for the two threads to share.
+BANDS = 8
 #: Fewest rows a Haar band may have at its last threaded step.
 MIN_BAND_ROWS = 16
 
@@ -69,13 +73,36 @@ def _forget_pool() -> None:
 os.register_at_fork(after_in_child=_forget_pool)
 
 
-def _run_both(first: Callable[[], object], second: Callable[[], object]) -> None:
-    """Run ``second`` on the helper thread and ``first`` here; re-raise errors."""
-    fut: Future[object] = _executor().submit(second)
+def _run_shared(tasks: Sequence[Callable[[], object]]) -> None:
+    """Run independent tasks on this thread and the helper thread, each taking
+    the next unclaimed task; re-raise the first error. Claiming (rather than a
+    fixed half each) keeps both threads busy when one of them gets less CPU."""
+    lock = threading.Lock()
+    todo = iter(tasks)
+
+    def drain() -> None:
+        while True:
+            with lock:
+                task = next(todo, None)
+            if task is None:
+                return
+            task()
+
+    if len(tasks) < 2:
+        drain()
+        return
+    fut: Future[None] = _executor().submit(drain)
     try:
-        first()
+        drain()
     finally:
         fut.result()
+
+
+def _bands(n: int, parts: int, align: int) -> list[tuple[int, int]]:
+    """``[start, stop)`` ranges covering ``range(n)`` in about ``parts`` pieces,
+    every start a multiple of ``align``."""
+    size = -(-n // (parts * align)) * align  # ceil(n / parts), rounded up to align
+    return [(a, min(a + size, n)) for a in range(0, n, size)]
 
 
 def _strip_rows(width: int) -> int:
@@ -89,21 +116,18 @@ def _strip_rows(width: int) -> int:
 # --------------------------------------------------------------------------
 
 
-def _haar_pair(e: F64, o: F64, low: F64 | None, high: F64, lifted: bool) -> None:
+def _haar_pair(e: F64, o: F64, low: F64, high: F64, lifted: bool) -> None:
     """One Haar split of the pairs ``(e, o)``, as ``_haar_split`` computes it:
     ``low = max(e, o)`` (lifted) or ``(e + o) * 0.5``; ``high = (e - o) * 0.5``.
     Contiguous operands are passed as 1-D: numpy's 1-D loops are much faster
     than its 2-D ones over the same elements."""
-    arrays = (e, o, high) if low is None else (e, o, low, high)
-    if all(a.flags.c_contiguous for a in arrays):
-        e, o, high = e.reshape(-1), o.reshape(-1), high.reshape(-1)
-        low = None if low is None else low.reshape(-1)
-    if low is not None:
-        if lifted:
-            np.maximum(e, o, out=low)
-        else:
-            np.add(e, o, out=low)
-            low *= 0.5
+    if all(a.flags.c_contiguous for a in (e, o, low, high)):
+        e, o, low, high = e.reshape(-1), o.reshape(-1), low.reshape(-1), high.reshape(-1)
+    if lifted:
+        np.maximum(e, o, out=low)
+    else:
+        np.add(e, o, out=low)
+        low *= 0.5
     np.subtract(e, o, out=high)
     high *= 0.5
 
@@ -222,14 +246,14 @@ def haar_pyramid(z: F64, steps: int, lifted: bool, track: bool = False,
     ny, nx = z.shape
     done = 0
     if worker_count() > 1 and ny * nx >= THREAD_MIN_ELEMENTS:
-        # Two bands split at a multiple of 2**k rows stay aligned for k steps;
-        # each band keeps at least MIN_BAND_ROWS rows at its last threaded step.
+        # Bands starting at multiples of 2**k rows stay aligned for k steps; each
+        # band keeps at least MIN_BAND_ROWS rows at its last threaded step.
         k = 0
-        while k < steps and (ny >> (k + 1)) >= 2 * MIN_BAND_ROWS:
+        while k < steps and (ny // BANDS) >> (k + 1) >= MIN_BAND_ROWS:
             k += 1
         if k > 0:
-            split = (ny // 2) >> k << k
-            _run_both(lambda: band(0, k, 0, split), lambda: band(0, k, split, ny))
+            _run_shared([partial(band, 0, k, top, bottom)
+                         for top, bottom in _bands(ny, BANDS, 1 << k)])
             done = k
     if done < steps:
         band(done, steps, 0, shapes[done][0])
@@ -350,15 +374,15 @@ def hat_step(z: F64, lifted: bool, guard: float,
     last two over ``ll`` (the next level's guard needs them)."""
     lev = _HatLevel(z, lifted, guard)
     my = lev.my
-    threaded = worker_count() > 1 and z.size >= THREAD_MIN_ELEMENTS and my >= 4 * lev.strip
-    if threaded:
-        split = my // 2
-        res: list[tuple[float, float]] = []
-        _run_both(lambda: res.append(lev.band(0, split)),
-                  lambda: res.append(lev.band(split, my)))
-        lo_v, hi_v = min(r[0] for r in res), max(r[1] for r in res)
-    else:
-        lo_v, hi_v = lev.band(0, my)
+    threaded = worker_count() > 1 and z.size >= THREAD_MIN_ELEMENTS
+    parts = _bands(my, BANDS if threaded else 1, 1)
+    res: list[tuple[float, float]] = []
+
+    def task(c0: int, c1: int) -> None:
+        res.append(lev.band(c0, c1))
+
+    _run_shared([partial(task, c0, c1) for c0, c1 in parts])
+    lo_v, hi_v = min(r[0] for r in res), max(r[1] for r in res)
     return lev.ll, lev.lh, lev.hl, lev.hh, lo_v, hi_v
 
 
@@ -375,11 +399,8 @@ def extremes(z: F64) -> tuple[float, float]:
             hi.append(strip.max())
         res.append((float(np.min(lo)), float(np.max(hi))))
 
-    ny = z.shape[0]
+    threaded = worker_count() > 1 and z.size >= THREAD_MIN_ELEMENTS
     res: list[tuple[float, float]] = []
-    if worker_count() > 1 and z.size >= THREAD_MIN_ELEMENTS and ny >= 2:
-        split = ny // 2
-        _run_both(lambda: part(0, split, res), lambda: part(split, ny, res))
-    else:
-        part(0, ny, res)
+    _run_shared([partial(part, r0, r1, res)
+                 for r0, r1 in _bands(z.shape[0], BANDS if threaded else 1, 1)])
     return float(np.min([r[0] for r in res])), float(np.max([r[1] for r in res]))

@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
+import anyio
 import numpy as np
 from fastapi import APIRouter, Request, Response
 
@@ -52,6 +53,10 @@ def arcs_result(points: np.ndarray, body: ArcsRequest) -> dict[str, Any]:
     return result
 
 
+def _as_points(points: list[tuple[float, float]]) -> np.ndarray:
+    return np.asarray(points, dtype=np.float64).reshape(-1, 2)
+
+
 @router.post("/arcs", response_model=ArcsResult, operation_id="fit_arcs",
              summary="Fit a C1 chain of arcs and lines to a point curve", responses=responses(413))
 async def post_arcs(body: ArcsRequest, request: Request, settings: SettingsDep, store: StoreDep,
@@ -61,7 +66,7 @@ async def post_arcs(body: ArcsRequest, request: Request, settings: SettingsDep, 
     if len(body.points) > settings.max_points:
         raise LimitExceededError(
             "points", f"{len(body.points)} points exceed the limit of {settings.max_points}")
-    points = np.asarray(body.points, dtype=np.float64).reshape(-1, 2)
+    points = await anyio.to_thread.run_sync(_as_points, body.points)
     params = body.model_dump(exclude={"points"})
     return await serve_task(request, store, pool, operation="arcs", params=params,
                             arrays={"points": points}, compute=lambda: arcs_result(points, body))

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from typing import Any
 
+import anyio
 import numpy as np
 from fastapi import APIRouter, Request, Response
 
@@ -69,7 +70,7 @@ def mrr_result(zmap: ZMap, wavelet: str, levels: int | None, include_models: boo
 async def compute_mrr(body: MrrRequest, request: Request, settings: SettingsDep,
                       store: StoreDep, pool: PoolDep) -> Response:
     """Lifted (overcut-free) Haar or single-knot MRR: every level contains the part."""
-    zmap = decode_grid(body.grid, settings.max_grid_cells)
+    zmap = await anyio.to_thread.run_sync(decode_grid, body.grid, settings.max_grid_cells)
     params = {"grid": [zmap.x0, zmap.y0, zmap.dx, zmap.dy], "wavelet": body.wavelet,
               "levels": body.levels, "include_models": body.include_models}
     return await serve_task(

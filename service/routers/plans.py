@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
+import anyio
 import numpy as np
 from fastapi import APIRouter, Request, Response
 from pydantic import BaseModel
@@ -116,7 +117,7 @@ async def post_scanline_plan(body: ScanlinePlanRequest, request: Request, settin
     """Roughing-to-finishing stage models from the lifted single-knot MRR, each with the
     largest ball end mill that fits its concave regions; no stage cuts into the part or
     deeper than its tool's flutes (see ``checks``)."""
-    zmap = decode_grid(body.grid, settings.max_grid_cells)
+    zmap = await anyio.to_thread.run_sync(decode_grid, body.grid, settings.max_grid_cells)
     tools = _tools(body.tools, "ball", settings.max_tools)
     params = {"grid": [zmap.x0, zmap.y0, zmap.dx, zmap.dy], "tools": _tool_params(tools),
               "tolerance": body.tolerance, "stock_top": body.stock_top,
@@ -135,7 +136,7 @@ async def post_contour_plan(body: ContourPlanRequest, request: Request, settings
                             store: StoreDep, pool: PoolDep) -> Response:
     """Per flat end mill, the z-levels of its waterline passes (equal slab volumes) and the
     terraced model it leaves, from the lifted Haar MRR by coefficient editing."""
-    zmap = decode_grid(body.grid, settings.max_grid_cells)
+    zmap = await anyio.to_thread.run_sync(decode_grid, body.grid, settings.max_grid_cells)
     tools = _tools(body.tools, "flat", settings.max_tools)
     params = {"grid": [zmap.x0, zmap.y0, zmap.dx, zmap.dy], "tools": _tool_params(tools),
               "stock_top": body.stock_top, "strategy": body.strategy,
