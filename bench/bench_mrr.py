@@ -3,8 +3,8 @@
 Run as ``.venv/bin/python bench/bench_mrr.py`` (``--quick`` for a fast mode).
 
 For each grid (1024 x 1024 and 4096 x 4096 float64, a random-walk surface)
-times, in the same run and round-robin so machine noise hits every candidate
-alike, best of N:
+times, in the same run, best of N (each case runs 3 times back to back per
+round, the rounds round-robin so machine noise hits every case alike):
 
 - ``analyse(z, "haar")``: the lifted Haar MRR, all levels;
 - ``analyse(z, "single_knot")``: the lifted single-knot MRR, all levels;
@@ -49,14 +49,18 @@ def surface(n: int) -> np.ndarray:
     return np.ascontiguousarray(rng.normal(size=(n, n)).cumsum(axis=0).cumsum(axis=1) * 0.01)
 
 
-def best_of(cases: dict[str, Callable[[], object]], repeats: int) -> dict[str, float]:
-    """Best wall time (s) of each case, running the cases round-robin."""
+def best_of(cases: dict[str, Callable[[], object]], rounds: int, block: int = 3,
+            ) -> dict[str, float]:
+    """Best wall time (s) of each case. Each round runs every case ``block``
+    times back to back (steady state, as timeit does), and the rounds go
+    round-robin so a noisy spell on a shared machine hits every case alike."""
     best = dict.fromkeys(cases, float("inf"))
-    for _ in range(repeats):
+    for _ in range(rounds):
         for name, fn in cases.items():
-            t = time.perf_counter()
-            fn()
-            best[name] = min(best[name], time.perf_counter() - t)
+            for _ in range(block):
+                t = time.perf_counter()
+                fn()
+                best[name] = min(best[name], time.perf_counter() - t)
     return best
 
 
@@ -88,10 +92,11 @@ def print_table(rows: list[tuple[str, str, float, float]]) -> None:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="fewer repeats")
-    parser.add_argument("--repeats", type=int, default=None, help="best of this many runs")
+    parser.add_argument("--rounds", type=int, default=None,
+                        help="round-robin rounds (each runs every case 3 times)")
     args = parser.parse_args()
-    small = args.repeats or (5 if args.quick else 25)
-    large = args.repeats or (2 if args.quick else 7)
+    small = args.rounds or (2 if args.quick else 8)
+    large = args.rounds or (1 if args.quick else 3)
 
     rows = grid_rows(1024, small) + grid_rows(4096, large)
 

@@ -187,17 +187,20 @@ def _assert_bitwise_equal(z: np.ndarray, wavelet: str, lifted: bool) -> None:
 def _tiny_strips_and_threads() -> Iterator[None]:
     """Force the fast path's every branch onto small grids: 2-row strips (so the
     Haar pipeline runs strip by strip across levels), two threads from 0 nodes
-    sharing 3 bands, Haar bands down to 2 rows."""
-    saved = (_pyramid.STRIP_ELEMENTS, _pyramid.THREAD_MIN_ELEMENTS, _pyramid.MIN_BAND_ROWS,
-             _pyramid.BANDS, _pyramid.worker_count)
-    (_pyramid.STRIP_ELEMENTS, _pyramid.THREAD_MIN_ELEMENTS, _pyramid.MIN_BAND_ROWS,
-     _pyramid.BANDS) = 1, 0, 1, 3
-    _pyramid.worker_count = lambda: 2
+    sharing 3 bands, Haar bands down to 2 rows, whole-level steps only for
+    levels of at most 20 nodes."""
+    names = ("STRIP_ELEMENTS", "THREAD_MIN_ELEMENTS", "MIN_BAND_ROWS", "BANDS", "BAND_ELEMENTS",
+             "SMALL_ELEMENTS", "worker_count")
+    saved = {name: getattr(_pyramid, name) for name in names}
+    forced = {"STRIP_ELEMENTS": 1, "THREAD_MIN_ELEMENTS": 0, "MIN_BAND_ROWS": 1, "BANDS": 3,
+              "BAND_ELEMENTS": 1, "SMALL_ELEMENTS": 20, "worker_count": lambda: 2}
+    for name, value in forced.items():
+        setattr(_pyramid, name, value)
     try:
         yield
     finally:
-        (_pyramid.STRIP_ELEMENTS, _pyramid.THREAD_MIN_ELEMENTS, _pyramid.MIN_BAND_ROWS,
-         _pyramid.BANDS, _pyramid.worker_count) = saved
+        for name, value in saved.items():
+            setattr(_pyramid, name, value)
 
 
 @pytest.mark.parametrize("wavelet", WAVELETS)

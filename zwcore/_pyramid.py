@@ -42,8 +42,12 @@ STRIP_ELEMENTS = 1 << 17
 #: Grids smaller than this (input nodes) stay single-threaded: below it the
 #: hand-off to a second thread costs more than it saves.
 THREAD_MIN_ELEMENTS = 1 << 18
-#: Row bands a large grid is cut into for the two threads to share.
+#: Row bands a large grid is cut into for the two threads to share: at most
+#: BANDS, and at least BAND_ELEMENTS nodes each (fewer bands, fewer calls).
 BANDS = 8
+BAND_ELEMENTS = 1 << 18
+#: Levels with at most this many input nodes are done whole, in one go.
+SMALL_ELEMENTS = 1 << 12
 #: Fewest rows a Haar band may have at its last threaded step.
 MIN_BAND_ROWS = 16
 
@@ -212,6 +216,17 @@ def _haar_band(levels: list[_HaarLevel]) -> None:
                 lev.run(lev.done, end)
 
 
+def _haar_small(z: F64, out: tuple[F64, F64, F64, F64], lifted: bool) -> None:
+    """One Haar step of a small grid with even sides, in the fewest ufunc calls
+    (the same operations as :class:`_HaarLevel`, on strided views)."""
+    ll, lh, hl, hh = out
+    lo = np.empty((z.shape[0], z.shape[1] // 2))
+    hi = np.empty_like(lo)
+    _haar_pair(z[:, 0::2], z[:, 1::2], lo, hi, lifted)
+    _haar_pair(lo[0::2], lo[1::2], ll, lh, lifted)
+    _haar_pair(hi[0::2], hi[1::2], hl, hh, False)
+
+
 def haar_pyramid(z: F64, steps: int, lifted: bool, track: bool = False,
                  ) -> tuple[list[tuple[F64, F64, F64, F64]], tuple[float, float]]:
     """``steps >= 1`` Haar analysis steps of ``z``.
@@ -248,15 +263,26 @@ def haar_pyramid(z: F64, steps: int, lifted: bool, track: bool = False,
     if worker_count() > 1 and ny * nx >= THREAD_MIN_ELEMENTS:
         # Bands starting at multiples of 2**k rows stay aligned for k steps; each
         # band keeps at least MIN_BAND_ROWS rows at its last threaded step.
+        parts = min(BANDS, max(2, ny * nx // BAND_ELEMENTS))
         k = 0
-        while k < steps and (ny // BANDS) >> (k + 1) >= MIN_BAND_ROWS:
+        while k < steps and (ny // parts) >> (k + 1) >= MIN_BAND_ROWS:
             k += 1
         if k > 0:
             _run_shared([partial(band, 0, k, top, bottom)
-                         for top, bottom in _bands(ny, BANDS, 1 << k)])
+                         for top, bottom in _bands(ny, parts, 1 << k)])
             done = k
-    if done < steps:
-        band(done, steps, 0, shapes[done][0])
+    # The remaining (coarser) steps on this thread: pipelined while the levels
+    # are large, then one small level at a time.
+    small = done
+    while small < steps and shapes[small][0] * shapes[small][1] > SMALL_ELEMENTS:
+        small += 1
+    if small > done:
+        band(done, small, 0, shapes[done][0])
+    for s in range(small, steps):
+        if (track and s == 0) or shapes[s][0] % 2 or shapes[s][1] % 2:
+            band(s, s + 1, 0, shapes[s][0])
+        else:
+            _haar_small(fines[s], out[s], lifted)
     if not track:
         return out, (np.nan, np.nan)
     seen = [v for lev in first_steps for v in lev.extremes]

@@ -831,6 +831,8 @@ class _Fitter:
         t: FloatArray | None = None
         t_first: FloatArray | None = None
         fresh = False
+        jcap = b
+        backtracks = 0
         while True:
             fresh = t is None
             if t is None:
@@ -854,7 +856,18 @@ class _Fitter:
                     if clo is not None:
                         pieces.extend(clo)
                         return pieces, forced
-            piece = self._step(p, t, k, e, b, b - 1)
+            piece = self._step(p, t, k, e, b, min(b - 1, jcap))
+            jcap = b
+            if piece is None and not loop and pieces and backtracks < 64:
+                # backtrack: the previous piece left a junction nothing can start from;
+                # redo it shorter (its end state then differs)
+                backtracks += 1
+                last = pieces.pop()
+                forced = [f for f in forced if f < len(pieces) - 1]
+                p, t, k = last.p, last.t, last.k
+                e = float(np.hypot(*(self.S[k] - p)))
+                jcap = last.j - 1
+                continue
             if piece is None:
                 if loop:
                     # backtrack: close from earlier junctions
@@ -1059,8 +1072,11 @@ def fit_arcs(
     # densify long polyline segments so junctions can sit between sparse input points
     seg = np.hypot(*(np.diff(poly, axis=0).T))
     nsub = np.maximum(np.ceil(seg / (6.0 * tol)).astype(np.int64), 1)
+    if np.any(nsub > 1):
+        samples = _densify(poly, 6.0 * tol)
+    else:
+        samples = poly
     sample_of_input = np.concatenate([[0], np.cumsum(nsub)])
-    samples = _densify(poly, 6.0 * tol) if np.any(nsub > 1) else poly
     m_last = len(samples) - 1
 
     if closed and corners_in:

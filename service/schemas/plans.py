@@ -24,12 +24,16 @@ class ScanlineStageOut(BaseModel):
     tool: ToolOut
     level: int
     spacing: tuple[float, float] = Field(description="[dx, dy] of the stage's level, mm")
-    pick_feed: float = Field(description="distance between scan lines, mm")
+    pick_feed: float = Field(description="smallest distance between scan lines, mm")
+    pick_feed_max: float = Field(description="largest distance between adjacent lines, mm")
     pick_feed_reduced: bool
     pick_feed_reason: str | None = None
+    reduced_strips: int = Field(description="strips between grid lines that got extra lines")
     scan_direction: Literal["x", "y"] = Field(description="scan lines run along this axis")
     scan_lines: int = Field(description="number of scan lines at the pick-feed")
     steepest_slope_deg: float = Field(description="steepest slope of the stage model")
+    cross_slope_deg: float = Field(
+        description="steepest slope across the scan lines: the θ of the scallop rule")
     scallop_height: float = Field(description="predicted scallop at the pick-feed, mm")
     concave_radius: float | None = Field(
         description="smallest concave radius of the stage model, mm (null: no concave region)")
@@ -44,6 +48,9 @@ class ScanlineStageOut(BaseModel):
     pass_count: int = Field(description="passes this tool makes at this level")
     passes: int = Field(description="same as pass_count")
     merged_levels: list[int] = Field(description="MRR levels that got this tool and merged")
+    clipped_nodes: int = Field(
+        description="level nodes clipped down to the previous stage (lift overshoot at walls)")
+    raised_nodes: int = Field(description="level nodes raised again to restore containment")
     model: GridOut | None = None
 
 

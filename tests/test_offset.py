@@ -1,0 +1,91 @@
+"""Tool offset of a chain: stays C1 and at |d| from the original."""
+
+from __future__ import annotations
+
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from zwcore.arcs import ArcChain, fit_arcs
+from zwcore.errors import InvalidInputError
+from zwcore.offset import offset_chain
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from curves import BENCH_CURVES  # noqa: E402
+from test_arcs import dist_to_segment, seg_points  # noqa: E402
+
+
+def dist_to_chain(pts: np.ndarray, chain: ArcChain) -> np.ndarray:
+    d = np.full(len(pts), np.inf)
+    for s in chain.segments:
+        d = np.minimum(d, dist_to_segment(pts, s))
+    return d
+
+
+@pytest.mark.parametrize(
+    ("name", "dist"),
+    # the airfoil only outwards: inside, its thin trailing edge is closer than 2 mm
+    [("ellipse", 2.0), ("ellipse", -2.0), ("sine", 2.0), ("sine", -2.0),
+     ("clothoid", 2.0), ("clothoid", -2.0), ("naca2412", -2.0)],
+)
+def test_offset_is_c1_and_at_distance(name, dist):
+    pts, closed = BENCH_CURVES[name]()
+    chain = fit_arcs(pts, 0.1, closed=closed)
+    off, vanished = offset_chain(chain, dist)
+    assert vanished == ()
+    assert len(off.segments) == len(chain.segments)
+    assert off.corners == ()
+    assert off.max_kink_smooth <= 1e-9
+    assert np.allclose(off.kinks(), 0.0, atol=1e-9)
+    for a, b in zip(off.segments[:-1], off.segments[1:], strict=True):
+        assert math.dist(a.end, b.start) < 1e-9
+    # every offset point is at |d| from the original chain
+    dense = np.vstack([seg_points(s, 0.05) for s in off.segments])
+    d = dist_to_chain(dense, chain)
+    assert np.allclose(d, abs(dist), atol=1e-6)
+
+
+def test_left_is_positive():
+    chain = fit_arcs([[0, 0], [10, 0]], 0.1)
+    off, _ = offset_chain(chain, 1.5)
+    assert off.segments[0].start == pytest.approx((0.0, 1.5))
+    off, _ = offset_chain(chain, -1.5)
+    assert off.segments[0].start == pytest.approx((0.0, -1.5))
+
+
+def test_vanishing_arcs_are_reported():
+    pts, closed = BENCH_CURVES["ellipse"]()
+    chain = fit_arcs(pts, 0.1, closed=closed)
+    rmin = min(s.radius for s in chain.segments if s.kind == "arc")
+    off, vanished = offset_chain(chain, rmin + 1.0)  # inside: ccw radii shrink
+    expect = tuple(i for i, s in enumerate(chain.segments)
+                   if s.kind == "arc" and s.ccw and s.radius <= rmin + 1.0)
+    assert vanished == expect and len(vanished) > 0
+    for a, b in zip(off.segments[:-1], off.segments[1:], strict=True):
+        assert math.dist(a.end, b.start) < 1e-6
+
+
+def test_die_edge_corners_are_rounded_outside_and_trimmed_inside():
+    pts, closed = BENCH_CURVES["die_edge"]()
+    chain = fit_arcs(pts, 0.1, closed=closed)
+    for dist in (3.0, -3.0):
+        off, vanished = offset_chain(chain, dist)
+        assert vanished == ()
+        for a, b in zip(off.segments[:-1], off.segments[1:], strict=True):
+            assert math.dist(a.end, b.start) < 1e-6
+        # one corner is outside (rounded, C1) and one inside (trimmed, sharp)
+        assert len(off.corners) == 1
+        dense = np.vstack([seg_points(s, 0.05) for s in off.segments])
+        d = dist_to_chain(dense, chain)
+        assert d.min() >= 3.0 - 1e-6
+
+
+def test_bad_offset_is_rejected():
+    chain = fit_arcs([[0, 0], [1, 0]], 0.1)
+    with pytest.raises(InvalidInputError) as err:
+        offset_chain(chain, float("nan"))
+    assert err.value.field == "offset"

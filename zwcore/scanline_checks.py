@@ -1,0 +1,162 @@
+"""Per-stage figures and the design's checks for the scan-line plan.
+
+Every stage model is evaluated once at the input nodes, in blocks of rows that
+stay in cache; the block evaluation performs the same floating-point
+operations as :func:`zwcore.sampling.bilinear_at_fine_nodes` (first along y,
+then along x), so the figures and checks are those of that function, bit for
+bit. From the evaluation and the previous stage's (kept from the previous
+step) come the depth of cut (min, max, removed volume by the trapezoid rule,
+exact for the bilinear models), the stock left over the part and the
+containment margin. Stage models are nested bilinear surfaces (a coarse
+bilinear surface restricted to a finer cell is bilinear), so a difference of
+two of them is bilinear on every input cell and its extremes sit on input
+nodes: the node checks hold for the whole surface.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from zwcore.scanline_passes import StripPlan
+from zwcore.scanline_types import ScanlineChecks, ScanlineStage
+from zwcore.tools import Tool
+
+__all__ = ["PassSpec", "figures"]
+
+F64 = NDArray[np.float64]
+
+#: Input nodes per block of rows.
+_BLOCK_NODES = 1 << 16
+
+
+@dataclass
+class PassSpec:
+    """One planned pass, before its figures."""
+
+    level: int
+    sx: float
+    sy: float
+    tool: Tool
+    model: F64
+    strips: StripPlan
+    steepest_slope: float
+    rest: float
+    merged: tuple[int, ...]
+    concave_radius: float
+    clipped: int
+    raised: int
+
+    @property
+    def leaves(self) -> float:
+        """Stock above the model the next pass's flutes also take."""
+        return self.strips.scallop + self.rest
+
+
+def _axis_weights(scale: int, n: int, m: int) -> tuple[NDArray[np.intp], NDArray[np.intp], F64]:
+    idx = np.arange(n)
+    lo = idx // scale
+    t = (idx % scale) / scale
+    hi = np.minimum(lo + 1, m - 1)
+    return lo, hi, t
+
+
+def _eval_rows(coarse: F64, scale: int, a: int, b: int,
+               ya: tuple[NDArray[np.intp], NDArray[np.intp], F64],
+               xa: tuple[NDArray[np.intp], NDArray[np.intp], F64]) -> F64:
+    """Rows ``a:b`` of ``bilinear_at_fine_nodes(coarse, scale, shape)``, same operations."""
+    if scale == 1:
+        return coarse[a:b, : xa[0].size]
+    lo, hi, t = ya[0][a:b], ya[1][a:b], ya[2][a:b]
+    rows = coarse[lo] * (1.0 - t)[:, None] + coarse[hi] * t[:, None]
+    xlo, xhi, tx = xa
+    return np.asarray(rows[:, xlo] * (1.0 - tx) + rows[:, xhi] * tx, dtype=np.float64)
+
+
+def _trapezoid_weights(n: int) -> F64:
+    w = np.ones(n)
+    w[0] = w[-1] = 0.5
+    return w
+
+
+def figures(part: F64, depth: int, dx: float, dy: float, passes: Sequence[PassSpec],
+            stock_top: float, tolerance: float) -> tuple[list[ScanlineStage], ScanlineChecks]:
+    """Stages with their figures, and the checks, from one evaluation per stage."""
+    ny, nx = part.shape
+    wy = _trapezoid_weights(ny)
+    wx = _trapezoid_weights(nx)
+    cell = dx * dy
+    area = (ny - 1) * dy * (nx - 1) * dx
+    rows = max(8, _BLOCK_NODES // max(nx, 1))
+    counts: dict[tuple[int, str], int] = {}
+    for p in passes:
+        key = (p.level, p.tool.id)
+        counts[key] = counts.get(key, 0) + 1
+    seen: dict[tuple[int, str], int] = {}
+
+    prev_f: F64 | None = None
+    leaves = 0.0
+    margin = math.inf
+    over = -math.inf
+    fit = True
+    stages: list[ScanlineStage] = []
+    for p in passes:
+        scale = 1 << (depth - p.level)
+        ya = _axis_weights(scale, ny, p.model.shape[0])
+        xa = _axis_weights(scale, nx, p.model.shape[1])
+        cur_f = p.model[:ny, :nx] if scale == 1 else np.empty((ny, nx))
+        cut_min, cut_max, volume = math.inf, -math.inf, 0.0
+        left_max, left_min = -math.inf, math.inf
+        for a in range(0, ny, rows):
+            b = min(a + rows, ny)
+            cur = _eval_rows(p.model, scale, a, b, ya, xa)
+            if scale != 1:
+                cur_f[a:b] = cur
+            cut = (stock_top - cur) if prev_f is None else (prev_f[a:b] - cur)
+            cut_min = min(cut_min, float(cut.min()))
+            cut_max = max(cut_max, float(cut.max()))
+            volume += float(wy[a:b] @ cut @ wx)
+            left = cur - part[a:b]
+            left_max = max(left_max, float(left.max()))
+            left_min = min(left_min, float(left.min()))
+        volume *= cell
+        margin = min(margin, cut_min, left_min)
+        engagement = cut_max + leaves
+        over = max(over, engagement - p.tool.flute_length)
+        fit = fit and (p.tool.radius <= p.concave_radius or p.rest > 0.0)
+        key = (p.level, p.tool.id)
+        seen[key] = seen.get(key, 0) + 1
+        sp = p.strips
+        stages.append(ScanlineStage(
+            tool=p.tool, level=p.level, spacing=(p.sx, p.sy), pick_feed=sp.pick_feed,
+            pick_feed_reduced=sp.reason is not None, pick_feed_reason=sp.reason,
+            scan_direction=sp.direction, scan_lines=max(sp.scan_lines, 2),
+            steepest_slope_deg=math.degrees(math.atan(p.steepest_slope)),
+            scallop_height=sp.scallop,
+            max_depth_of_cut=cut_max, mean_depth_of_cut=volume / area if area > 0 else 0.0,
+            max_engagement=engagement, rest_height=p.rest, removed_volume=volume,
+            max_stock_left=left_max,
+            pass_index=seen[key], pass_count=counts[key], concave_radius=p.concave_radius,
+            merged_levels=p.merged, cross_slope_deg=math.degrees(math.atan(sp.cross_slope)),
+            pick_feed_max=sp.pick_feed_max, reduced_strips=sp.reduced_strips,
+            clipped_nodes=p.clipped, raised_nodes=p.raised, model=p.model))
+        prev_f = cur_f
+        leaves = p.leaves
+    radii = [s.tool.radius for s in stages]
+    last = stages[-1].model
+    checks = ScanlineChecks(
+        containment=margin >= 0.0,
+        min_containment_margin=margin,
+        depth_of_cut=over <= 0.0,
+        max_depth_over_flute=over,
+        tool_radii_non_increasing=all(a >= b for a, b in itertools.pairwise(radii)),
+        finishing_tolerance_met=stages[-1].scallop_height <= tolerance,
+        last_model_is_part=last.shape == part.shape and bool(np.array_equal(last, part)),
+        tools_fit=fit,
+    )
+    return stages, checks

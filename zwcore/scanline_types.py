@@ -1,0 +1,209 @@
+"""Result types of the scan-line plan (see :mod:`zwcore.scanline`)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+from numpy.typing import NDArray
+
+from zwcore.tools import Tool
+
+__all__ = ["ScanlineChecks", "ScanlinePlan", "ScanlineStage"]
+
+F64 = NDArray[np.float64]
+
+
+@dataclass(frozen=True, eq=False)
+class ScanlineStage:
+    """One pass of a ball end mill over a stage model.
+
+    Attributes
+    ----------
+    tool : Tool
+    level : int
+        MRR level of the model (``depth`` is the input grid).
+    spacing : (float, float)
+        ``(dx, dy)`` of the level in mm.
+    pick_feed : float
+        Distance between adjacent scan lines in mm: the smallest one where
+        strips are reduced, else the level's spacing across the lines.
+    pick_feed_reduced : bool
+        Whether ``pick_feed`` is below the level's spacing (in some strip).
+    pick_feed_reason : str or None
+        Why it was reduced.
+    scan_direction : {"x", "y"}
+        Direction the scan lines run in: the one with the shorter total path (walls
+        are climbed along the lines rather than stepped across).
+    scan_lines : int
+        Number of scan lines across the part (strip by strip pick-feeds).
+    steepest_slope_deg : float
+        Steepest slope of the stage model (any direction).
+    scallop_height : float
+        Largest predicted scallop over the strips, each at its pick-feed on its
+        steepest slope across the lines (a bound for the design's
+        ``R - sqrt(R^2 - (p / (2 cos theta))^2)``), in mm.
+    max_depth_of_cut, mean_depth_of_cut : float
+        ``M_{k-1} - M_k`` over the input nodes (mean: removed volume over the
+        grid's area), in mm.
+    max_engagement : float
+        Largest ``M_{k-1} + h_{k-1} + e_{k-1} - M_k``: the depth of cut plus the
+        previous pass's scallops and rest, what the flutes really take. At most
+        the flute length.
+    rest_height : float
+        Material the ball leaves in valleys of its model sharper than itself
+        (0 when it fits the model's concave radius; a roughing ball may be
+        larger when this is at most a quarter of the next flute length). Stock
+        for the next pass, like the scallops.
+    removed_volume : float
+        Volume between ``M_{k-1}`` and ``M_k`` over the grid, mm³ (exact for
+        the bilinear models: trapezoid rule on the input nodes).
+    max_stock_left : float
+        Largest ``M_k - part`` over the input nodes, mm.
+    pass_index, pass_count : int
+        This is pass ``pass_index`` (1-based) of ``pass_count`` passes with
+        the same tool at the same level; more than one where the flute length
+        could not reach the level model in one pass.
+    concave_radius : float
+        Smallest concave radius of the stage's level model (before the flute
+        lift), mm; ``inf`` if it has no concave region.
+    merged_levels : tuple of int
+        Coarser levels that admitted the same tool and were merged into this
+        stage.
+    cross_slope_deg : float
+        Steepest slope *across* the scan lines (the slope component along the
+        pick-feed direction), the ``theta`` the scallop rule uses: scallops
+        between two lines depend on the surface's section across them. At most
+        ``steepest_slope_deg``.
+    pick_feed_max : float
+        Largest distance between adjacent scan lines (the level's spacing
+        across the lines, unless every strip is reduced), mm.
+    reduced_strips : int
+        Strips between adjacent grid lines of the level whose pick-feed had to
+        be reduced (the pick-feed is chosen strip by strip from the slope
+        across the lines in that strip; 0 when ``pick_feed_reduced`` is false).
+    clipped_nodes : int
+        Level nodes where the lifted MRR level rose above the previous target
+        (or the stock) and was clipped to it.
+    raised_nodes : int
+        Level nodes the containment repair raised after the clip.
+    model : (my, mx) float64
+        Node values of the stage model; node ``(c, d)`` at
+        ``(x0 + d*sx, y0 + c*sy)`` with ``(sx, sy) = spacing``. Bilinear.
+    """
+
+    tool: Tool
+    level: int
+    spacing: tuple[float, float]
+    pick_feed: float
+    pick_feed_reduced: bool
+    pick_feed_reason: str | None
+    scan_direction: Literal["x", "y"]
+    scan_lines: int
+    steepest_slope_deg: float
+    scallop_height: float
+    max_depth_of_cut: float
+    mean_depth_of_cut: float
+    max_engagement: float
+    rest_height: float
+    removed_volume: float
+    max_stock_left: float
+    pass_index: int
+    pass_count: int
+    concave_radius: float
+    merged_levels: tuple[int, ...]
+    cross_slope_deg: float
+    pick_feed_max: float
+    reduced_strips: int
+    clipped_nodes: int
+    raised_nodes: int
+    model: F64 = field(repr=False)
+
+    @property
+    def passes(self) -> int:
+        """Passes with this tool at this level (``pass_count``)."""
+        return self.pass_count
+
+
+@dataclass(frozen=True)
+class ScanlineChecks:
+    """The design's invariants, evaluated at every input node.
+
+    Attributes
+    ----------
+    containment : bool
+        ``stock_top >= M_0 >= M_1 >= ... >= part`` at every input node.
+    min_containment_margin : float
+        Smallest ``M_{k-1} - M_k`` (and ``M_K - part``) over all nodes, mm.
+    depth_of_cut : bool
+        ``M_{k-1} + h_{k-1} + e_{k-1} - M_k <= L_k`` at every input node
+        (stricter than the design's ``M_{k-1} - M_k <= L_k``: the previous
+        pass's scallops ``h`` and rest ``e`` count).
+    max_depth_over_flute : float
+        Largest ``M_{k-1} + h_{k-1} + e_{k-1} - M_k - L_k``; <= 0 when the
+        check holds.
+    tool_radii_non_increasing : bool
+    finishing_tolerance_met : bool
+        The last pass's predicted scallop is at most ``tolerance``.
+    last_model_is_part : bool
+        The last stage model is the input grid, node for node.
+    tools_fit : bool
+        The finishing ball is no larger than the part's smallest concave
+        radius and every other ball fits its model or has its rest accounted
+        for. Informative, not part of :attr:`ok`: when no library ball fits
+        the part's sharpest corner the plan still finishes with the smallest
+        one (and says so in the notes).
+    """
+
+    containment: bool
+    min_containment_margin: float
+    depth_of_cut: bool
+    max_depth_over_flute: float
+    tool_radii_non_increasing: bool
+    finishing_tolerance_met: bool
+    last_model_is_part: bool
+    tools_fit: bool
+
+    @property
+    def ok(self) -> bool:
+        """All safety and contract checks hold."""
+        return (self.containment and self.depth_of_cut and self.tool_radii_non_increasing
+                and self.finishing_tolerance_met and self.last_model_is_part)
+
+
+@dataclass(frozen=True, eq=False)
+class ScanlinePlan:
+    """A roughing-to-finishing sequence of ball end mill stages.
+
+    Attributes
+    ----------
+    stock_top : float
+        Height of the flat stock, mm (``M_{-1}``).
+    stock_top_source : {"request", "default"}
+        ``default``: the part's highest point plus the first tool's flute length.
+    tolerance : float
+        Finishing scallop height asked for, mm.
+    depth : int
+        Number of MRR levels below the input (the input is level ``depth``).
+    stages : tuple of ScanlineStage
+        In machining order; the last one's model is the part.
+    tool_sequence : tuple of str
+        Tool ids in machining order, one per tool change (extra passes with the
+        same tool are not repeated).
+    checks : ScanlineChecks
+    notes : tuple of str
+        Warnings and decisions worth reading (no tool fits, levels skipped).
+    timings : tuple of (str, float)
+        Seconds spent per phase (for benchmarks; not part of the result).
+    """
+
+    stock_top: float
+    stock_top_source: Literal["request", "default"]
+    tolerance: float
+    depth: int
+    stages: tuple[ScanlineStage, ...]
+    tool_sequence: tuple[str, ...]
+    checks: ScanlineChecks
+    notes: tuple[str, ...]
+    timings: tuple[tuple[str, float], ...] = ()
