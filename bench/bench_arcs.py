@@ -25,9 +25,9 @@ from scipy.optimize import minimize
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from curves import ARCWELDER_REFERENCE, BENCH_CURVES, ellipse  # noqa: E402
+from curves import ARCWELDER_REFERENCE, BENCH_CURVES, ellipse
 
-from zwcore.arcs import fit_arcs  # noqa: E402
+from zwcore.arcs import fit_arcs
 
 
 def _band_width(pts: np.ndarray) -> float:

@@ -36,17 +36,17 @@ def resample(xy: FloatArray, step: float, closed: bool = False) -> FloatArray:
     s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))])
     total = float(s[-1])
     if closed:
-        n = max(int(round(total / step)), 3)
+        n = max(round(total / step), 3)
         st = np.linspace(0.0, total, n, endpoint=False)
     else:
-        n = max(int(round(total / step)), 1)
+        n = max(round(total / step), 1)
         st = np.linspace(0.0, total, n + 1)
     return np.stack([np.interp(st, s, xy[:, 0]), np.interp(st, s, xy[:, 1])], axis=1)
 
 
 def circle(step: float = 0.5, radius: float = 50.0) -> tuple[FloatArray, bool]:
     """Closed circle of ``radius`` about the origin."""
-    n = max(int(round(2 * math.pi * radius / step)), 3)
+    n = max(round(2 * math.pi * radius / step), 3)
     th = np.linspace(0.0, 2 * math.pi, n, endpoint=False)
     return np.stack([radius * np.cos(th), radius * np.sin(th)], axis=1), True
 
@@ -73,10 +73,12 @@ def sine(step: float = 0.5, amplitude: float = 10.0, wavelength: float = 50.0,
                     step), False
 
 
-def clothoid(step: float = 0.5, length: float = 200.0, k_end: float = 0.1) -> tuple[FloatArray, bool]:
+def clothoid(
+    step: float = 0.5, length: float = 200.0, k_end: float = 0.1
+) -> tuple[FloatArray, bool]:
     """Open clothoid from curvature 0 to ``k_end`` over ``length`` (Fresnel integrals)."""
     a = math.sqrt(length / k_end)  # kappa(s) = s / a^2
-    n = max(int(round(length / step)), 1)
+    n = max(round(length / step), 1)
     s = np.linspace(0.0, length, n + 1)
     scale = a * math.sqrt(math.pi)
     fs, fc = fresnel(s / scale)

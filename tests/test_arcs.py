@@ -20,7 +20,9 @@ from zwcore.arcs import ArcChain, Segment, fit_arcs
 from zwcore.errors import InvalidInputError
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))
-from curves import ARCWELDER_REFERENCE, BENCH_CURVES  # noqa: E402
+import itertools
+
+from curves import ARCWELDER_REFERENCE, BENCH_CURVES
 
 # ----------------------------------------------------------------------------
 # independent geometry helpers
@@ -110,7 +112,7 @@ def assert_valid(chain: ArcChain, points: np.ndarray, tol: float, closed: bool) 
     else:
         assert np.allclose(segs[-1].end, pts[-1], atol=1e-9 * scale, rtol=0)
     # continuity and well-formed arcs
-    for a, b in zip(segs[:-1], segs[1:], strict=True):
+    for a, b in itertools.pairwise(segs):
         assert np.allclose(a.end, b.start, atol=1e-9 * scale, rtol=0)
     for s in segs:
         vals = [*s.start, *s.end]
@@ -170,7 +172,7 @@ def test_bench_curve_chain_is_valid(name, bench_chains):
 
 @pytest.mark.parametrize("name", [n for n, r in ARCWELDER_REFERENCE.items() if r[0] is not None])
 def test_no_more_segments_than_arcwelder(name, bench_chains):
-    pts, closed, chain = bench_chains[name]
+    _pts, _closed, chain = bench_chains[name]
     arcs, lines = ARCWELDER_REFERENCE[name]
     assert len(chain.segments) <= arcs + (lines or 0)
 
@@ -305,7 +307,8 @@ def smooth_curve(draw, closed: bool = False) -> np.ndarray:
     freqs = [draw(st.floats(0.01, 0.3)) for _ in range(n_modes)]
     phases = [draw(st.floats(0, 6.3)) for _ in range(n_modes)]
     s = np.linspace(0, length, 4001)
-    kap = k0 + np.zeros_like(s) + sum(a * np.sin(f * s + p) for a, f, p in zip(amps, freqs, phases, strict=True))
+    modes = zip(amps, freqs, phases, strict=True)
+    kap = k0 + np.zeros_like(s) + sum(a * np.sin(f * s + p) for a, f, p in modes)
     head = np.concatenate([[0.0], np.cumsum(0.5 * (kap[1:] + kap[:-1]) * np.diff(s))])
     x = np.concatenate([[0.0], np.cumsum(np.cos(head[:-1]) * np.diff(s))])
     y = np.concatenate([[0.0], np.cumsum(np.sin(head[:-1]) * np.diff(s))])

@@ -15,7 +15,7 @@ from zwcore.errors import InvalidInputError
 from zwcore.gcode import to_gcode
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))
-from curves import BENCH_CURVES  # noqa: E402
+from curves import BENCH_CURVES
 
 WORD = re.compile(r"([A-Z])(-?\d+(?:\.\d+)?)")
 

@@ -15,8 +15,8 @@ from zwcore.offset import offset_chain
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from curves import BENCH_CURVES  # noqa: E402
-from test_arcs import dist_to_segment, seg_points  # noqa: E402
+from curves import BENCH_CURVES
+from test_arcs import dist_to_segment, seg_points
 
 
 def dist_to_chain(pts: np.ndarray, chain: ArcChain) -> np.ndarray:

@@ -18,15 +18,15 @@ from numpy.typing import NDArray
 FloatArray = NDArray[np.float64]
 
 __all__ = [
+    "arc_length_position",
     "arc_points",
     "circle_gap",
     "kappa_bounds",
     "local_uv",
     "point_to_arc_distance",
     "points_to_segments_distance",
-    "sagitta",
-    "arc_length_position",
     "rotate",
+    "sagitta",
 ]
 
 

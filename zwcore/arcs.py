@@ -164,7 +164,7 @@ def chain_tangents(segments: Sequence[Segment], closed: bool) -> FloatArray:
 
 def segment_points(seg: Segment, step: float) -> FloatArray:
     """Points ``(K, 2)`` along ``seg`` at spacing at most ``step``, both ends included."""
-    n = max(int(math.ceil(seg.length / step)), 1) + 1
+    n = max(math.ceil(seg.length / step), 1) + 1
     f = np.linspace(0.0, 1.0, n)
     s = np.array(seg.start)
     if seg.kind == "line":
@@ -394,7 +394,7 @@ class _Fitter:
         """Exact check of the arc portion ``[s0, s1]`` against polyline segments ``a..b``."""
         if s1 <= s0:
             return True
-        n = int(math.ceil((s1 - s0) / self.ds)) + 1
+        n = math.ceil((s1 - s0) / self.ds) + 1
         if n > 4000:
             return False
         step = (s1 - s0) / (n - 1)
@@ -461,8 +461,10 @@ class _Fitter:
             xv = v[:-1] + ts * dv
             gx = np.abs(circle_gap(xu, xv, kappa))
             inside = (sig[:-1] >= 0.0) & (sig[1:] <= sig_end)
-            xe = np.hypot(xu - (end[0] - p[0]) * t[0] - (end[1] - p[1]) * t[1],
-                          xv - (end[1] - p[1]) * t[0] + (end[0] - p[0]) * t[1])
+            xe = np.hypot(
+                xu - (end[0] - p[0]) * t[0] - (end[1] - p[1]) * t[1],
+                xv - (end[1] - p[1]) * t[0] + (end[0] - p[0]) * t[1],
+            )
             dx = np.where(inside, gx, np.maximum(gx, np.minimum(np.hypot(xu, xv), xe)))
             if dense_first:
                 dx[0] = 0.0
@@ -486,8 +488,9 @@ class _Fitter:
                 if first.size:
                     f0 = int(first[0])
                     mask[f0] = False
-                    if not self._dense_ok(p, t, kappa, 0.0, float(phi_c[f0 + 1]), k - 1,
-                                          k + f0 + 2):
+                    if not self._dense_ok(
+                        p, t, kappa, 0.0, float(phi_c[f0 + 1]), k - 1, k + f0 + 2
+                    ):
                         return None
             if np.any(bound[mask] > tol):
                 return None
@@ -500,7 +503,13 @@ class _Fitter:
         return sig_end, end, float(g[-1])
 
     def _make(
-        self, p: FloatArray, t: FloatArray, kappa: float, k: int, j: int, res: tuple[float, FloatArray, float]
+        self,
+        p: FloatArray,
+        t: FloatArray,
+        kappa: float,
+        k: int,
+        j: int,
+        res: tuple[float, FloatArray, float],
     ) -> _Piece:
         length, end, e_end = res
         return _Piece(p, t, kappa, length, k, j, end, rotate(t, kappa * length), e_end)
@@ -646,8 +655,15 @@ class _Fitter:
         span = self.cum[jm] - self.cum[k]
         js = sorted(
             {
-                int(min(max(np.searchsorted(self.cum, self.cum[k] + f * span, side="right") - 1,
-                            k + 1), jm))
+                int(
+                    min(
+                        max(
+                            np.searchsorted(self.cum, self.cum[k] + f * span, side="right") - 1,
+                            k + 1,
+                        ),
+                        jm,
+                    )
+                )
                 for f in self.J_FRACTIONS
             },
             reverse=True,
@@ -679,8 +695,9 @@ class _Fitter:
                 # lines get credit for part of their own length: a straight run should come
                 # out as one line even when a slightly bent arc would reach a bit further
                 bonus = 0.3 * float(self.cum[j] - self.cum[k]) if ka[m] == 0.0 else 0.0
-                cands.append((float(score[m]) + bonus, int(ka[m] != 0.0), j,
-                              float(ka[m]), ep[m], et[m]))
+                cands.append(
+                    (float(score[m]) + bonus, int(ka[m] != 0.0), j, float(ka[m]), ep[m], et[m])
+                )
         cands.sort(key=lambda c: (-c[0], c[1], -c[2]))
         for _, _, j, kap_c, _, _ in cands[:24]:
             res = self._check(p, t, kap_c, k, j, e)
@@ -689,8 +706,14 @@ class _Fitter:
         return self._shrink(p, t, k, e, jm, lo1, up1)
 
     def _shrink(
-        self, p: FloatArray, t: FloatArray, k: int, e: float, jm: int,
-        lo1: FloatArray, up1: FloatArray,
+        self,
+        p: FloatArray,
+        t: FloatArray,
+        k: int,
+        e: float,
+        jm: int,
+        lo1: FloatArray,
+        up1: FloatArray,
     ) -> _Piece | None:
         """Fallback: ever shorter pieces with several curvatures."""
         j = jm
@@ -874,8 +897,14 @@ class _Fitter:
                     assert t_first is not None
                     while pieces:
                         last = pieces.pop()
-                        clo = self._biarc(last.p, last.t, last.k,
-                                          float(np.hypot(*(self.S[last.k] - last.p))), b, t_first)
+                        clo = self._biarc(
+                            last.p,
+                            last.t,
+                            last.k,
+                            float(np.hypot(*(self.S[last.k] - last.p))),
+                            b,
+                            t_first,
+                        )
                         if clo is not None:
                             pieces.extend(clo)
                             return pieces, forced
@@ -949,7 +978,7 @@ def _densify(x: FloatArray, step: float) -> FloatArray:
 
 
 def _piece_points(pc: _Piece, step: float) -> FloatArray:
-    n = max(int(math.ceil(pc.length / step)), 1) + 1
+    n = max(math.ceil(pc.length / step), 1) + 1
     pts = arc_points(pc.p, pc.t, pc.kappa, np.linspace(0.0, pc.length, n))
     pts[-1] = pc.end
     return pts
@@ -966,7 +995,7 @@ def _deviations(poly: FloatArray, pieces: list[_Piece], tol: float) -> tuple[flo
     cpts = np.vstack(chain_pts)
     # chain -> polyline: nearest dense polyline point, refined on adjacent segments
     tree_p = cKDTree(dpoly)
-    d_c, i_c = tree_p.query(cpts)
+    d_c, _i_c = tree_p.query(cpts)
     hot = np.flatnonzero(d_c > 0.25 * tol)
     if hot.size:
         _, nn = tree_p.query(cpts[hot], k=min(4, len(dpoly)))
@@ -985,7 +1014,7 @@ def _deviations(poly: FloatArray, pieces: list[_Piece], tol: float) -> tuple[flo
         d_c[hot] = best
     # polyline -> chain: nearest chain sample, refined exactly on the owning pieces
     tree_c = cKDTree(cpts)
-    d_p, i_p = tree_c.query(dpoly)
+    d_p, _i_p = tree_c.query(dpoly)
     hot = np.flatnonzero(d_p > 0.25 * tol)
     if hot.size:
         _, nn = tree_c.query(dpoly[hot], k=min(4, len(cpts)))
