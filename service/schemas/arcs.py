@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Literal
 
-from pydantic import BaseModel, Field
+from pydantic import BaseModel, Field, StrictBool
 
 from service.schemas.common import FiniteFloat, StrictModel
 
@@ -14,14 +14,14 @@ Point = tuple[FiniteFloat, FiniteFloat]
 class ArcsRequest(StrictModel):
     points: list[Point] = Field(min_length=2, description="ordered curve points [[x, y], ...], mm")
     tolerance: FiniteFloat = Field(0.1, gt=0, description="two-sided band half-width, mm")
-    closed: bool = Field(False, description="the curve closes on itself")
+    closed: StrictBool = Field(False, description="the curve closes on itself")
     corner_angle_deg: FiniteFloat = Field(
         30.0, gt=0, lt=180, description="turns sharper than this stay sharp corners")
     max_radius: FiniteFloat | None = Field(
         None, gt=0, description="arcs flatter than this radius become lines, mm")
     offset: FiniteFloat = Field(
         0.0, description="signed tool offset, mm (> 0: left of the direction of travel)")
-    gcode: bool = Field(False, description="also return the NC program")
+    gcode: StrictBool = Field(False, description="also return the NC program")
     feed: FiniteFloat = Field(1000.0, gt=0, description="feed rate for the program, mm/min")
 
 

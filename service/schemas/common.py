@@ -4,9 +4,12 @@ from __future__ import annotations
 
 from typing import Annotated, Literal
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, StrictInt
 
-FiniteFloat = Annotated[float, Field(allow_inf_nan=False)]
+# Request scalars are strict: "1", true or "yes" for a number or a flag are errors, as the
+# schema says, not silently coerced (FastAPI validates the parsed body in Python mode, so
+# model-wide strict=True would also refuse JSON arrays for tuples; these are per scalar).
+FiniteFloat = Annotated[float, Field(allow_inf_nan=False, strict=True)]
 Dtype = Literal["float32", "float64"]
 
 
@@ -31,7 +34,7 @@ class Grid(StrictModel):
     dx: FiniteFloat = Field(gt=0, description="node spacing along x, mm")
     dy: FiniteFloat = Field(gt=0, description="node spacing along y, mm")
     z: list[list[FiniteFloat]] | None = Field(None, description="heights, one list per row (y)")
-    shape: tuple[int, int] | None = Field(None, description="[ny, nx] of z_b64")
+    shape: tuple[StrictInt, StrictInt] | None = Field(None, description="[ny, nx] of z_b64")
     dtype: Dtype | None = Field(None, description="element type of z_b64")
     z_b64: str | None = Field(None, description="little-endian row-major heights, base64")
 

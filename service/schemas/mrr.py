@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Literal
 
-from pydantic import BaseModel, Field
+from pydantic import BaseModel, Field, StrictBool, StrictInt
 
 from service.schemas.common import Grid, GridOut, StrictModel
 
@@ -14,9 +14,9 @@ class MrrRequest(StrictModel):
     wavelet: Literal["haar", "single_knot"] = Field(
         "haar", description="haar: flat cells (contour machining); single_knot: bilinear "
         "(scan-line machining)")
-    levels: int | None = Field(None, ge=0, le=64,
+    levels: StrictInt | None = Field(None, ge=0, le=64,
                                description="analysis steps to take; default: all")
-    include_models: bool = Field(False, description="return every level's grid")
+    include_models: StrictBool = Field(False, description="return every level's grid")
 
 
 class MrrLevel(BaseModel):

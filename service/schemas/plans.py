@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Literal
 
-from pydantic import BaseModel, Field
+from pydantic import BaseModel, Field, StrictBool
 
 from service.schemas.common import FiniteFloat, Grid, GridOut, StrictModel, ToolIn, ToolOut
 
@@ -16,7 +16,7 @@ class ScanlinePlanRequest(StrictModel):
     tolerance: FiniteFloat = Field(0.01, gt=0, description="finishing scallop height, mm")
     stock_top: FiniteFloat | None = Field(
         None, description="top of the stock, mm; default: part top + first tool's flute length")
-    include_models: bool = Field(False, description="return each stage's model grid")
+    include_models: StrictBool = Field(False, description="return each stage's model grid")
 
 
 class ScanlineStageOut(BaseModel):
@@ -88,7 +88,7 @@ class ContourPlanRequest(StrictModel):
     strategy: Literal["uniform_load", "even_step"] = Field(
         "uniform_load", description="uniform_load: equal slab volumes (the seed's method); "
         "even_step: equal spacings")
-    include_models: bool = Field(False, description="return each stage's terraced model")
+    include_models: StrictBool = Field(False, description="return each stage's terraced model")
 
 
 class ContourStageOut(BaseModel):
