@@ -31,6 +31,8 @@ class Settings(BaseSettings):
     max_grid_cells: int = Field(4096 * 4096, gt=0, description="Largest z-map (ny * nx).")
     max_points: int = Field(2_000_000, gt=0, description="Largest point curve for /v1/arcs.")
     max_tools: int = Field(64, gt=0, description="Largest tool library in a plan request.")
+    max_arc_resolution: float = Field(
+        2.0e6, gt=0, description="Largest curve length / tolerance for /v1/arcs (work bound).")
     workers: int = Field(default_factory=_cpu_count, gt=0, description="Compute pool threads.")
     max_pending: int = Field(16, ge=0,
                              description="Computations queued beyond the pool before shedding.")

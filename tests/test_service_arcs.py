@@ -62,3 +62,11 @@ def test_offset_and_cache(client: TestClient) -> None:
 ])
 def test_bad_arc_requests(client: TestClient, body: str, field: str, reason: str) -> None:
     assert_problem(post_raw(client, "/v1/arcs", body), 422, field, reason)
+
+
+def test_unbounded_work_is_refused(client: TestClient) -> None:
+    # 2e4 mm of curve at a micron tolerance would mean ~1e10 verification samples.
+    body = {"points": [[0, 0], [1e4, 0], [1e4, 1e4]], "tolerance": 1e-6}
+    assert_problem(client.post("/v1/arcs", json=body), 413, "tolerance", "larger tolerance")
+    far = {"points": [[0, 0], [2e6, 0]]}
+    assert_problem(client.post("/v1/arcs", json=far), 422, "points[1][0]", "")

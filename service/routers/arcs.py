@@ -67,6 +67,13 @@ async def post_arcs(body: ArcsRequest, request: Request, settings: SettingsDep, 
         raise LimitExceededError(
             "points", f"{len(body.points)} points exceed the limit of {settings.max_points}")
     points = await anyio.to_thread.run_sync(_as_points, body.points)
+    # The fit and its dense two-sided check sample the curve at a fraction of the
+    # tolerance: bound length / tolerance so no request can ask for unbounded work.
+    length = float(np.hypot(*np.diff(points, axis=0).T).sum())
+    if length / body.tolerance > settings.max_arc_resolution:
+        raise LimitExceededError(
+            "tolerance", f"curve length {length:.6g} mm over tolerance {body.tolerance:g} mm "
+            f"exceeds {settings.max_arc_resolution:g}; use a larger tolerance")
     params = body.model_dump(exclude={"points"})
     return await serve_task(request, store, pool, operation="arcs", params=params,
                             arrays={"points": points}, compute=lambda: arcs_result(points, body))

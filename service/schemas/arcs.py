@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import Annotated, Literal
 
 from pydantic import BaseModel, Field, StrictBool
 
 from service.schemas.common import FiniteFloat, StrictModel
 
-Point = tuple[FiniteFloat, FiniteFloat]
+Coordinate = Annotated[float, Field(strict=True, allow_inf_nan=False, ge=-1e6, le=1e6)]
+Point = tuple[Coordinate, Coordinate]
 
 
 class ArcsRequest(StrictModel):
