@@ -52,7 +52,7 @@ from zwcore.sampling import cells_at_fine_nodes
 from zwcore.terraces import cell_weights, edit_coefficients, terrace
 from zwcore.tools import Tool, default_tools, tool_library
 from zwcore.wavelets import analyse
-from zwcore.zmap import MAX_ABS_HEIGHT, ZMap
+from zwcore.zmap import ZMap, stock_top_at_or_above
 
 __all__ = [
     "STRATEGIES",
@@ -260,17 +260,7 @@ def _stock_top(value: float | None, part_top: float, first: Tool,
         return top, "default", (f"stock_top defaults to the part's highest point "
                                 f"({part_top:g} mm) plus the first tool's flute length "
                                 f"({first.flute_length:g} mm): {top:g} mm")
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise InvalidInputError("stock_top", f"must be a number, got {value!r}") from None
-    if not math.isfinite(v):
-        raise InvalidInputError("stock_top", f"must be finite, got {value!r}")
-    if abs(v) > MAX_ABS_HEIGHT:
-        raise InvalidInputError("stock_top", f"must lie within ±{MAX_ABS_HEIGHT:g} mm, got {v!r}")
-    if v < part_top:
-        raise InvalidInputError("stock_top", f"must be at or above the part's highest point "
-                                f"({part_top!r} mm), got {v!r}")
+    v = stock_top_at_or_above(value, part_top)
     return v, "request", f"stock_top {v:g} mm as requested"
 
 

@@ -66,7 +66,7 @@ from zwcore.scanline_passes import cross_slopes, plan_strips, scallop_height
 from zwcore.scanline_types import ScanlineChecks, ScanlinePlan, ScanlineStage
 from zwcore.tools import Tool, default_tools, tool_library
 from zwcore.wavelets import analyse
-from zwcore.zmap import ZMap
+from zwcore.zmap import ZMap, positive_number, stock_top_at_or_above
 
 __all__ = [
     "MAX_STAGES",
@@ -111,24 +111,8 @@ class _Level:
 
 
 def _validate(tolerance: float, stock_top: float | None, top: float) -> tuple[float, float | None]:
-    try:
-        tol = float(tolerance)
-    except (TypeError, ValueError):
-        raise InvalidInputError("tolerance", f"must be a number, got {tolerance!r}") from None
-    if not math.isfinite(tol) or tol <= 0.0:
-        raise InvalidInputError("tolerance", f"must be a finite number > 0, got {tolerance!r}")
-    if stock_top is None:
-        return tol, None
-    try:
-        st = float(stock_top)
-    except (TypeError, ValueError):
-        raise InvalidInputError("stock_top", f"must be a number, got {stock_top!r}") from None
-    if not math.isfinite(st):
-        raise InvalidInputError("stock_top", f"must be finite, got {stock_top!r}")
-    if st < top:
-        raise InvalidInputError(
-            "stock_top", f"must be at or above the part's highest point {top!r}, got {st!r}")
-    return tol, st
+    tol = positive_number(tolerance, "tolerance")
+    return tol, None if stock_top is None else stock_top_at_or_above(stock_top, top)
 
 
 def _largest_fitting(library: Sequence[Tool], radius: float) -> Tool | None:

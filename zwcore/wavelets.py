@@ -272,23 +272,7 @@ def _hat_steps(z: F64, steps: int, lifted: bool, max_abs: float) -> list[tuple[F
 def _reference_step(z: F64, wavelet: Wavelet, *, lifted: bool = True) -> tuple[F64, Bands]:
     """One level of the non-standard 2-D analysis, literally as defined: pad, x step,
     y step. The definition the fast path (:mod:`zwcore._pyramid`) must reproduce
-    bit for bit; :func:`analysis_step` documents the parameters.
-
-    Parameters
-    ----------
-    z : (ny, nx) float64
-        Approximation at level ``j``.
-    wavelet : {"haar", "single_knot"}
-    lifted : bool
-        Apply the overcut-free lift, so the result contains ``z``.
-
-    Returns
-    -------
-    ll : (my, mx) float64
-        Approximation at level ``j - 1``; ``m = ceil(n/2)`` for Haar and
-        ``floor(n/2) + 1`` for single-knot.
-    bands : Bands
-        The detail bands and the padding used.
+    bit for bit; parameters and results as :func:`analysis_step`.
     """
     ny, nx = z.shape
     padding = (_pad_for(wavelet, ny), _pad_for(wavelet, nx))

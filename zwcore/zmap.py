@@ -14,7 +14,16 @@ from numpy.typing import ArrayLike, NDArray
 
 from zwcore.errors import InvalidInputError
 
-__all__ = ["INTERPOLATIONS", "MAX_ABS_HEIGHT", "Interpolation", "ZMap", "as_heights"]
+__all__ = [
+    "INTERPOLATIONS",
+    "MAX_ABS_HEIGHT",
+    "Interpolation",
+    "ZMap",
+    "as_heights",
+    "finite_number",
+    "positive_number",
+    "stock_top_at_or_above",
+]
 
 #: Heights beyond a kilometre are not a part on a machine tool; rejecting them
 #: also keeps every sum and difference of heights far from overflow.
@@ -63,17 +72,33 @@ def as_heights(z: ArrayLike, field: str = "z") -> NDArray[np.float64]:
     return np.ascontiguousarray(arr)
 
 
-def _positive(value: float, field: str) -> float:
-    v = float(value)
-    if not np.isfinite(v) or v <= 0.0:
+def finite_number(value: object, field: str) -> float:
+    """``value`` as a finite float, or :class:`InvalidInputError` naming ``field``."""
+    try:
+        v = float(value)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        raise InvalidInputError(field, f"must be a number, got {value!r}") from None
+    if not np.isfinite(v):
+        raise InvalidInputError(field, f"must be finite, got {value!r}")
+    return v
+
+
+def positive_number(value: object, field: str) -> float:
+    """``value`` as a finite float > 0, or :class:`InvalidInputError` naming ``field``."""
+    v = finite_number(value, field)
+    if v <= 0.0:
         raise InvalidInputError(field, f"must be a finite number > 0, got {value!r}")
     return v
 
 
-def _finite(value: float, field: str) -> float:
-    v = float(value)
-    if not np.isfinite(v):
-        raise InvalidInputError(field, f"must be finite, got {value!r}")
+def stock_top_at_or_above(value: object, part_top: float) -> float:
+    """A requested stock top: finite, within the height range, not below the part."""
+    v = finite_number(value, "stock_top")
+    if abs(v) > MAX_ABS_HEIGHT:
+        raise InvalidInputError("stock_top", f"must lie within ±{MAX_ABS_HEIGHT:g} mm, got {v!r}")
+    if v < part_top:
+        raise InvalidInputError("stock_top", f"must be at or above the part's highest point "
+                                f"({part_top!r} mm), got {v!r}")
     return v
 
 
@@ -99,10 +124,10 @@ class ZMap:
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "z", as_heights(self.z))
-        object.__setattr__(self, "x0", _finite(self.x0, "x0"))
-        object.__setattr__(self, "y0", _finite(self.y0, "y0"))
-        object.__setattr__(self, "dx", _positive(self.dx, "dx"))
-        object.__setattr__(self, "dy", _positive(self.dy, "dy"))
+        object.__setattr__(self, "x0", finite_number(self.x0, "x0"))
+        object.__setattr__(self, "y0", finite_number(self.y0, "y0"))
+        object.__setattr__(self, "dx", positive_number(self.dx, "dx"))
+        object.__setattr__(self, "dy", positive_number(self.dy, "dy"))
 
     @property
     def shape(self) -> tuple[int, int]:
