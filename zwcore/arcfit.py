@@ -343,7 +343,10 @@ class Fitter:
         def worst(th: float) -> float:
             t = np.array([math.cos(th), math.sin(th)])
             ub, vb = local_uv(p, t, self.S[b : b + 1])
-            kap = float(2.0 * vb[0] / (ub[0] ** 2 + vb[0] ** 2))
+            q2 = float(ub[0] ** 2 + vb[0] ** 2)
+            if q2 <= 0.0:
+                return math.inf
+            kap = float(2.0 * vb[0] / q2)
             u, v = local_uv(p, t, pts)
             return float(np.abs(circle_gap(u, v, kap)).max())
 
@@ -369,7 +372,10 @@ class Fitter:
         for th in cands:
             t = np.array([math.cos(th), math.sin(th)])
             ub, vb = local_uv(p, t, self.S[b : b + 1])
-            kap = 0.0 if th == chord else float(2.0 * vb[0] / (ub[0] ** 2 + vb[0] ** 2))
+            q2 = float(ub[0] ** 2 + vb[0] ** 2)
+            if q2 <= 0.0:
+                continue
+            kap = 0.0 if th == chord else float(2.0 * vb[0] / q2)
             if not self._radius_ok(kap):
                 continue
             res = self._check(p, t, kap, k, b, float(np.hypot(*(self.S[k] - p))))
@@ -470,7 +476,9 @@ class Fitter:
             r1 = self._check(p0, t0, k1, k, m, e, sig_end=s1)
             if r1 is None:
                 continue
-            r2 = self._check(jn, tj, k2, m, b, 0.0, sig_end=s2, dense_first=True)
+            # the second arc starts at the junction, which stands for sample m
+            e_m = float(np.hypot(*(self.S[m] - jn)))
+            r2 = self._check(jn, tj, k2, m, b, e_m, sig_end=s2, dense_first=True)
             if r2 is None:
                 continue
             a1 = self._make(p0, t0, k1, k, m, r1)
@@ -664,7 +672,6 @@ class Fitter:
                 level = nxt
                 continue
             # nothing placed from any state of this level
-            best = level[0]
             if loop:
                 # close from earlier junctions of the best states
                 for st in level:
@@ -676,39 +683,41 @@ class Fitter:
                         if clo is not None:
                             return _unwind(par) + clo, forced_at
                         node = par
-                raise Stuck
             if not allow_forced:
                 raise Stuck
-            # shorter pieces from the best state, then a corner, then a plain line
-            assert best.t is not None
-            lo1, up1 = self._scan(best.p, best.t, best.k, b)
-            jm = min(best.k + len(lo1), b - 1)
-            sh = self._shrink(best.p, best.t, best.k, best.e, max(jm, best.k + 1), lo1, up1)
-            if sh is not None:
-                level = [_State(sh.end, sh.t_end, sh.j, sh.e_end, best, sh, best.t_first,
-                                best.depth + 1)]
-                continue
-            if best.parent is not None and not best.fresh:
-                forced_at.append(best.depth - 1)
-                level = [
-                    _State(best.p, t, best.k, best.e, best.parent, best.piece, best.t_first,
-                           best.depth, fresh=True)
-                    for t in self._free_tangents(best.p, best.k, b)
-                ]
-                continue
-            # cannot fail: the straight line to the next sample (its start is within tol
-            # of sample k, so the segment k..k+1 stays in the band)
-            k = best.k
-            nxtp = self.S[k + 1].copy()
-            dv = nxtp - best.p
-            ln = float(np.hypot(*dv))
-            tl = dv / ln if ln > 0 else best.t
-            if best.parent is not None or best.piece is not None:
-                forced_at.append(best.depth - 1)
-            pc = Piece(best.p, tl, 0.0, ln, k, k + 1, nxtp, tl, 0.0)
-            if k + 1 >= b:
-                return [*_unwind(best), pc], forced_at
-            level = [_State(nxtp, tl, k + 1, 0.0, best, pc, best.t_first, best.depth + 1)]
+            # valid by construction: a filleted polyline over a short stretch ahead
+            fb = self._fallback(level[0], b, loop)
+            if fb[1] is None:
+                return fb[0], forced_at
+            level = [fb[1]]
+            continue
+
+    #: arc length (in tolerances) a fallback stretch covers before the beam resumes
+    FALLBACK_SPAN = 5.0
+
+    def _fallback(self, st: _State, b: int, loop: bool) -> tuple[list[Piece], _State | None]:
+        """A filleted-polyline stretch from ``st``: the whole chain, or the state after it."""
+        assert st.t is not None
+        k = st.k
+        m = int(np.searchsorted(self.cum, self.cum[k] + self.FALLBACK_SPAN * self.tol))
+        m = max(m, k + 2)
+        if m >= b - 1:
+            m = b
+        if m == b:
+            mode = "tangent" if loop else "sample"
+        else:
+            mode = "state"
+        from zwcore.arcfallback import fillet_stretch  # (import cycle: arcfallback uses Piece)
+
+        pieces, end = fillet_stretch(self.S, self.tol, st.p, st.t, k, m, mode,
+                                     st.t_first if loop else None)
+        node = st
+        for pc in pieces:
+            node = _State(pc.end, pc.t_end, pc.j, 0.0, node, pc, st.t_first, node.depth + 1)
+        if end is None:
+            return _unwind(node), None
+        ep, et, ee = end
+        return [], _State(ep, et, m, ee, node, None, st.t_first, node.depth, fresh=True)
 
     def _bridge(self, st: _State, b: int, loop: bool) -> _State | None:
         """Two verified arcs from ``st`` to a sample just ahead, ending along the polyline.

@@ -1,34 +1,35 @@
 """C1 arc-and-line chains fitted to an ordered 2-D point curve (design section 5, seed 004).
 
-Method
-------
-Each piece starts at a junction with a known point ``P`` and tangent ``T`` and is
-described by one number, its signed curvature ``kappa`` (0 is a line). For a fixed
-``(P, T)`` the signed distance of a sample to the circle is monotone in ``kappa``,
-so each sample admits an interval of curvatures and the pieces that cover samples
-``k+1..j`` form the running intersection of those intervals: one vectorised
-``cummax``/``cummin`` gives the longest piece.
-
-The seed's sequential least-squares fit fails because it hands each arc's end
-tangent to the next arc without asking whether the next arc can live with it:
-a long arc that just fits ends with its junction near the edge of the band and
-its tangent off the curve's, and the next arc has no room left. Here the end of
-each piece (where it stops and which curvature it uses inside the feasible
-interval) is chosen by a two-step look-ahead: among candidate ends, the one from
-which the *next* piece reaches furthest wins. That keeps junctions near the
-middle of the band with tangents along the curve, without needing a (noisy)
-tangent estimate of the input.
-
-Every accepted piece is verified two-sided with conservative analytic bounds
-(samples to arc, polyline segments to arc, arc portions to polyline), so the
-fit never relies on luck; if a choice fails, shorter pieces are tried, then a
-tighter working tolerance; the last resort is a corner at a junction, reported
-in ``forced_corners`` (never seen on valid curves in the test-suite).
-
-Real corners (turning angle over ``corner_angle_deg`` measured over +-3 tolerances
-of arc length, so noise does not make corners) split the curve into runs that are
-fitted separately; closed curves without corners close with a biarc (or a single
-full circle), so the closing junction is C1 too.
+Method (as built)
+-----------------
+1. Preprocessing: coordinates relative to the first point; repeated points
+   dropped; real corners found (turning over ``corner_angle_deg`` measured over
+   +-3 tolerances of arc length, standing out of the chord, one per cluster);
+   long polyline segments densified to ``6 tol`` so junctions can sit between
+   sparse input points. Corners split the curve into runs fitted separately.
+2. Curvature-interval pieces (:mod:`zwcore.arcfit`): a piece starts at a
+   junction ``(P, T)`` and is one number, its signed curvature (0 = line). For a
+   fixed ``(P, T)`` each sample admits an interval of curvatures; the running
+   intersection (``cummax``/``cummin``) gives every feasible piece at once.
+3. Beam look-ahead: the chain grows level by level as a beam of junction states;
+   candidate pieces (several ends, several curvatures in the interval) are ranked
+   by how far the *next* piece reaches from their end state, and the best few
+   verified ones survive. This keeps junctions mid-band with tangents along the
+   curve, the cause of the seed's sequential failures.
+4. Bridges: a state from which nothing verified can be placed tries a biarc onto
+   a nearby sample with the polyline's direction (the second arc is verified
+   with the true distance of its first sample).
+5. Fallback: if the beam is still stuck (after retries at tighter working
+   tolerances), a short stretch is covered by the polyline with tangent fillet
+   arcs at its vertices (:mod:`zwcore.arcfallback`), joined C1 to the pieces on
+   both sides; it is within the tolerance by construction, so the fit never
+   fails and ``forced_corners`` stays empty (kept for API compatibility).
+6. Closure: a closed curve without corners is one full circle if that fits,
+   else closes with a biarc onto the start tangent (C1 at the seam).
+7. Verification: every piece is checked two-sided with conservative analytic
+   bounds while fitting; the finished chain is measured densely
+   (:mod:`zwcore.arcverify`), and a bridged chain that fails that measurement is
+   refitted without bridges.
 """
 
 from __future__ import annotations
@@ -378,15 +379,8 @@ def fit_arcs(
                         a, b, loop, allow_forced=False, t_start=t_start)
                 except Stuck:
                     continue
-            if loop:
-                # a loop that cannot close smoothly: close it with a corner at the start
-                got = mk(0.9).run(a, b, False, allow_forced=True)
-                return got[0], [*got[1], -1]
-            if t_start is not None:
-                # cannot continue smoothly through the first point: a corner there
-                got = mk(0.9).run(a, b, False, allow_forced=True)
-                return got[0], [*got[1], -1]
-            return mk(0.9).run(a, b, False, allow_forced=True)
+            # the beam with a filleted-polyline fallback wherever it is stuck: never fails
+            return mk(0.9).run(a, b, loop, allow_forced=True, t_start=t_start)
 
         n_runs = len(bounds) - 1
         results: list[tuple[list[Piece], list[int]] | None] = [None] * n_runs

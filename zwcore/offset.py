@@ -18,6 +18,14 @@ Sharp corners of the input: on the outside of a corner the offset pieces do
 not meet and a rounding arc of radius ``|distance|`` about the corner point
 joins them tangentially (as NC cutter compensation does); on the inside they
 overlap and are trimmed at their intersection (a sharp corner of the offset).
+
+Limits: trimming is local only (neighbouring pieces at a corner). There is no
+global self-intersection removal: where the offset distance exceeds the local
+"width" of the curve (a narrow neck, a hairpin narrower than ``2 |distance|``, a
+concave pocket smaller than the tool) the offset path can cross itself or cut
+through other parts of the chain, and loops formed that way are not removed.
+The result is then not a valid cutter path; callers must check for
+self-intersections or use a tool small enough for the part's features.
 """
 
 from __future__ import annotations
