@@ -288,6 +288,18 @@ def test_too_many_passes_is_a_planning_error() -> None:
         plan_scanline(ZMap(np.zeros((3, 3))), [Tool("T", "ball", 1.0, 1.0)], stock_top=1e5)
 
 
+def test_model_memory_is_bounded(monkeypatch: pytest.MonkeyPatch) -> None:
+    # Many full-resolution passes on a large grid are refused before memory runs out.
+    import zwcore.scanline as scanline
+
+    monkeypatch.setattr(scanline, "MAX_MODEL_NODES", 5 * 33 * 33)
+    with pytest.raises(PlanningError) as err:
+        plan_scanline(ZMap(np.zeros((33, 33))), [Tool("T", "ball", 1.0, 1.0)], stock_top=20.0)
+    assert err.value.field == "grid"
+    plan = plan_scanline(ZMap(np.zeros((33, 33))), [Tool("T", "ball", 1.0, 1.0)], stock_top=1.0)
+    assert plan.checks.ok
+
+
 @pytest.mark.skipif(not (DATA / "mount_rush_zmap_0.1mm.npy").exists(), reason="no shared data")
 def test_mount_rushmore_full_resolution_descends_through_several_balls() -> None:
     z = np.load(DATA / "mount_rush_zmap_0.1mm.npy").astype(np.float64)

@@ -69,6 +69,7 @@ from zwcore.wavelets import analyse
 from zwcore.zmap import ZMap, positive_number, stock_top_at_or_above
 
 __all__ = [
+    "MAX_MODEL_NODES",
     "MAX_STAGES",
     "ScanlineChecks",
     "ScanlinePlan",
@@ -82,6 +83,11 @@ F64 = NDArray[np.float64]
 #: A plan needing more passes than this is a stock/flute mismatch, not a plan
 #: (and its stage models would not fit in memory for a large grid).
 MAX_STAGES = 400
+
+#: Stage-model nodes a plan may hold in all (2 GiB of float64): deep stock with
+#: short flutes on a large grid means many full-resolution passes, and the plan
+#: keeps every pass's model. Beyond this the request is refused, not the server.
+MAX_MODEL_NODES = 1 << 28
 
 #: An intermediate pass's scallops and rest may take at most this share of the
 #: next pass's flute length (the rest of it is for the model difference).
@@ -273,6 +279,11 @@ def _passes(zmap: ZMap, chosen: list[tuple[_Level, Tool, list[int], float]],
                     "tools", f"reaching the part within the flute lengths needs more than "
                     f"{MAX_STAGES} passes (stock top {stock_top:g} mm, lowest point "
                     f"{float(zmap.z.min()):g} mm); use longer flutes or a lower stock")
+            if sum(p.model.size for p in out) > MAX_MODEL_NODES:
+                raise PlanningError(
+                    "grid", f"the plan's {len(out)}+ passes would hold more than "
+                    f"{MAX_MODEL_NODES} model nodes; send a coarser grid, longer flutes or "
+                    f"a lower stock")
             leaves = out[-1].leaves
             if reached:
                 break
