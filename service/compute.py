@@ -10,6 +10,8 @@ in flight (same task id) wait for the one computation (single flight).
 from __future__ import annotations
 
 import asyncio
+import concurrent.futures
+import threading
 import time
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
@@ -27,52 +29,69 @@ class ComputePool:
         self.capacity = workers + max_pending
         self._executor = ThreadPoolExecutor(workers, thread_name_prefix="zw-compute")
         self._busy = 0
-        self._inflight: dict[str, asyncio.Future[Any]] = {}
+        self._lock = threading.Lock()
+        self._inflight: dict[str, asyncio.Task[Any]] = {}
         metrics.POOL_CAPACITY.set(self.capacity)
 
     @property
     def busy(self) -> int:
         return self._busy
 
-    async def run(self, operation: str, fn: Callable[[], T]) -> T:
-        """Run ``fn`` in the pool, or shed with 503 when the pool is full."""
-        if self._busy >= self.capacity:
-            metrics.POOL_SHED.inc()
-            raise Problem(503, "Busy", "All compute workers are busy; retry shortly.",
-                          kind="busy", headers={"Retry-After": "1"})
-        self._busy += 1
-        metrics.POOL_BUSY.set(self._busy)
-        try:
-            loop = asyncio.get_running_loop()
-            start = time.perf_counter()
-            result = await loop.run_in_executor(self._executor, fn)
-            metrics.COMPUTE_SECONDS.labels(operation).observe(time.perf_counter() - start)
-            return result
-        finally:
+    def _release(self) -> None:
+        with self._lock:
             self._busy -= 1
             metrics.POOL_BUSY.set(self._busy)
+
+    async def run(self, operation: str, fn: Callable[[], T]) -> T:
+        """Run ``fn`` in the pool, or shed with 503 when the pool is full.
+
+        A slot is held until the job has really finished (or was dropped from the
+        queue), not until the caller stops waiting: a thread cannot be interrupted,
+        so a cancelled caller must not free the slot of a computation still running.
+        """
+        with self._lock:
+            if self._busy >= self.capacity:
+                metrics.POOL_SHED.inc()
+                raise Problem(503, "Busy", "All compute workers are busy; retry shortly.",
+                              kind="busy", headers={"Retry-After": "1"})
+            self._busy += 1
+            metrics.POOL_BUSY.set(self._busy)
+        start = time.perf_counter()
+
+        def done(_: concurrent.futures.Future[T]) -> None:
+            metrics.COMPUTE_SECONDS.labels(operation).observe(time.perf_counter() - start)
+            self._release()
+
+        try:
+            job = self._executor.submit(fn)
+        except BaseException:
+            self._release()
+            raise
+        job.add_done_callback(done)
+        # Cancelling the wait cancels a job still queued (its callback frees the slot).
+        return await asyncio.wrap_future(job)
 
     async def run_once(self, key: str, operation: str, fn: Callable[[], T]) -> tuple[T, bool]:
         """Like :meth:`run`, but concurrent calls with the same key share one computation.
 
         Returns the result and whether it was shared with a call already in flight.
+        The computation belongs to no single caller: one that is cancelled (its client
+        went away) stops waiting, and the others still get the result.
         """
         pending = self._inflight.get(key)
         if pending is not None:
             return await asyncio.shield(pending), True
-        future: asyncio.Future[Any] = asyncio.get_running_loop().create_future()
-        self._inflight[key] = future
-        try:
-            result = await self.run(operation, fn)
-        except BaseException as exc:
-            future.set_exception(exc)
-            future.exception()  # mark retrieved: the caller re-raises it below
-            raise
-        else:
-            future.set_result(result)
-            return result, False
-        finally:
-            del self._inflight[key]
+        task: asyncio.Task[Any] = asyncio.ensure_future(self.run(operation, fn))
+        self._inflight[key] = task
+
+        def forget(t: asyncio.Task[Any]) -> None:
+            if self._inflight.get(key) is t:
+                del self._inflight[key]
+            if not t.cancelled():
+                t.exception()  # retrieved: whoever awaits it re-raises; nobody may be left
+
+        task.add_done_callback(forget)
+        return await asyncio.shield(task), False
 
     def shutdown(self) -> None:
         self._executor.shutdown(wait=False, cancel_futures=True)

@@ -62,8 +62,11 @@ def decode_grid(grid: Grid, max_cells: int, field: str = "grid") -> ZMap:
             missing = "shape" if grid.shape is None else "dtype"
             raise InvalidInputError(f"{field}.{missing}", "required with z_b64")
         ny, nx = grid.shape
-        if ny < 0 or nx < 0:
-            raise InvalidInputError(f"{field}.shape", f"must be non-negative, got {[ny, nx]}")
+        # Checked before any size arithmetic: a huge side times a zero side is no cells,
+        # and numpy cannot even describe a (2**63, 0) array (it raised a 500).
+        if ny < 2 or nx < 2:
+            raise InvalidInputError(f"{field}.shape",
+                                    f"grid must be at least 2 x 2 nodes, got {[ny, nx]}")
         if ny * nx > max_cells:
             raise LimitExceededError(f"{field}.shape",
                                      f"{ny} x {nx} grid exceeds {max_cells} cells")

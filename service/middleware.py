@@ -101,6 +101,7 @@ class ServiceMiddleware:
                 while more:
                     message = await receive()
                     if message["type"] == "http.disconnect":
+                        status = 499  # client closed the request: no response, not a 5xx
                         return
                     chunk = message.get("body", b"")
                     size += len(chunk)

@@ -40,11 +40,20 @@ class DiskStore:
                                       eviction_policy="least-recently-used")
 
     def get(self, key: str) -> bytes | None:
-        value = self._cache.get(key)
+        # A failing store (disk full, database locked past its timeout, a corrupt
+        # file) must not fail the request: it is a miss, and /readyz reports it.
+        try:
+            value = self._cache.get(key)
+        except Exception as exc:
+            log.warning("embedded store read failed: %s", type(exc).__name__)
+            return None
         return value if isinstance(value, bytes) else None
 
     def put(self, key: str, value: bytes) -> None:
-        self._cache.set(key, value, expire=self._ttl)
+        try:
+            self._cache.set(key, value, expire=self._ttl)
+        except Exception as exc:
+            log.warning("embedded store write failed: %s", type(exc).__name__)
 
     def health(self) -> tuple[str, str]:
         try:

@@ -36,7 +36,7 @@ B64_2x2 = base64.b64encode(np.zeros(4, "<f8").tobytes()).decode()
     ('{"grid": {"dx": 1, "dy": 1, "z": [[0, Infinity], [0, 0]]}}', "grid.z", "finite"),
     ('{"grid": {"dx": 1, "dy": 1, "z": [[0, 1, 2], [0, 0]]}}', "grid.z[1]", "ragged"),
     ('{"grid": {"dx": 1, "dy": 1, "z": [[0, "a"], [0, 0]]}}', "grid.z[0][1]", "number"),
-    ('{"grid": {"dx": 0, "dy": 1, "z": [[0, 1], [0, 0]]}}', "grid.dx", "greater than 0"),
+    ('{"grid": {"dx": 0, "dy": 1, "z": [[0, 1], [0, 0]]}}', "grid.dx", "greater than or equal to"),
     ('{"grid": {"dx": 1, "dy": -1, "z": [[0, 1], [0, 0]]}}', "grid.dy", ""),
     ('{"grid": {"dx": 1, "dy": 1, "z": [[0, 1]]}}', "grid.z", "2 x 2"),
     ('{"grid": {"dx": 1, "dy": 1, "z": []}}', "grid.z", "2 x 2"),
@@ -98,3 +98,88 @@ def test_unknown_route_is_a_problem(client: TestClient) -> None:
     r = client.get("/v1/nothing")
     assert r.status_code == 404 and r.headers["content-type"] == PROBLEM
     assert client.get("/v1/mrr").status_code == 405
+
+
+# Review regressions: inputs that produced a 5xx, an endless computation or a null figure.
+
+@pytest.mark.parametrize("shape", [[2**63, 0], [10**30, 0], [0, 5], [1, 2], [-2, -2]])
+def test_degenerate_base64_shape_is_422(client: TestClient, shape: list[int]) -> None:
+    # [2**63, 0] has no cells, so it passed the cell limit and numpy's reshape raised (500).
+    grid = {"dx": 1, "dy": 1, "shape": shape, "dtype": "float64", "z_b64": ""}
+    assert_problem(client.post("/v1/mrr", json={"grid": grid}), 422, "grid.shape")
+
+
+@pytest.mark.parametrize(("path", "grid_extra", "field"), [
+    ("/v1/plans/scanline", {"dx": 1e300, "dy": 1e300}, "grid.dx"),  # OverflowError, 500
+    ("/v1/plans/scanline", {"dx": 1e-300, "dy": 1e-300}, "grid.dx"),  # ZeroDivisionError, 500
+    ("/v1/mrr", {"dx": 1e308, "dy": 1.0}, "grid.dx"),  # coarse dx came back null
+    ("/v1/mrr", {"x0": 1.7e308, "dx": 1.0, "dy": 1.0}, "grid.x0"),
+])
+def test_extreme_spacing_or_origin_is_422(client: TestClient, path: str,
+                                           grid_extra: dict[str, float], field: str) -> None:
+    grid = {"z": np.zeros((4, 4)).tolist(), **grid_extra}
+    assert_problem(client.post(path, json={"grid": grid}), 422, field)
+
+
+def test_unreachable_scanline_tolerance_is_422(client: TestClient) -> None:
+    # 1e-300 gave an infinite predicted scallop, sent as null in a float field.
+    grid = {"dx": 1, "dy": 1, "z": [[0, 5, 0], [5, 0, 5], [0, 5, 0]]}
+    r = client.post("/v1/plans/scanline", json={"grid": grid, "tolerance": 1e-300})
+    assert_problem(r, 422, "tolerance")
+
+
+@pytest.mark.parametrize(("extra", "field"), [
+    ({"stock_top": 1e6, "tools": [{"id": "a", "diameter": 1, "flute_length": 0.001}]},
+     "tools[0].flute_length"),
+    ({"tools": [{"id": "big", "diameter": 10, "flute_length": 20},
+                {"id": "tiny", "diameter": 1e-300, "flute_length": 1e-300}]},
+     "tools[1]."),
+    ({"stock_top": 1e6}, "stock_top"),
+])
+def test_contour_slab_count_is_bounded(client: TestClient, extra: dict[str, object],
+                                       field: str) -> None:
+    # Each of these asked the core for 10**8..10**300 slabs and never returned.
+    grid = {"dx": 1, "dy": 1, "z": [[0, 5, 0], [5, 0, 5], [0, 5, 0]]}
+    r = client.post("/v1/plans/contour", json={"grid": grid, **extra})
+    assert_problem(r, 413, field, "slabs")
+
+
+def test_embedded_store_failure_does_not_fail_the_request(client: TestClient) -> None:
+    store = client.app.state.store  # type: ignore[attr-defined]
+
+    def broken(*args: object, **kwargs: object) -> None:
+        raise OSError("disk full")
+
+    store._cache.get = broken  # the diskcache object behind the store
+    store._cache.set = broken
+    r = client.post("/v1/mrr", json={"grid": {"dx": 1, "dy": 1, "z": [[0, 1], [2, 3]]}})
+    assert r.status_code == 200, r.text
+    assert r.json()["task_id"]
+
+
+def test_cancelled_caller_neither_fails_the_shared_computation_nor_frees_its_slot() -> None:
+    import asyncio
+    import threading
+
+    from service.compute import ComputePool
+
+    async def scenario() -> None:
+        pool = ComputePool(1, 0)
+        release = threading.Event()
+        leader = asyncio.ensure_future(pool.run_once("k", "op", lambda: release.wait(5)))
+        await asyncio.sleep(0.05)
+        follower = asyncio.ensure_future(pool.run_once("k", "op", lambda: False))
+        await asyncio.sleep(0.05)
+        leader.cancel()  # the first client went away
+        await asyncio.sleep(0.05)
+        # The thread still runs: its slot stays taken, so the next job is shed.
+        assert pool.busy == 1
+        with pytest.raises(Exception, match="busy"):
+            await pool.run("op", lambda: None)
+        release.set()
+        assert await follower == (True, True)  # the follower still gets the result
+        await asyncio.sleep(0.05)
+        assert pool.busy == 0
+        pool.shutdown()
+
+    asyncio.run(scenario())

@@ -126,3 +126,22 @@ def test_health_and_readiness(client: TestClient) -> None:
     assert client.get("/healthz").json() == {"status": "ok"}
     ready = client.get("/readyz")
     assert ready.status_code == 200 and ready.json()["cache"] == "ok"
+
+
+def test_float32_rendering_never_moves_a_model_below_the_part(client: TestClient) -> None:
+    # Heights that are not float32 values: rounding to nearest would put about half of
+    # them (and so every level's block maxima) below the part. Without the upward
+    # rounding in service.grids every other test here still passed.
+    part = np.random.default_rng(3).uniform(0, 10, size=(9, 12))
+    for wavelet in ("haar", "single_knot"):
+        r = client.post("/v1/mrr", json={"grid": rows_grid(part), "wavelet": wavelet,
+                                         "include_models": True})
+        tid = r.json()["task_id"]
+        stored = client.get(f"/v1/tasks/{tid}", params={"grid_encoding": "float32"}).json()
+        J = stored["depth"]
+        for lv in stored["levels"]:
+            assert lv["grid"]["dtype"] == "float32"
+            z = grid_array(lv["grid"]).astype(float)
+            on_input = at_fine_nodes(z, 2 ** (J - lv["level"]), part.shape,
+                                     lv["grid"]["interpolation"])
+            assert (on_input - part).min() >= 0, (wavelet, lv["level"])

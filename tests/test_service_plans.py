@@ -108,7 +108,7 @@ def test_bad_plan_requests(client: TestClient, path: str, extra: dict, field: st
 @pytest.mark.parametrize("tolerance", [0, -0.01])
 def test_scanline_tolerance_must_be_positive(client: TestClient, tolerance: float) -> None:
     r = client.post("/v1/plans/scanline", json={"grid": GRID, "tolerance": tolerance})
-    assert_problem(r, 422, "tolerance", "greater than 0")
+    assert_problem(r, 422, "tolerance", "greater than or equal to")
 
 
 def test_contour_unknown_strategy_lists_the_valid_ones(client: TestClient) -> None:

@@ -30,6 +30,7 @@ from zwcore.contour import plan_contour
 from zwcore.errors import LimitExceededError
 from zwcore.scanline import plan_scanline
 from zwcore.tools import ToolKind
+from zwcore.zmap import MAX_ABS_HEIGHT
 
 router = APIRouter(prefix="/v1/plans", tags=["plans"])
 
@@ -90,6 +91,35 @@ def scanline_result(zmap: ZMap, tools: list[Tool], tolerance: float, stock_top: 
             "stages": stages, "checks": checks, "notes": list(plan.notes)}
 
 
+def bound_contour_slabs(zmap: ZMap, tools: list[Tool], given: list[ToolIn] | None,
+                        stock_top: float | None, max_slabs: int) -> None:
+    """Refuse a contour plan whose slab count would be unbounded (413).
+
+    A stage places about ``depth / min(flute_length, diameter)`` contour heights
+    (heavy roughing: ``depth / flute_length``), and the core has no cap: a 0.001 mm
+    flute under a 1e6 mm stock asked for 10**9 slabs and held a worker for good.
+    """
+    part_top, bottom = float(zmap.z.max()), float(zmap.z.min())
+    if stock_top is not None and not part_top <= stock_top <= MAX_ABS_HEIGHT:
+        return  # the core rejects this stock top with a 422 naming it
+    top = part_top + tools[0].flute_length if stock_top is None else stock_top
+    depth = top - bottom
+    for tool in tools:
+        step = min(tool.flute_length, tool.diameter)
+        if depth / step <= max_slabs:
+            continue
+        if given is None:
+            field = "stock_top"
+        else:
+            index = next(i for i, t in enumerate(given) if t.id == tool.id)
+            name = "flute_length" if tool.flute_length <= tool.diameter else "diameter"
+            field = f"tools[{index}].{name}"
+        raise LimitExceededError(
+            field, f"tool {tool.id} would need about {depth / step:.3g} contour slabs over "
+            f"{depth:g} mm of stock (step {step:g} mm), more than the limit of {max_slabs}; "
+            "use a larger tool or a lower stock_top")
+
+
 def contour_result(zmap: ZMap, tools: list[Tool], stock_top: float | None, strategy: str,
                    include_models: bool) -> dict[str, Any]:
     plan = plan_contour(zmap, tools, stock_top=stock_top, strategy=strategy)
@@ -138,6 +168,8 @@ async def post_contour_plan(body: ContourPlanRequest, request: Request, settings
     terraced model it leaves, from the lifted Haar MRR by coefficient editing."""
     zmap = await anyio.to_thread.run_sync(decode_grid, body.grid, settings.max_grid_cells)
     tools = _tools(body.tools, "flat", settings.max_tools)
+    await anyio.to_thread.run_sync(bound_contour_slabs, zmap, tools, body.tools, body.stock_top,
+                                   settings.max_contour_slabs)
     params = {"grid": [zmap.x0, zmap.y0, zmap.dx, zmap.dy], "tools": _tool_params(tools),
               "stock_top": body.stock_top, "strategy": body.strategy,
               "include_models": body.include_models}

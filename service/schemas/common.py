@@ -29,10 +29,13 @@ class Grid(StrictModel):
     model_config = ConfigDict(json_schema_extra={"examples": [
         {"x0": 0.0, "y0": 0.0, "dx": 1.0, "dy": 1.0, "z": [[0.0, 1.0], [2.0, 3.0]]}]})
 
-    x0: FiniteFloat = Field(0.0, description="x of node (0, 0), mm")
-    y0: FiniteFloat = Field(0.0, description="y of node (0, 0), mm")
-    dx: FiniteFloat = Field(gt=0, description="node spacing along x, mm")
-    dy: FiniteFloat = Field(gt=0, description="node spacing along y, mm")
+    # Bounded so that every derived figure stays finite: a spacing of 1e300 overflowed
+    # and one of 1e-300 divided by zero in the planners (500s), and a coarse level's
+    # spacing or origin came back as null.
+    x0: FiniteFloat = Field(0.0, ge=-1e6, le=1e6, description="x of node (0, 0), mm")
+    y0: FiniteFloat = Field(0.0, ge=-1e6, le=1e6, description="y of node (0, 0), mm")
+    dx: FiniteFloat = Field(ge=1e-6, le=1e6, description="node spacing along x, mm")
+    dy: FiniteFloat = Field(ge=1e-6, le=1e6, description="node spacing along y, mm")
     z: list[list[FiniteFloat]] | None = Field(None, description="heights, one list per row (y)")
     shape: tuple[StrictInt, StrictInt] | None = Field(None, description="[ny, nx] of z_b64")
     dtype: Dtype | None = Field(None, description="element type of z_b64")

@@ -13,7 +13,9 @@ class ScanlinePlanRequest(StrictModel):
     grid: Grid
     tools: list[ToolIn] | None = Field(
         None, description="ball end mills; default: the shipped library (GET /v1/tools)")
-    tolerance: FiniteFloat = Field(0.01, gt=0, description="finishing scallop height, mm")
+    tolerance: FiniteFloat = Field(
+        0.01, ge=1e-6, description="finishing scallop height, mm (at least 1e-6: a finer one "
+        "gave an infinite predicted scallop)")
     stock_top: FiniteFloat | None = Field(
         None, description="top of the stock, mm; default: part top + first tool's flute length")
     include_models: StrictBool = Field(False, description="return each stage's model grid")
