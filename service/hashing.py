@@ -29,7 +29,10 @@ def canonical_bytes(a: np.ndarray, exact_float32: bool | None = None) -> tuple[s
     a32 = a64.astype("<f4")
     if exact_float32 is None:
         exact_float32 = bool(np.array_equal(a32, a64))
-    chosen = a32 if exact_float32 else a64
+    # Adding +0.0 turns -0.0 into +0.0: the same height must be the same task.
+    chosen = a32 if exact_float32 else a64 + 0.0
+    if exact_float32:
+        chosen += np.float32(0.0)
     return str(chosen.dtype), memoryview(chosen.tobytes() if not chosen.flags.c_contiguous
                                          else chosen.data).cast("B")
 

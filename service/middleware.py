@@ -42,6 +42,8 @@ class ServiceMiddleware:
     """Outermost layer of the app.
 
     - echoes ``X-Request-ID`` (or makes one) on every response;
+    - bounds the number of JSON values a body may hold (``max_json_values``),
+      since parsing multiplies their memory;
     - enforces ``max_body_bytes`` on every request, whether it declares a
       Content-Length or arrives chunked: the body is read here, so the limit
       holds before any parsing starts;
@@ -49,9 +51,10 @@ class ServiceMiddleware:
       per request (never the body, never the Authorization header).
     """
 
-    def __init__(self, app: ASGIApp, max_body_bytes: int) -> None:
+    def __init__(self, app: ASGIApp, max_body_bytes: int, max_json_values: int) -> None:
         self.app = app
         self.max_body_bytes = max_body_bytes
+        self.max_json_values = max_json_values
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
         if scope["type"] != "http":
@@ -112,6 +115,13 @@ class ServiceMiddleware:
                     chunks.append(chunk)
                     more = message.get("more_body", False)
                 body = b"".join(chunks)
+                # Parsed JSON numbers cost ~10x their text in Python objects: bound their
+                # count before any parsing (a comma count is a cheap upper bound).
+                if body.count(b",") >= self.max_json_values:
+                    await reject(413, "Request too large",
+                                 f"body holds more than {self.max_json_values} JSON values; "
+                                 "send large grids as z_b64")
+                    return
             replayed = False
 
             async def replay() -> Message:

@@ -28,6 +28,9 @@ class Settings(BaseSettings):
     cache_ttl_seconds: int = Field(7 * 24 * 3600, gt=0, description="Lifetime of a cached result.")
     api_keys: str = Field("", description="Comma-separated bearer keys; empty: no auth.")
     max_body_bytes: int = Field(256 << 20, gt=0, description="Largest request body accepted.")
+    max_json_values: int = Field(
+        4_500_000, gt=0, description="Most comma-separated JSON values in a body (parsing cost "
+        "bound: larger grids go as z_b64).")
     max_grid_cells: int = Field(4096 * 4096, gt=0, description="Largest z-map (ny * nx).")
     max_points: int = Field(2_000_000, gt=0, description="Largest point curve for /v1/arcs.")
     max_tools: int = Field(64, gt=0, description="Largest tool library in a plan request.")

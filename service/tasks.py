@@ -28,14 +28,15 @@ def _etag(tid: str) -> str:
     return f'"{tid}"'
 
 
-def not_modified(request: Request, tid: str) -> bool:
-    """True when ``If-None-Match`` names this task (strong or weak, in a list, or ``*``)."""
+def not_modified(request: Request, tid: str, stored: bool) -> bool:
+    """True when ``If-None-Match`` names this task (strong or weak, in a list), or is
+    ``*`` and a stored result exists (RFC 9110: ``*`` matches any current representation)."""
     header = request.headers.get("if-none-match")
     if not header:
         return False
     for tag in header.split(","):
         tag = tag.strip()
-        if tag == "*" or tag.removeprefix("W/").strip('"') == tid:
+        if (tag == "*" and stored) or tag.removeprefix("W/").strip('"') == tid:
             return True
     return False
 
@@ -58,10 +59,14 @@ async def serve_task(request: Request, store: TaskStore, pool: ComputePool, *, o
     exact = dict.fromkeys(arrays or {}, True) if encoding == "float32" else None
     tid = await anyio.to_thread.run_sync(make_task_id, operation, params, arrays, exact)
     request.state.task_id = tid
-    if not_modified(request, tid):
+    # The task id is the content hash, so a named tag is answered without the store.
+    if not_modified(request, tid, stored=False):
         request.state.cache = "not-modified"
         return Response(status_code=304, headers={"ETag": _etag(tid)})
     body = await anyio.to_thread.run_sync(store.get, tid)
+    if body is not None and not_modified(request, tid, stored=True):
+        request.state.cache = "not-modified"
+        return Response(status_code=304, headers={"ETag": _etag(tid)})
     if body is not None:
         metrics.CACHE.labels(operation, "hit").inc()
         request.state.cache = "hit"

@@ -183,3 +183,12 @@ def test_cancelled_caller_neither_fails_the_shared_computation_nor_frees_its_slo
         pool.shutdown()
 
     asyncio.run(scenario())
+
+
+def test_too_many_json_values_is_413_before_parsing(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    with make_client(tmp_path, max_json_values=1000) as c:
+        rows = [[0.0] * 40 for _ in range(40)]  # 1600 values
+        r = c.post("/v1/mrr", json={"grid": {"dx": 1, "dy": 1, "z": rows}})
+        assert_problem(r, 413, "body", "z_b64")
+        small = c.post("/v1/mrr", json={"grid": {"dx": 1, "dy": 1, "z": [[0, 1], [2, 3]]}})
+        assert small.status_code == 200

@@ -145,3 +145,21 @@ def test_float32_rendering_never_moves_a_model_below_the_part(client: TestClient
             on_input = at_fine_nodes(z, 2 ** (J - lv["level"]), part.shape,
                                      lv["grid"]["interpolation"])
             assert (on_input - part).min() >= 0, (wavelet, lv["level"])
+
+
+def test_negative_zero_is_the_same_task(client: TestClient) -> None:
+    z = np.zeros((3, 3))
+    neg = -z
+    assert np.signbit(neg).all()
+    a = client.post("/v1/mrr", json={"grid": b64_grid(z)}).json()["task_id"]
+    b = client.post("/v1/mrr", json={"grid": b64_grid(neg)}).json()["task_id"]
+    c = client.post("/v1/mrr", json={"grid": b64_grid(neg, "float32")}).json()["task_id"]
+    assert a == b == c
+
+
+def test_if_none_match_star_needs_a_stored_result(client: TestClient, part: np.ndarray) -> None:
+    body = {"grid": rows_grid(part), "levels": 1}
+    first = client.post("/v1/mrr", json=body, headers={"If-None-Match": "*"})
+    assert first.status_code == 200  # nothing stored yet: compute and answer
+    again = client.post("/v1/mrr", json=body, headers={"If-None-Match": "*"})
+    assert again.status_code == 304

@@ -149,10 +149,12 @@ def figures(part: F64, depth: int, dx: float, dy: float, passes: Sequence[PassSp
         leaves = p.leaves
     radii = [s.tool.radius for s in stages]
     last = stages[-1].model
+    # min()/max() skip NaN, so a NaN anywhere must fail the checks explicitly.
+    finite = all(math.isfinite(v) for v in (margin, over))
     checks = ScanlineChecks(
-        containment=margin >= 0.0,
+        containment=finite and margin >= 0.0,
         min_containment_margin=margin,
-        depth_of_cut=over <= 0.0,
+        depth_of_cut=finite and over <= 0.0,
         max_depth_over_flute=over,
         tool_radii_non_increasing=all(a >= b for a, b in itertools.pairwise(radii)),
         finishing_tolerance_met=stages[-1].scallop_height <= tolerance,

@@ -26,11 +26,9 @@ async def get_task(
         Literal["rows", "float32", "float64"],
         Query(description="encoding of returned grids: rows, or base64 of this dtype")] = "rows",
 ) -> Response:
-    if not_modified(request, task_id):
-        body = await anyio.to_thread.run_sync(store.get, task_id)
-        if body is not None:
-            return Response(status_code=304, headers={"ETag": f'"{task_id}"'})
     body = await anyio.to_thread.run_sync(store.get, task_id)
+    if body is not None and not_modified(request, task_id, stored=True):
+        return Response(status_code=304, headers={"ETag": f'"{task_id}"'})
     if body is None:
         raise Problem(404, "Not found", f"no stored result for task {task_id}",
                       kind="unknown-task", errors=[{"field": "task_id", "reason": "unknown"}])
