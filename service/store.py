@@ -104,8 +104,12 @@ class RedisStore:
             return None
         return value if isinstance(value, bytes) else None
 
+    #: Results larger than this are not shared through Redis: one such write can
+    #: outlast the socket timeout and would trip the breaker for every request.
+    max_item_bytes = 32 << 20
+
     def put(self, key: str, value: bytes) -> None:
-        if not self._available():
+        if not self._available() or len(value) > self.max_item_bytes:
             return
         try:
             self._redis.set("zw:task:" + key, value, ex=self._ttl)
