@@ -35,7 +35,7 @@ class Settings(BaseSettings):
     max_points: int = Field(2_000_000, gt=0, description="Largest point curve for /v1/arcs.")
     max_tools: int = Field(64, gt=0, description="Largest tool library in a plan request.")
     max_arc_resolution: float = Field(
-        2.0e6, gt=0, description="Largest curve length / tolerance for /v1/arcs (work bound).")
+        2.0e5, gt=0, description="Largest curve length / tolerance for /v1/arcs (work bound).")
     max_contour_slabs: int = Field(
         10_000, gt=0, description="Most contour slabs one contour-plan stage may need (413).")
     workers: int = Field(default_factory=_cpu_count, gt=0, description="Compute pool threads.")

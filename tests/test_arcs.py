@@ -174,11 +174,11 @@ def test_bench_curve_chain_is_valid(name, bench_chains):
 def test_no_more_segments_than_arcwelder(name, bench_chains):
     _pts, _closed, chain = bench_chains[name]
     arcs, lines = ARCWELDER_REFERENCE[name]
-    # Design target: no more segments than ArcWelder. ArcWelder's chains are not C1
-    # (each arc is fitted on its own); ours are, and on the closed ellipse (14 vs 13)
-    # and the spiral (19 vs 17) the C1 chain still needs up to two more pieces. The
-    # benchmark reports the comparison; this test pins the documented margin.
-    assert len(chain.segments) <= arcs + (lines or 0) + 2
+    # Design target: no more segments than ArcWelder, whose arcs are fitted one by one
+    # (not C1). Met on every curve except the open spiral, where the C1 chain needs 18
+    # pieces against ArcWelder's 17: the margin below pins that documented shortfall.
+    margin = {"spiral": 1}.get(name, 0)
+    assert len(chain.segments) <= arcs + (lines or 0) + margin
 
 
 def test_circle_is_one_full_arc(bench_chains):
@@ -499,3 +499,49 @@ def test_biarc_second_arc_gets_its_start_distance(monkeypatch):
     assert seen
     for true_e, passed in seen:
         assert passed == pytest.approx(true_e, abs=1e-12)
+
+
+# ----------------------------------------------------------------------------
+# degenerate inputs: the reported figures are never NaN (an earlier schemathesis run
+# saw ``max_deviation_points: NaN``); a curve is either fitted validly or rejected
+
+
+def _finite_or_rejected(pts: np.ndarray, tol: float, closed: bool) -> None:
+    try:
+        chain = fit_arcs(pts, tol, closed=closed)
+    except InvalidInputError:
+        return
+    for v in (chain.max_deviation_points, chain.max_deviation_chain, chain.max_kink_smooth):
+        assert math.isfinite(v), v
+    assert chain.max_deviation_points <= tol + 1e-9 * max(1.0, float(np.abs(pts).max()))
+    assert chain.max_deviation_chain <= tol + 1e-9 * max(1.0, float(np.abs(pts).max()))
+
+
+@pytest.mark.parametrize("closed", [False, True])
+@pytest.mark.parametrize("big", [0.0, 1e6, -1e6, 1e8])
+# (tolerances far below 1e-4 of the curve length are correct but slow: see the bench notes)
+@pytest.mark.parametrize("tol", [1e-3, 0.1, 10.0])
+def test_degenerate_inputs_never_give_nan(big, tol, closed):
+    base = np.array([big, -0.7 * big])
+    ulp = np.spacing(max(abs(big), 1.0))
+    cases = [
+        np.array([base, base + [1.0, 0.0]]),  # two points
+        np.array([base, base + [1e-7, 1e-7]]),  # two points, tiny
+        np.vstack([np.repeat(base[None], 20, 0), base + [0.3, 0.2]]),  # all but one repeated
+        np.vstack([base + [0.3, 0.2], np.repeat(base[None], 20, 0)]),
+        np.vstack([np.repeat(base[None], 5, 0), base + [0.3, 0.2], np.repeat(base[None], 5, 0)]),
+        np.array([base, base + [1.0, 0.0], base]),  # there and back
+        base + ulp * np.array([[0.0, 0.0], [3.0, 0.0], [0.0, 5.0]]),  # a few ulps apart
+    ]
+    for pts in cases:
+        _finite_or_rejected(pts, tol, closed)
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.sampled_from([0.0, 1e6, -1e6]), st.integers(1, 6), st.integers(0, 5),
+       st.floats(1e-3, 1.0), st.floats(1e-7, 2.0), st.booleans())
+def test_repeated_points_hypothesis(big, n_before, n_after, tol, size, closed):
+    base = np.array([big, big])
+    pts = np.vstack([np.repeat(base[None], n_before, 0), base + [size, 0.5 * size],
+                     np.repeat(base[None], n_after, 0)])
+    _finite_or_rejected(pts, tol, closed)

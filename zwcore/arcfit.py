@@ -71,7 +71,7 @@ class Stuck(Exception):
 class Fitter:
     """Fits runs of the sample polyline ``S`` (local frame, ``(M, 2)``)."""
 
-    J_FRACTIONS = (1.0, 0.94, 0.87, 0.78, 0.66, 0.52, 0.36)
+    J_FRACTIONS = (1.0, 0.97, 0.94, 0.9, 0.87, 0.83, 0.78, 0.72, 0.66, 0.6, 0.52, 0.44, 0.36)
     K_FRACTIONS = (0.5, 0.25, 0.75, 0.08, 0.92)
 
     def __init__(
@@ -86,6 +86,9 @@ class Fitter:
         seg = np.hypot(*(np.diff(samples, axis=0).T))
         self.cum = np.concatenate([[0.0], np.cumsum(seg)])
         self.ds = 0.1 * tol
+        n_seg = max(len(samples) - 1, 1)
+        spacing = float(self.cum[-1]) / n_seg
+        self.reach_stride = max(1, int(0.25 * tol / spacing)) if spacing > 0 else 1
 
     # -- feasibility scans -------------------------------------------------
 
@@ -453,6 +456,8 @@ class Fitter:
             tj = rotate(t0, k1 * s1)
             u2, v2 = local_uv(jn, tj, p1[None, :])
             q22 = float(u2[0] ** 2 + v2[0] ** 2)
+            if q22 <= 0.0:  # the junction fell on the end point: no second arc
+                continue
             k2 = 2.0 * float(v2[0]) / q22
             if abs(k2) < 1e-15 * max(1.0 / dist, 1.0):
                 k2 = 0.0
@@ -541,17 +546,21 @@ class Fitter:
         k0 = int(ks.min())
         todo = np.arange(c)
         ltodo = np.ones(c, dtype=bool)
+        # the reach only ranks candidates (every piece is verified on all samples), so
+        # densely sampled curves are scanned at a stride of about a quarter tolerance:
+        # the work per level no longer grows with the sampling density
+        stride = self.reach_stride
         w = 64
         while todo.size:
             hi = min(b, int(ks[todo].max()) + w)
             if hi <= k0:
                 break
-            idx = np.arange(k0 + 1, hi + 1)
-            step = max(1, int(3e6 // max(hi - k0, 1)))
+            idx = np.arange(k0 + 1, hi + 1, stride)
+            step = max(1, int(3e6 // max(len(idx), 1)))
             still = []
             for s0 in range(0, todo.size, step):
                 sub = todo[s0 : s0 + step]
-                win = self.S[None, k0 + 1 : hi + 1, :]
+                win = self.S[None, k0 + 1 : hi + 1 : stride, :]
                 u, v = local_uv(ps[sub, None, :], ts[sub, None, :], win)
                 mask = idx[None, :] <= ks[sub, None]
                 lo, up = kappa_bounds(u, v, self.tw)
@@ -559,11 +568,11 @@ class Fitter:
                 up = np.minimum.accumulate(np.where(mask, np.inf, up), axis=1)
                 bad = lo > up
                 anyb = bad.any(axis=1)
-                reach[sub[anyb]] = k0 + np.argmax(bad[anyb], axis=1)
+                reach[sub[anyb]] = idx[np.argmax(bad[anyb], axis=1)] - 1
                 lb = ((np.abs(v) > self.tw) | (u < -self.tw)) & ~mask
                 lany = lb.any(axis=1)
                 lsel = lany & ltodo[sub]
-                lreach[sub[lsel]] = k0 + np.argmax(lb[lsel], axis=1)
+                lreach[sub[lsel]] = idx[np.argmax(lb[lsel], axis=1)] - 1
                 ltodo[sub[lsel]] = False
                 still.append(sub[~anyb])
             todo = np.concatenate(still)
@@ -826,10 +835,16 @@ class Fitter:
     def _try_close(
         self, p: FloatArray, t: FloatArray, k: int, e: float, b: int, t1: FloatArray
     ) -> list[Piece] | None:
-        lo, up = self._intervals(p[None, :], t[None, :], k, b)
-        if np.any(lo[0] > up[0]):
+        # a biarc can span about two pieces' worth: it is tried once the rest is within
+        # CLOSE_SPAN single-piece reaches of this state
+        lo1, _up1 = self._scan(p, t, k, b)
+        reach = self.cum[min(k + len(lo1), b)] - self.cum[k]
+        if self.cum[b] - self.cum[k] > self.CLOSE_SPAN * max(reach, 1e-300):
             return None
         return self._biarc(p, t, k, e, b, t1)
+
+    #: a closing biarc is tried when the rest is within this many single-piece reaches
+    CLOSE_SPAN = 2.2
 
 
 @dataclass

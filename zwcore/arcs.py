@@ -25,7 +25,11 @@ Method (as built)
    both sides; it is within the tolerance by construction, so the fit never
    fails and ``forced_corners`` stays empty (kept for API compatibility).
 6. Closure: a closed curve without corners is one full circle if that fits,
-   else closes with a biarc onto the start tangent (C1 at the seam).
+   else closes with a biarc onto the start tangent (C1 at the seam), tried from
+   any state within ``Fitter.CLOSE_SPAN`` single-piece reaches of the end. The
+   count depends on the start tangent at the seam, so loops of up to
+   ``LOOP_SWEEP_MAX_SAMPLES`` samples are also fitted from a few turned start
+   tangents (``LOOP_START_TURNS``) and the shortest valid chain is kept.
 7. Verification: every piece is checked two-sided with conservative analytic
    bounds while fitting; the finished chain is measured densely
    (:mod:`zwcore.arcverify`), and a bridged chain that fails that measurement is
@@ -43,12 +47,18 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from zwcore.arcfit import Fitter, Piece, Stuck
+from zwcore.arcgeom import rotate
 from zwcore.arcverify import densify, deviations
 from zwcore.errors import InvalidInputError
 
 FloatArray = NDArray[np.float64]
 
 __all__ = ["ArcChain", "Segment", "chain_tangents", "fit_arcs", "segment_points"]
+
+#: Turns (radians) of the start tangent tried for a corner-free closed curve.
+LOOP_START_TURNS = (-0.015, 0.015, -0.03, 0.03, -0.05, 0.05, -0.07, 0.07)
+#: Loops with more samples than this are fitted from one start tangent only (time).
+LOOP_SWEEP_MAX_SAMPLES = 5_000
 
 #: Default corner angle: turning sharper than this (over the tolerance scale) stays sharp.
 DEFAULT_CORNER_ANGLE_DEG = 30.0
@@ -97,6 +107,8 @@ def _tangent_at(seg: Segment, pt: tuple[float, float]) -> tuple[float, float]:
     rx = pt[0] - seg.center[0]
     ry = pt[1] - seg.center[1]
     n = math.hypot(rx, ry)
+    if not n > 0.0:  # degenerate (radius below the coordinates' precision): no direction
+        return (math.nan, math.nan)
     # ccw: tangent is the radius vector turned +90 degrees
     if seg.ccw:
         return (-ry / n, rx / n)
@@ -340,7 +352,9 @@ def fit_arcs(
     origin = raw[0].copy()
     # work relative to the first point so large coordinates keep their precision
     x = raw - origin
-    scale = float(np.abs(x).max())
+    # points a few ulps of the *absolute* coordinates apart are one point: arcs built
+    # between them would not survive the shift back to input coordinates
+    scale = max(float(np.abs(x).max()), float(np.abs(raw).max()))
     eps = max(1e-9 * tol, 1e-14 * scale)
     x = _dedupe(x, closed, eps)
     if len(x) < 2:
@@ -406,11 +420,33 @@ def fit_arcs(
 
     pieces, corner_j, forced_j = assemble(True)
     dev_p, dev_c = deviations(samples, pieces, tol)
-    if max(dev_p, dev_c) > tol * (1.0 + 1e-12):
+    lim = tol * (1.0 + 1e-12)
+    # (written so that a NaN figure counts as a failure: ``max`` would let it through)
+    if not (dev_p <= lim and dev_c <= lim):
         # safety net: a bridged chain that the dense measurement rejects is refitted
         # without bridges (forced corners instead, never a tolerance violation)
         pieces, corner_j, forced_j = assemble(False)
         dev_p, dev_c = deviations(samples, pieces, tol)
+    if loop and len(pieces) > 2 and m_last <= LOOP_SWEEP_MAX_SAMPLES:
+        # The first point is a junction with a free tangent that the closing biarc must
+        # meet again; the count depends on that tangent in a way no local rule predicts
+        # (the closure lands at a good or a bad place), so a few separate fits from
+        # turned start tangents are tried and the shortest valid chain is kept.
+        fz = Fitter(samples, tol, 0.95, max_radius)
+        t0, _ = fz._free_start(samples[0].copy(), 0, m_last)
+        for d in LOOP_START_TURNS:
+            tt = rotate(t0, d)
+            try:
+                alt, _ = Fitter(samples, tol, 0.95, max_radius).run(
+                    0, m_last, True, allow_forced=False, t_start=tt)
+            except Stuck:
+                continue
+            if len(alt) >= len(pieces):
+                continue
+            ap, ac = deviations(samples, alt, tol)
+            if ap <= lim and ac <= lim:
+                pieces, dev_p, dev_c = alt, ap, ac
+                corner_j, forced_j = [], []
     n_seg = len(pieces)
     forced_j = [n_seg - 1 if f == -1 else f for f in forced_j]
     all_corners = sorted(set(corner_j) | set(forced_j))
@@ -421,6 +457,10 @@ def fit_arcs(
         last = segments[-1]
         segments = (*segments[:-1], _replace_end(last, segments[0].start))
     kinks = chain_tangents(segments, closed)
+    if not (math.isfinite(dev_p) and math.isfinite(dev_c) and np.all(np.isfinite(kinks))):
+        # only curves at the precision limit of their coordinates get here
+        raise InvalidInputError(
+            "points", "curve too small for its coordinates' precision at this tolerance")
     smooth = np.ones(len(kinks), dtype=bool)
     for c in all_corners:
         if 0 <= c < len(kinks):
