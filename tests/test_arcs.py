@@ -525,12 +525,12 @@ def test_degenerate_inputs_never_give_nan(big, tol, closed):
     base = np.array([big, -0.7 * big])
     ulp = np.spacing(max(abs(big), 1.0))
     cases = [
-        np.array([base, base + [1.0, 0.0]]),  # two points
-        np.array([base, base + [1e-7, 1e-7]]),  # two points, tiny
-        np.vstack([np.repeat(base[None], 20, 0), base + [0.3, 0.2]]),  # all but one repeated
-        np.vstack([base + [0.3, 0.2], np.repeat(base[None], 20, 0)]),
-        np.vstack([np.repeat(base[None], 5, 0), base + [0.3, 0.2], np.repeat(base[None], 5, 0)]),
-        np.array([base, base + [1.0, 0.0], base]),  # there and back
+        np.array([base, base + np.array([1.0, 0.0])]),  # two points
+        np.array([base, base + np.array([1e-7, 1e-7])]),  # two points, tiny
+        np.vstack([np.repeat(base[None], 20, 0), base + np.array([0.3, 0.2])]),  # all but one repeated
+        np.vstack([base + np.array([0.3, 0.2]), np.repeat(base[None], 20, 0)]),
+        np.vstack([np.repeat(base[None], 5, 0), base + np.array([0.3, 0.2]), np.repeat(base[None], 5, 0)]),
+        np.array([base, base + np.array([1.0, 0.0]), base]),  # there and back
         base + ulp * np.array([[0.0, 0.0], [3.0, 0.0], [0.0, 5.0]]),  # a few ulps apart
     ]
     for pts in cases:
@@ -542,6 +542,6 @@ def test_degenerate_inputs_never_give_nan(big, tol, closed):
        st.floats(1e-3, 1.0), st.floats(1e-7, 2.0), st.booleans())
 def test_repeated_points_hypothesis(big, n_before, n_after, tol, size, closed):
     base = np.array([big, big])
-    pts = np.vstack([np.repeat(base[None], n_before, 0), base + [size, 0.5 * size],
+    pts = np.vstack([np.repeat(base[None], n_before, 0), base + np.array([size, 0.5 * size]),
                      np.repeat(base[None], n_after, 0)])
     _finite_or_rejected(pts, tol, closed)
