@@ -524,12 +524,13 @@ def _finite_or_rejected(pts: np.ndarray, tol: float, closed: bool) -> None:
 def test_degenerate_inputs_never_give_nan(big, tol, closed):
     base = np.array([big, -0.7 * big])
     ulp = np.spacing(max(abs(big), 1.0))
+    off = np.array([0.3, 0.2])
     cases = [
         np.array([base, base + np.array([1.0, 0.0])]),  # two points
         np.array([base, base + np.array([1e-7, 1e-7])]),  # two points, tiny
-        np.vstack([np.repeat(base[None], 20, 0), base + np.array([0.3, 0.2])]),  # all but one repeated
-        np.vstack([base + np.array([0.3, 0.2]), np.repeat(base[None], 20, 0)]),
-        np.vstack([np.repeat(base[None], 5, 0), base + np.array([0.3, 0.2]), np.repeat(base[None], 5, 0)]),
+        np.vstack([np.repeat(base[None], 20, 0), base + off]),  # all but one repeated
+        np.vstack([base + off, np.repeat(base[None], 20, 0)]),
+        np.vstack([np.repeat(base[None], 5, 0), base + off, np.repeat(base[None], 5, 0)]),
         np.array([base, base + np.array([1.0, 0.0]), base]),  # there and back
         base + ulp * np.array([[0.0, 0.0], [3.0, 0.0], [0.0, 5.0]]),  # a few ulps apart
     ]
