@@ -63,7 +63,7 @@ def post(client: httpx.Client, url: str, body: bytes, fresh: bool = True) -> dic
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--quick", action="store_true")
-    ap.add_argument("--only", choices=["mrr", "scanline", "contour"], default=None)
+    ap.add_argument("--only", choices=["mrr", "scanline", "contour", "arcs"], default=None)
     args = ap.parse_args()
     repeat = 2 if args.quick else 4
     with live_server() as base, httpx.Client(base_url=base) as client:
@@ -82,6 +82,18 @@ def main() -> None:
             print(f"POST /v1/mrr 2048² float32 b64 (haar): {t_http * 1e3:8.1f} ms   "
                   f"pywt.wavedec2 same grid: {t_pywt * 1e3:8.1f} ms   "
                   f"ratio pywt/http = {t_pywt / t_http:5.2f} (target >= 1)")
+        if args.only in (None, "arcs"):
+            # The ellipse (100 x 50) sampled at 0.02 mm: 24,223 points, tol 0.1.
+            n = 24223
+            t = np.linspace(0.0, 2 * np.pi, n, endpoint=False)
+            bodies = [orjson.dumps({"points": np.c_[100 * np.cos(t) + k * 1e-6,
+                                                     50 * np.sin(t)].tolist(),
+                                    "tolerance": 0.1, "closed": True, "gcode": True})
+                      for k in range(repeat)]
+            t_arcs = best(lambda k: post(client, "/v1/arcs", bodies[k]), repeat)
+            res = post(client, "/v1/arcs", bodies[0], fresh=False)
+            print(f"POST /v1/arcs ellipse {n} points, G-code: {t_arcs:.3f} s "
+                  f"({res['summary']['n_segments']} segments; target <= 1 s)")
         # The parts of the core benchmarks: a 100 mm free-form part with bumps, a fillet
         # pocket and a wall (scan-line); a sculpted relief at 0.1 mm (contour).
         for op, sizes, extra in (
