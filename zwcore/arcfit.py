@@ -443,27 +443,16 @@ class Fitter:
             if not (d2 > 0.0 and math.isfinite(d2)):
                 continue
             jn = (d2 * (p0 + d1 * t0) + d1 * (p1 - d2 * t1)) / (d1 + d2)
-            u, v = local_uv(p0, t0, jn[None, :])
-            q2 = float(u[0] ** 2 + v[0] ** 2)
-            if q2 <= 0.0:
+            first = self._arc_through(p0, t0, jn, dist)
+            if first is None:
                 continue
-            k1 = 2.0 * float(v[0]) / q2
-            if abs(k1) < 1e-15 * max(1.0 / dist, 1.0):
-                k1 = 0.0
-            s1 = float(arc_length_position(u, v, k1)[0])
-            if not s1 > 0.0 or not self._radius_ok(k1):
-                continue
+            k1, s1 = first
             tj = rotate(t0, k1 * s1)
-            u2, v2 = local_uv(jn, tj, p1[None, :])
-            q22 = float(u2[0] ** 2 + v2[0] ** 2)
-            if q22 <= 0.0:  # the junction fell on the end point: no second arc
+            # None also when the junction fell on the end point: no second arc.
+            second = self._arc_through(jn, tj, p1, dist)
+            if second is None:
                 continue
-            k2 = 2.0 * float(v2[0]) / q22
-            if abs(k2) < 1e-15 * max(1.0 / dist, 1.0):
-                k2 = 0.0
-            s2 = float(arc_length_position(u2, v2, k2)[0])
-            if not s2 > 0.0 or not self._radius_ok(k2):
-                continue
+            k2, s2 = second
             te = rotate(tj, k2 * s2)
             if abs(te[0] * t1[1] - te[1] * t1[0]) > 1e-9 or te @ t1 < 0:
                 continue
@@ -494,6 +483,22 @@ class Fitter:
             a2.t_end = t1.copy()
             return [a1, a2]
         return None
+
+    def _arc_through(self, p: FloatArray, t: FloatArray, q: FloatArray, dist: float,
+                     ) -> tuple[float, float] | None:
+        """Curvature and length of the arc from ``p`` along ``t`` through ``q``, or None
+        when ``q`` is ``p``, the arc is degenerate or its radius is not allowed."""
+        u, v = local_uv(p, t, q[None, :])
+        q2 = float(u[0] ** 2 + v[0] ** 2)
+        if q2 <= 0.0:
+            return None
+        k = 2.0 * float(v[0]) / q2
+        if abs(k) < 1e-15 * max(1.0 / dist, 1.0):
+            k = 0.0  # numerically straight: a line
+        length = float(arc_length_position(u, v, k)[0])
+        if not length > 0.0 or not self._radius_ok(k):
+            return None
+        return k, length
 
     def _full_circle(self, a: int, b: int) -> Piece | None:
         """A whole closed run as one full circle through its first sample (if it fits)."""
