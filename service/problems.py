@@ -11,7 +11,7 @@ from fastapi.exceptions import RequestValidationError
 from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.responses import Response
 
-from zwcore.errors import InvalidInputError, LimitExceededError, PlanningError
+from zwcore.errors import InvalidInputError, LimitExceededError, PlanningError, ZwError
 
 PROBLEM_JSON = "application/problem+json"
 PROBLEM_BASE = "https://zwplan.dev/problems/"
@@ -156,6 +156,15 @@ def _auth_first(request: Request) -> Response | None:
     return None
 
 
+#: How each core error is reported, most specific class first.
+_CORE_ERRORS: dict[type[ZwError], tuple[int, str, str]] = {
+    LimitExceededError: (413, "Request too large", "too-large"),
+    InvalidInputError: (422, "Invalid request", "validation"),
+    PlanningError: (422, "No plan possible", "no-plan"),
+    ZwError: (422, "Invalid request", "validation"),
+}
+
+
 def install(app: FastAPI) -> None:
     """Register the handlers that turn every error into a problem document."""
 
@@ -165,22 +174,11 @@ def install(app: FastAPI) -> None:
     async def _on_validation(request: Request, exc: RequestValidationError) -> Response:
         return _auth_first(request) or _validation_problem(request, exc)
 
-    @app.exception_handler(LimitExceededError)
-    async def _on_limit(request: Request, exc: LimitExceededError) -> Response:
-        return problem_response(413, "Request too large", str(exc), kind="too-large",
-                                instance=request.url.path,
-                                errors=[{"field": exc.field, "reason": exc.reason}])
-
-    @app.exception_handler(InvalidInputError)
-    async def _on_invalid(request: Request, exc: InvalidInputError) -> Response:
-        return problem_response(422, "Invalid request", str(exc), kind="validation",
-                                instance=request.url.path,
-                                errors=[{"field": exc.field, "reason": exc.reason}])
-
-    @app.exception_handler(PlanningError)
-    async def _on_planning(request: Request, exc: PlanningError) -> Response:
-        return problem_response(422, "No plan possible", str(exc), kind="no-plan",
-                                instance=request.url.path,
+    @app.exception_handler(ZwError)
+    async def _on_core_error(request: Request, exc: ZwError) -> Response:
+        # The most specific class wins (LimitExceededError is an InvalidInputError).
+        status, title, kind = next(v for k, v in _CORE_ERRORS.items() if isinstance(exc, k))
+        return problem_response(status, title, str(exc), kind=kind, instance=request.url.path,
                                 errors=[{"field": exc.field, "reason": exc.reason}])
 
     @app.exception_handler(Problem)

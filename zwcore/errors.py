@@ -2,8 +2,8 @@
 
 One base class, a small family under it (as in shapely 2): callers catch
 :class:`ZwError` for anything the core rejects, or a subclass for one kind.
-Every error that blames the input names the offending ``field`` so the HTTP
-layer can report it without parsing messages.
+Every error names the offending ``field`` so the HTTP layer can report it
+without parsing messages.
 """
 
 from __future__ import annotations
@@ -12,11 +12,7 @@ __all__ = ["InvalidInputError", "LimitExceededError", "PlanningError", "ZwError"
 
 
 class ZwError(Exception):
-    """Base class of every error raised by zwcore."""
-
-
-class InvalidInputError(ZwError, ValueError):
-    """The input is malformed: wrong shape, non-finite values, bad option.
+    """Base class of every error raised by zwcore.
 
     Parameters
     ----------
@@ -32,14 +28,13 @@ class InvalidInputError(ZwError, ValueError):
         self.reason = reason
 
 
+class InvalidInputError(ZwError, ValueError):
+    """The input is malformed: wrong shape, non-finite values, bad option."""
+
+
 class LimitExceededError(InvalidInputError):
     """The input is well formed but larger than a configured limit allows."""
 
 
 class PlanningError(ZwError):
     """A valid input admits no plan (for instance no library tool can do the job)."""
-
-    def __init__(self, field: str, reason: str) -> None:
-        super().__init__(f"{field}: {reason}")
-        self.field = field
-        self.reason = reason

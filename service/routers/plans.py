@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import anyio
@@ -58,6 +59,20 @@ def _pick(obj: Any, model: type[BaseModel], skip: tuple[str, ...] = ()) -> dict[
             if name not in skip and hasattr(obj, name)}
 
 
+def _stages(stages: Sequence[Any], model: type[BaseModel],
+            grid: Callable[[Any], dict[str, Any]] | None) -> list[dict[str, Any]]:
+    """Stages in machining order as the response model lists them; ``grid`` renders a
+    stage's model when the request asked for models."""
+    out = []
+    for index, stage in enumerate(stages):
+        entry = _pick(stage, model, skip=("model", "index"))
+        entry["index"] = index
+        if grid is not None:
+            entry["model"] = grid(stage)
+        out.append(entry)
+    return out
+
+
 def _tools(given: list[ToolIn] | None, kind: ToolKind, max_tools: int) -> list[Tool]:
     """The validated library, largest first: the order a client lists tools in is not
     part of the task (the planner sorts them anyway)."""
@@ -76,19 +91,17 @@ def _tool_params(tools: list[Tool]) -> list[list[Any]]:
 def scanline_result(zmap: ZMap, tools: list[Tool], tolerance: float, stock_top: float | None,
                     include_models: bool) -> dict[str, Any]:
     plan = plan_scanline(zmap, tools, tolerance=tolerance, stock_top=stock_top)
-    stages = []
-    for index, stage in enumerate(plan.stages):
-        out = _pick(stage, ScanlineStageOut, skip=("model", "index"))
-        out["index"] = index
-        if include_models:
-            sx, sy = stage.spacing
-            out["model"] = canonical_grid(stage.model, x0=zmap.x0, y0=zmap.y0, dx=sx, dy=sy,
-                                          interpolation="bilinear")
-        stages.append(out)
-    checks = _pick(plan.checks, ScanlineChecksOut)
+
+    def model(stage: Any) -> dict[str, Any]:
+        # Single-knot nodes sit on input nodes: the origin is the input's.
+        sx, sy = stage.spacing
+        return canonical_grid(stage.model, x0=zmap.x0, y0=zmap.y0, dx=sx, dy=sy,
+                              interpolation="bilinear")
+
     return {"stock_top": plan.stock_top, "stock_top_source": plan.stock_top_source,
             "tolerance": tolerance, "tool_sequence": list(plan.tool_sequence),
-            "stages": stages, "checks": checks, "notes": list(plan.notes)}
+            "stages": _stages(plan.stages, ScanlineStageOut, model if include_models else None),
+            "checks": _pick(plan.checks, ScanlineChecksOut), "notes": list(plan.notes)}
 
 
 def bound_contour_slabs(zmap: ZMap, tools: list[Tool], given: list[ToolIn] | None,
@@ -123,20 +136,16 @@ def bound_contour_slabs(zmap: ZMap, tools: list[Tool], given: list[ToolIn] | Non
 def contour_result(zmap: ZMap, tools: list[Tool], stock_top: float | None, strategy: str,
                    include_models: bool) -> dict[str, Any]:
     plan = plan_contour(zmap, tools, stock_top=stock_top, strategy=strategy)
-    stages = []
-    for index, stage in enumerate(plan.stages):
-        out = _pick(stage, ContourStageOut, skip=("model", "index"))
-        out["index"] = index
-        if include_models:
-            cx, cy = stage.cell_size
-            ox, oy = stage.origin  # centre of the first cell's block of input nodes
-            out["model"] = canonical_grid(stage.model, x0=ox, y0=oy, dx=cx, dy=cy,
-                                          interpolation="cell")
-        stages.append(out)
+
+    def model(stage: Any) -> dict[str, Any]:
+        cx, cy = stage.cell_size
+        ox, oy = stage.origin  # centre of the first cell's block of input nodes
+        return canonical_grid(stage.model, x0=ox, y0=oy, dx=cx, dy=cy, interpolation="cell")
+
     return {"stock_top": plan.stock_top, "stock_top_source": plan.stock_top_source,
             "strategy": plan.strategy, "contour_spacings": _plain(plan.contour_spacings),
-            "stages": stages, "checks": _pick(plan.checks, ContourChecksOut),
-            "notes": list(plan.notes)}
+            "stages": _stages(plan.stages, ContourStageOut, model if include_models else None),
+            "checks": _pick(plan.checks, ContourChecksOut), "notes": list(plan.notes)}
 
 
 @router.post("/scanline", response_model=ScanlinePlanResult, operation_id="plan_scanline",
