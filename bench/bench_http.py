@@ -60,6 +60,41 @@ def post(client: httpx.Client, url: str, body: bytes, fresh: bool = True) -> dic
     return r.json()
 
 
+def mrr_phases(body: bytes, repeat: int) -> dict[str, float]:
+    """Phase times of one POST /v1/mrr, run in process on the same body."""
+    import base64
+    import json
+
+    import pybase64
+
+    from service.grids import decode_grid
+    from service.hashing import task_id
+    from service.routers.mrr import _haar_margins, mrr_result
+    from service.schemas.mrr import MrrRequest
+    from zwcore import analyse
+
+    def ms(fn: Callable[[], object]) -> float:
+        return 1e3 * best(lambda k: fn(), repeat + 1)
+
+    data = json.loads(body)
+    req = MrrRequest.model_validate(data)
+    zmap = decode_grid(req.grid, 1 << 30)
+    mrr = analyse(zmap.z, "haar")
+    text = req.grid.z_b64 or ""
+    return {
+        "JSON parse (stdlib, as FastAPI)": ms(lambda: json.loads(body)),
+        "base64 decode (pybase64)": ms(lambda: pybase64.b64decode(text, validate=True)),
+        "base64 decode (stdlib, for reference)": ms(lambda: base64.b64decode(text,
+                                                                             validate=True)),
+        "decode + validate grid": ms(lambda: decode_grid(req.grid, 1 << 30)),
+        "task id (SHA-256)": ms(lambda: task_id("mrr", {}, {"z": zmap.z}, {"z": True})),
+        "lifted Haar MRR": ms(lambda: analyse(zmap.z, "haar")),
+        "containment margins (independent)": ms(lambda: _haar_margins(mrr.approximations,
+                                                                      zmap.z)),
+        "whole result (MRR + figures)": ms(lambda: mrr_result(zmap, "haar", None, False)),
+    }
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--quick", action="store_true")
@@ -82,6 +117,9 @@ def main() -> None:
             print(f"POST /v1/mrr 2048² float32 b64 (haar): {t_http * 1e3:8.1f} ms   "
                   f"pywt.wavedec2 same grid: {t_pywt * 1e3:8.1f} ms   "
                   f"ratio pywt/http = {t_pywt / t_http:5.2f} (target >= 1)")
+            print("  where the server's time goes, in process, same grid (best of N):")
+            for name, ms in mrr_phases(bodies[0], repeat).items():
+                print(f"    {name:34s} {ms:7.1f} ms")
         if args.only in (None, "arcs"):
             # The issue's ellipse (100 x 50) sampled at 0.02 mm: 24,223 points, tol 0.1.
             n = 24223
@@ -106,10 +144,8 @@ def main() -> None:
         ):
             if args.only not in (None, op) or f"/v1/plans/{op}" not in spec:
                 continue
-            if args.quick:
-                sizes = sizes[:2]
             prev = None
-            for n in sizes:
+            for n in sizes[:2] if args.quick else sizes:
                 if op == "scanline":
                     zm = synthetic(n)
                     z, dx = zm.z, zm.dx
@@ -119,14 +155,15 @@ def main() -> None:
                                         "include_models": False, **extra})
                           for k in range(repeat)]
                 url = f"/v1/plans/{op}"
-                t = best(lambda k, url=url, bodies=bodies: post(client, url, bodies[k]), repeat)
+                t_op = best(lambda k, url=url, bodies=bodies: post(client, url, bodies[k]),
+                            repeat)
                 growth = ("" if prev is None else
-                          f"  x{t / prev[1]:4.2f} time for x{n * n / prev[0]:4.2f} cells")
+                          f"  x{t_op / prev[1]:4.2f} time for x{n * n / prev[0]:4.2f} cells")
                 plan = post(client, url, bodies[0], fresh=False)
                 tools = ">".join(dict.fromkeys(s["tool"]["id"] for s in plan["stages"]))
-                print(f"POST /v1/plans/{op:8s} {n:5d}²: {t:7.3f} s{growth}   "
+                print(f"POST /v1/plans/{op:8s} {n:5d}²: {t_op:7.3f} s{growth}   "
                       f"[{len(plan['stages'])} stages: {tools}]")
-                prev = (n * n, t)
+                prev = (n * n, t_op)
 
 
 if __name__ == "__main__":
