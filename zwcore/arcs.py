@@ -314,7 +314,10 @@ def fit_arcs(
     ----------
     points : (N, 2) float64
         The curve, in order (mm). Consecutive repeated points are dropped; for
-        ``closed`` a repeated closing point is dropped too. N >= 2 distinct.
+        ``closed`` a repeated closing point is dropped too. Points closer than
+        ``1e-9 * tolerance`` (or 1e-14 of the coordinates' magnitude) count as
+        repeats: they are the same point at any machine's resolution. N >= 2
+        distinct.
     tolerance : float
         Two-sided band (mm): every point of the input polyline is within
         ``tolerance`` of the chain and every point of the chain within
