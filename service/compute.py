@@ -1,20 +1,25 @@
 """The compute pool: CPU-heavy work off the event loop, bounded, shared by identical requests.
 
-Threads rather than processes: numpy and scipy release the GIL in their
-kernels, arrays need no pickling, and one request's peak memory is not copied.
-The pool admits ``workers + max_pending`` computations; beyond that a request
-is shed with 503 and ``Retry-After`` instead of piling up. Identical requests
-in flight (same task id) wait for the one computation (single flight).
+Threads for array work: numpy and scipy release the GIL in their kernels,
+arrays need no pickling, and one request's peak memory is not copied.
+Processes for work that is mostly Python bytecode (arc fitting): in a thread it
+would hold the GIL, serialising such requests and stalling the event loop and
+the numpy threads; in a worker process it runs on its own core. The pool admits
+``workers + max_pending`` computations of either kind; beyond that a request is
+shed with 503 and ``Retry-After`` instead of piling up. Identical requests in
+flight (same task id) wait for the one computation (single flight).
 """
 
 from __future__ import annotations
 
 import asyncio
 import concurrent.futures
+import multiprocessing
 import threading
 import time
 from collections.abc import Callable
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import Executor, ProcessPoolExecutor, ThreadPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
 from typing import Any, TypeVar
 
 from service import metrics
@@ -23,11 +28,24 @@ from service.problems import Problem
 T = TypeVar("T")
 
 
+def _process_context() -> multiprocessing.context.BaseContext:
+    # forkserver, not fork: the server process has threads (forking them is unsafe);
+    # its preloaded core makes each worker start in milliseconds, not seconds
+    ctx = multiprocessing.get_context("forkserver")
+    ctx.set_forkserver_preload(["zwcore", "orjson"])
+    return ctx
+
+
 class ComputePool:
-    def __init__(self, workers: int, max_pending: int) -> None:
+    """Threads (``workers``) and, for Python-bound work, worker processes (``processes``;
+    0 runs that work in the threads too), started on first use."""
+
+    def __init__(self, workers: int, max_pending: int, processes: int = 0) -> None:
         self.workers = workers
+        self.processes = processes
         self.capacity = workers + max_pending
         self._executor = ThreadPoolExecutor(workers, thread_name_prefix="zw-compute")
+        self._process_executor: ProcessPoolExecutor | None = None
         self._busy = 0
         self._lock = threading.Lock()
         self._inflight: dict[str, asyncio.Task[Any]] = {}
@@ -42,12 +60,32 @@ class ComputePool:
             self._busy -= 1
             metrics.POOL_BUSY.set(self._busy)
 
-    async def run(self, operation: str, fn: Callable[[], T]) -> T:
-        """Run ``fn`` in the pool, or shed with 503 when the pool is full.
+    def _executor_for(self, in_process: bool) -> Executor:
+        if not (in_process and self.processes):
+            return self._executor
+        with self._lock:
+            if self._process_executor is None:
+                self._process_executor = ProcessPoolExecutor(
+                    self.processes, mp_context=_process_context())
+            return self._process_executor
 
+    def _drop_broken(self, executor: Executor) -> None:
+        with self._lock:
+            if self._process_executor is executor:
+                self._process_executor = None
+        executor.shutdown(wait=False, cancel_futures=True)
+
+    async def run(self, operation: str, fn: Callable[..., T], *args: Any,
+                  in_process: bool = False) -> T:
+        """Run ``fn(*args)`` in the pool, or shed with 503 when the pool is full.
+
+        With ``in_process`` (and processes configured) it runs in a worker process:
+        ``fn`` and ``args`` must then pickle (a module-level function, plain data).
         A slot is held until the job has really finished (or was dropped from the
         queue), not until the caller stops waiting: a thread cannot be interrupted,
         so a cancelled caller must not free the slot of a computation still running.
+        A worker process that dies (killed for memory, say) costs its jobs a 503;
+        the next job starts fresh workers.
         """
         with self._lock:
             if self._busy >= self.capacity:
@@ -62,16 +100,26 @@ class ComputePool:
             metrics.COMPUTE_SECONDS.labels(operation).observe(time.perf_counter() - start)
             self._release()
 
+        executor = self._executor_for(in_process)
         try:
-            job = self._executor.submit(fn)
+            job = executor.submit(fn, *args)
+        except BrokenProcessPool:
+            self._release()
+            self._drop_broken(executor)
+            raise _worker_lost() from None
         except BaseException:
             self._release()
             raise
         job.add_done_callback(done)
-        # Cancelling the wait cancels a job still queued (its callback frees the slot).
-        return await asyncio.wrap_future(job)
+        try:
+            # Cancelling the wait cancels a job still queued (its callback frees the slot).
+            return await asyncio.wrap_future(job)
+        except BrokenProcessPool:
+            self._drop_broken(executor)
+            raise _worker_lost() from None
 
-    async def run_once(self, key: str, operation: str, fn: Callable[[], T]) -> tuple[T, bool]:
+    async def run_once(self, key: str, operation: str, fn: Callable[..., T], *args: Any,
+                       in_process: bool = False) -> tuple[T, bool]:
         """Like :meth:`run`, but concurrent calls with the same key share one computation.
 
         Returns the result and whether it was shared with a call already in flight.
@@ -81,7 +129,8 @@ class ComputePool:
         pending = self._inflight.get(key)
         if pending is not None:
             return await asyncio.shield(pending), True
-        task: asyncio.Task[Any] = asyncio.ensure_future(self.run(operation, fn))
+        task: asyncio.Task[Any] = asyncio.ensure_future(
+            self.run(operation, fn, *args, in_process=in_process))
         self._inflight[key] = task
 
         def forget(t: asyncio.Task[Any]) -> None:
@@ -95,3 +144,10 @@ class ComputePool:
 
     def shutdown(self) -> None:
         self._executor.shutdown(wait=False, cancel_futures=True)
+        if self._process_executor is not None:
+            self._process_executor.shutdown(wait=False, cancel_futures=True)
+
+
+def _worker_lost() -> Problem:
+    return Problem(503, "Worker lost", "A compute worker process stopped; retry shortly.",
+                   kind="busy", headers={"Retry-After": "1"})

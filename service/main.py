@@ -41,7 +41,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         _configure_logging(settings.log_level)
         app.state.store = open_store(settings.cache_url, settings.data_dir,
                                      settings.cache_max_bytes, settings.cache_ttl_seconds)
-        app.state.pool = ComputePool(settings.workers, settings.max_pending)
+        app.state.pool = ComputePool(settings.workers, settings.max_pending,
+                                     settings.process_workers)
         try:
             yield
         finally:

@@ -39,6 +39,9 @@ class Settings(BaseSettings):
     max_contour_slabs: int = Field(
         10_000, gt=0, description="Most contour slabs one contour-plan stage may need (413).")
     workers: int = Field(default_factory=_cpu_count, gt=0, description="Compute pool threads.")
+    process_workers: int = Field(
+        default_factory=_cpu_count, ge=0, description="Worker processes for Python-bound work "
+        "(arc fitting), started on first use; 0: it runs in the threads.")
     max_pending: int = Field(16, ge=0,
                              description="Computations queued beyond the pool before shedding.")
     log_level: str = Field("INFO", description="Python logging level.")

@@ -47,13 +47,25 @@ def respond(body: bytes, tid: str, encoding: str, cache: str) -> Response:
     return Response(body, media_type=JSON, headers={"ETag": _etag(tid), "X-Cache": cache})
 
 
+def encode_result(tid: str, operation: str, compute: Callable[..., dict[str, Any]],
+                  args: tuple[Any, ...]) -> tuple[bytes, float]:
+    """The stored body of a task and the milliseconds its computation took (runs in
+    the compute pool, in a thread or a worker process)."""
+    start = time.perf_counter()
+    result = {"task_id": tid, "operation": operation, **compute(*args)}
+    out = orjson.dumps(result, option=orjson.OPT_SERIALIZE_NUMPY)
+    return out, round((time.perf_counter() - start) * 1000, 2)
+
+
 async def serve_task(request: Request, store: TaskStore, pool: ComputePool, *, operation: str,
                      params: Mapping[str, Any], arrays: Mapping[str, np.ndarray] | None,
-                     compute: Callable[[], dict[str, Any]], encoding: str = "float64") -> Response:
+                     compute: Callable[..., dict[str, Any]], args: tuple[Any, ...] = (),
+                     in_process: bool = False, encoding: str = "float64") -> Response:
     """Answer one operation from the cache or by computing it.
 
-    ``compute`` returns the result as plain data with grids in canonical form
-    (:func:`service.grids.canonical_grid`); it runs in the compute pool.
+    ``compute(*args)`` returns the result as plain data with grids in canonical
+    form (:func:`service.grids.canonical_grid`); it runs in the compute pool, in a
+    worker process when ``in_process`` (then it and ``args`` must pickle).
     """
     # A float32 upload is exactly float32 by construction: skip the hashing check.
     exact = dict.fromkeys(arrays or {}, True) if encoding == "float32" else None
@@ -72,14 +84,9 @@ async def serve_task(request: Request, store: TaskStore, pool: ComputePool, *, o
         request.state.cache = "hit"
         return respond(body, tid, encoding, "hit")
 
-    def job() -> bytes:
-        start = time.perf_counter()
-        result = {"task_id": tid, "operation": operation, **compute()}
-        out = orjson.dumps(result, option=orjson.OPT_SERIALIZE_NUMPY)
-        request.state.compute_ms = round((time.perf_counter() - start) * 1000, 2)
-        return out
-
-    result, shared = await pool.run_once(tid, operation, job)
+    (result, compute_ms), shared = await pool.run_once(
+        tid, operation, encode_result, tid, operation, compute, args, in_process=in_process)
+    request.state.compute_ms = compute_ms
     outcome = "shared" if shared else "miss"
     metrics.CACHE.labels(operation, outcome).inc()
     request.state.cache = outcome

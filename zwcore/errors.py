@@ -27,6 +27,11 @@ class ZwError(Exception):
         self.field = field
         self.reason = reason
 
+    def __reduce__(self) -> tuple[type[ZwError], tuple[str, str]]:
+        # pickled as (field, reason), so an error raised in a worker process
+        # arrives whole (the default would re-call __init__ with the message only)
+        return type(self), (self.field, self.reason)
+
 
 class InvalidInputError(ZwError, ValueError):
     """The input is malformed: wrong shape, non-finite values, bad option."""

@@ -29,6 +29,8 @@ def _segment(s: Segment) -> dict[str, Any]:
 
 
 def arcs_result(points: np.ndarray, body: ArcsRequest) -> dict[str, Any]:
+    """The ``/v1/arcs`` result (module level and plain arguments: it runs in a worker
+    process, fitting being Python-bound)."""
     chain: ArcChain = fit_arcs(points, body.tolerance, closed=body.closed,
                                corner_angle_deg=body.corner_angle_deg,
                                max_radius=body.max_radius)
@@ -76,4 +78,6 @@ async def post_arcs(body: ArcsRequest, request: Request, settings: SettingsDep, 
             f"exceeds {settings.max_arc_resolution:g}; use a larger tolerance")
     params = body.model_dump(exclude={"points"})
     return await serve_task(request, store, pool, operation="arcs", params=params,
-                            arrays={"points": points}, compute=lambda: arcs_result(points, body))
+                            arrays={"points": points}, compute=arcs_result,
+                            args=(points, body.model_copy(update={"points": []})),
+                            in_process=True)

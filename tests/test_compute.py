@@ -1,0 +1,58 @@
+"""The compute pool's worker processes (Python-bound work: arc fitting)."""
+
+from __future__ import annotations
+
+import asyncio
+import os
+import pickle
+
+import pytest
+
+from service.compute import ComputePool
+from service.problems import Problem
+from tests.conftest import make_client
+from zwcore.errors import InvalidInputError, LimitExceededError, PlanningError, ZwError
+
+
+@pytest.mark.parametrize("cls", [ZwError, InvalidInputError, LimitExceededError, PlanningError])
+def test_core_errors_survive_pickling(cls: type[ZwError]) -> None:
+    err = pickle.loads(pickle.dumps(cls("points", "fewer than two distinct points")))
+    assert type(err) is cls
+    assert (err.field, err.reason) == ("points", "fewer than two distinct points")
+    assert str(err) == "points: fewer than two distinct points"
+
+
+def _die() -> None:
+    os._exit(3)
+
+
+def test_in_process_jobs_run_elsewhere_and_a_dead_worker_costs_only_its_job() -> None:
+    async def scenario() -> None:
+        pool = ComputePool(1, 2, processes=1)
+        try:
+            here = os.getpid()
+            assert await pool.run("op", os.getpid) == here  # threads: this process
+            worker = await pool.run("op", os.getpid, in_process=True)
+            assert worker != here
+            with pytest.raises(Problem) as lost:
+                await pool.run("op", _die, in_process=True)
+            assert lost.value.status == 503 and lost.value.headers["Retry-After"]
+            assert pool.busy == 0
+            # fresh workers serve the next job
+            assert await pool.run("op", os.getpid, in_process=True) not in (here, worker)
+        finally:
+            pool.shutdown()
+
+    asyncio.run(scenario())
+
+
+def test_core_errors_from_a_worker_are_problems_naming_the_field(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    with make_client(tmp_path, process_workers=1) as c:
+        ok = c.post("/v1/arcs", json={"points": [[0, 0], [10, 0], [20, 1]], "tolerance": 0.1})
+        assert ok.status_code == 200, ok.text
+        assert ok.json()["summary"]["n_segments"] >= 1
+        # distinct for the schema, one point for the fitter (1e-12 apart at tolerance 0.1)
+        r = c.post("/v1/arcs", json={"points": [[1, 1], [1, 1 + 1e-12]], "tolerance": 0.1})
+        assert r.status_code == 422, r.text
+        assert r.headers["content-type"].startswith("application/problem+json")
+        assert r.json()["errors"][0]["field"] == "points"
