@@ -24,8 +24,8 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
-from zwcore.arcfit import Piece
 from zwcore.arcgeom import arc_points
+from zwcore.arcpieces import Piece
 
 FloatArray = NDArray[np.float64]
 

@@ -7,15 +7,15 @@ Method (as built)
    +-3 tolerances of arc length, standing out of the chord, one per cluster);
    long polyline segments densified to ``6 tol`` so junctions can sit between
    sparse input points. Corners split the curve into runs fitted separately.
-2. Curvature-interval pieces (:mod:`zwcore.arcfit`): a piece starts at a
+2. Curvature-interval pieces (:mod:`zwcore.arcpieces`): a piece starts at a
    junction ``(P, T)`` and is one number, its signed curvature (0 = line). For a
    fixed ``(P, T)`` each sample admits an interval of curvatures; the running
    intersection (``cummax``/``cummin``) gives every feasible piece at once.
-3. Beam look-ahead: the chain grows level by level as a beam of junction states;
-   candidate pieces (several ends, several curvatures in the interval) are ranked
-   by how far the *next* piece reaches from their end state, and the best few
-   verified ones survive. This keeps junctions mid-band with tangents along the
-   curve, the cause of the seed's sequential failures.
+3. Beam look-ahead (:mod:`zwcore.arcfit`): the chain grows level by level as a
+   beam of junction states; candidate pieces (several ends, several curvatures in
+   the interval) are ranked by how far the *next* piece reaches from their end
+   state, and the best few verified ones survive. This keeps junctions mid-band
+   with tangents along the curve, the cause of the seed's sequential failures.
 4. Bridges: a state from which nothing verified can be placed tries a biarc onto
    a nearby sample with the polyline's direction (the second arc is verified
    with the true distance of its first sample).
@@ -46,8 +46,9 @@ from typing import Literal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from zwcore.arcfit import Fitter, Piece, Stuck
+from zwcore.arcfit import Fitter, Stuck
 from zwcore.arcgeom import rotate
+from zwcore.arcpieces import Piece
 from zwcore.arcverify import densify, deviations
 from zwcore.errors import InvalidInputError
 
@@ -436,7 +437,7 @@ def fit_arcs(
         # (the closure lands at a good or a bad place), so a few separate fits from
         # turned start tangents are tried and the shortest valid chain is kept.
         fz = Fitter(samples, tol, 0.95, max_radius)
-        t0, _ = fz._free_start(samples[0].copy(), 0, m_last)
+        t0, _ = fz.free_start(samples[0].copy(), 0, m_last)
         for d in LOOP_START_TURNS:
             tt = rotate(t0, d)
             try:

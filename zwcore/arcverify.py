@@ -19,8 +19,8 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import NDArray
 
-from zwcore.arcfit import Piece
 from zwcore.arcgeom import arc_points, local_uv, point_to_arc_distance, points_to_segments_distance
+from zwcore.arcpieces import Piece
 
 FloatArray = NDArray[np.float64]
 

@@ -1,0 +1,504 @@
+"""Single pieces of a C1 arc chain against the tolerance band of a sample polyline.
+
+A piece starts at a junction with a known point ``P`` and tangent ``T`` and is
+described by one number, its signed curvature ``kappa`` (0 is a line). For a
+fixed ``(P, T)`` the signed distance of a sample to the circle is monotone in
+``kappa``, so each sample admits an interval of curvatures and the pieces that
+cover samples ``k+1..j`` form the running intersection of those intervals (one
+vectorised ``cummax``/``cummin`` gives the longest piece).
+
+:class:`ToleranceBand` answers the questions about one piece (or one biarc)
+that the search in :mod:`zwcore.arcfit` asks: how far pieces from given
+junctions reach, which curvatures are feasible, and whether a piece stays within
+the tolerance both ways (:meth:`~ToleranceBand.verify`: conservative analytic
+bounds, samples to arc, polyline segments to arc, arc portions to polyline).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from zwcore.arcgeom import (
+    arc_length_position,
+    arc_points,
+    circle_gap,
+    kappa_bounds,
+    local_uv,
+    points_to_segments_distance,
+    rotate,
+    sagitta,
+)
+
+FloatArray = NDArray[np.float64]
+
+__all__ = ["Piece", "ToleranceBand"]
+
+
+@dataclass
+class Piece:
+    """One verified arc or line of a chain, in the samples' local frame.
+
+    Start point ``p`` and unit tangent ``t``, signed curvature ``kappa`` (``> 0``
+    turns left, 0 is a line), arc ``length``; it stands for samples ``k..j``, ends
+    at ``end`` with unit tangent ``t_end``, and ``e_end`` is the distance of sample
+    ``j`` from the piece (the next piece's start stands for that sample).
+    """
+
+    p: FloatArray
+    t: FloatArray
+    kappa: float
+    length: float
+    k: int
+    j: int
+    end: FloatArray
+    t_end: FloatArray
+    e_end: float
+
+
+class ToleranceBand:
+    """The band of half-width ``tol`` about a sample polyline, seen by single pieces.
+
+    Parameters
+    ----------
+    samples : ndarray, shape (M, 2)
+        The sample polyline (local frame).
+    tol : float
+        Tolerance every verified piece keeps, both ways.
+    work : float
+        Share of ``tol`` the feasibility scans use (room for conservative bounds).
+    max_radius : float or None
+        Largest arc radius allowed (larger ones must be lines); None: no limit.
+    """
+
+    def __init__(
+        self, samples: FloatArray, tol: float, work: float, max_radius: float | None
+    ) -> None:
+        self.samples = samples
+        self.tol = tol
+        #: working half-width of the feasibility scans
+        self.work_tol = work * tol
+        #: smallest curvature of an arc (0: any radius)
+        self.kmin = 0.0 if max_radius is None else 1.0 / max_radius
+        #: curvature cap: radius >= tol / 200 (tighter arcs are within tol of their centre)
+        self.kcap = 200.0 / tol
+        seg = np.hypot(*(np.diff(samples, axis=0).T))
+        #: cumulative polyline length at each sample
+        self.cum = np.concatenate([[0.0], np.cumsum(seg)])
+        #: arc-length step of the dense checks
+        self.dense_step = 0.1 * tol
+        n_seg = max(len(samples) - 1, 1)
+        spacing = float(self.cum[-1]) / n_seg
+        #: sample stride of the look-ahead scans (about a quarter tolerance)
+        self.reach_stride = max(1, int(0.25 * tol / spacing)) if spacing > 0 else 1
+
+    # -- feasibility scans -------------------------------------------------
+
+    def curvature_intervals(
+        self, ps: FloatArray, ts: FloatArray, k: int, hi: int
+    ) -> tuple[FloatArray, FloatArray]:
+        """Running curvature bounds ``(C, hi-k)`` for samples ``k+1..hi``.
+
+        The junctions ``ps, ts`` ``(C, 2)`` stand for sample ``k``. Column ``i``
+        bounds the curvatures that keep samples ``k+1..k+1+i`` in the band; pieces
+        stop being feasible at the first column with ``lo > up``.
+        """
+        pts = self.samples[k + 1 : hi + 1]
+        u, v = local_uv(ps[:, None, :], ts[:, None, :], pts[None, :, :])
+        lo, up = kappa_bounds(u, v, self.work_tol)
+        return np.maximum.accumulate(lo, axis=1), np.minimum.accumulate(up, axis=1)
+
+    def reach(self, ps: FloatArray, ts: FloatArray, k: int, b: int, w0: int) -> NDArray[np.int64]:
+        """Last sample index each junction ``(C,)`` at sample ``k`` covers with one piece.
+
+        Interval test only (no verification); ``w0`` is the initial scan window.
+        """
+        c = len(ps)
+        out = np.full(c, b, dtype=np.int64)
+        todo = np.arange(c)
+        w = max(w0, 32)
+        lo_i = k
+        while todo.size and lo_i < b:
+            hi = min(b, k + w)
+            # keep memory bounded: at most ~4e6 entries per block
+            step = max(1, int(4e6 // max(hi - k, 1)))
+            done_now = []
+            for s0 in range(0, todo.size, step):
+                sub = todo[s0 : s0 + step]
+                lo_c, up_c = self.curvature_intervals(ps[sub], ts[sub], k, hi)
+                bad = lo_c > up_c
+                anyb = bad.any(axis=1)
+                first = np.argmax(bad, axis=1)
+                out[sub[anyb]] = k + first[anyb]
+                done_now.append(sub[anyb])
+            done = np.concatenate(done_now) if done_now else np.zeros(0, dtype=np.int64)
+            todo = np.setdiff1d(todo, done)
+            if hi == b:
+                break
+            w *= 2
+            lo_i = hi
+        return out
+
+    def reach_with_lines(
+        self, ps: FloatArray, ts: FloatArray, ks: NDArray[np.int64], b: int
+    ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+        """Last sample each junction ``(C,)`` covers with one piece, and with one line.
+
+        Junction ``c`` starts at ``ps[c]`` with tangent ``ts[c]`` standing for sample
+        ``ks[c]``. The figures only rank candidates (every piece is verified on all
+        samples), so densely sampled curves are scanned at :attr:`reach_stride`:
+        the work no longer grows with the sampling density.
+        """
+        c = len(ps)
+        reach = np.full(c, b, dtype=np.int64)
+        lreach = np.full(c, b, dtype=np.int64)
+        if c == 0:
+            return reach, lreach
+        k0 = int(ks.min())
+        todo = np.arange(c)
+        ltodo = np.ones(c, dtype=bool)
+        stride = self.reach_stride
+        w = 64
+        while todo.size:
+            hi = min(b, int(ks[todo].max()) + w)
+            if hi <= k0:
+                break
+            idx = np.arange(k0 + 1, hi + 1, stride)
+            step = max(1, int(3e6 // max(len(idx), 1)))
+            still = []
+            for s0 in range(0, todo.size, step):
+                sub = todo[s0 : s0 + step]
+                win = self.samples[None, k0 + 1 : hi + 1 : stride, :]
+                u, v = local_uv(ps[sub, None, :], ts[sub, None, :], win)
+                mask = idx[None, :] <= ks[sub, None]
+                lo, up = kappa_bounds(u, v, self.work_tol)
+                lo = np.maximum.accumulate(np.where(mask, -np.inf, lo), axis=1)
+                up = np.minimum.accumulate(np.where(mask, np.inf, up), axis=1)
+                bad = lo > up
+                anyb = bad.any(axis=1)
+                reach[sub[anyb]] = idx[np.argmax(bad[anyb], axis=1)] - 1
+                lb = ((np.abs(v) > self.work_tol) | (u < -self.work_tol)) & ~mask
+                lany = lb.any(axis=1)
+                lsel = lany & ltodo[sub]
+                lreach[sub[lsel]] = idx[np.argmax(lb[lsel], axis=1)] - 1
+                ltodo[sub[lsel]] = False
+                still.append(sub[~anyb])
+            todo = np.concatenate(still)
+            if hi == b:
+                break
+            w *= 2
+        # lines are only reported while the arc scan was still running; beyond, a line
+        # never reaches further than the arcs (a line is one of the circles)
+        lreach = np.minimum(lreach, reach)
+        return reach, lreach
+
+    def line_reach(self, p: FloatArray, ths: FloatArray, k: int, b: int) -> tuple[int, float]:
+        """Longest straight piece from ``p`` (at sample ``k``) over directions ``ths``.
+
+        Returns the last sample index it covers and its direction (radians, the
+        middle of the best range of ``ths``).
+        """
+        ts = np.stack([np.cos(ths), np.sin(ths)], axis=1)
+        w = 64
+        while True:
+            hi = min(b, k + w)
+            pts = self.samples[k + 1 : hi + 1]
+            u, v = local_uv(p[None, None, :], ts[:, None, :], pts[None, :, :])
+            bad = (np.abs(v) > self.work_tol) | (u < -self.work_tol)
+            anyb = bad.any(axis=1)
+            r = np.where(anyb, k + np.argmax(bad, axis=1), hi)
+            if anyb.all() or hi == b:
+                top = np.flatnonzero(r == r.max())
+                mid = int(top[len(top) // 2])
+                return int(r[mid]), float(ths[mid])
+            w *= 4
+
+    def longest_piece_bounds(
+        self, p: FloatArray, t: FloatArray, k: int, b: int
+    ) -> tuple[FloatArray, FloatArray]:
+        """Running curvature bounds of the longest feasible piece from ``(p, t)``.
+
+        Scans samples ``k+1..b`` in growing windows and cuts the bounds where they
+        become empty: ``len(lo)`` samples after ``k`` are reachable.
+        """
+        w = 64
+        while True:
+            hi = min(b, k + w)
+            lo_c, up_c = self.curvature_intervals(p[None, :], t[None, :], k, hi)
+            lo1, up1 = lo_c[0], up_c[0]
+            bad = np.flatnonzero(lo1 > up1)
+            if bad.size:
+                return lo1[: bad[0]], up1[: bad[0]]
+            if hi == b:
+                return lo1, up1
+            w *= 4
+
+    # -- candidate curvatures ----------------------------------------------
+
+    #: where in a feasible curvature interval candidates are taken (0 = low end)
+    K_FRACTIONS = (0.5, 0.25, 0.75, 0.08, 0.92)
+
+    def candidate_kappas(self, lo: float, hi: float) -> list[float]:
+        """A few curvatures inside ``[lo, hi]`` (a line first when allowed), radius-capped."""
+        lo = max(lo, -self.kcap)
+        hi = min(hi, self.kcap)
+        if lo > hi:
+            return []
+        out: list[float] = []
+        if lo <= 0.0 <= hi:
+            out.append(0.0)
+        for f in self.K_FRACTIONS:
+            out.append(lo + f * (hi - lo))
+        if self.kmin > 0.0:
+            out = [x for x in out if x == 0.0 or abs(x) >= self.kmin]
+            for edge in (self.kmin, -self.kmin):
+                if lo <= edge <= hi:
+                    out.append(edge)
+        return out
+
+    def radius_ok(self, kappa: float) -> bool:
+        """True for a line or an arc whose radius is within the allowed range."""
+        return kappa == 0.0 or (abs(kappa) >= self.kmin and abs(kappa) <= self.kcap)
+
+    # -- verification ------------------------------------------------------
+
+    def _arc_near_polyline(
+        self, p: FloatArray, t: FloatArray, kappa: float, s0: float, s1: float, a: int, b: int
+    ) -> bool:
+        """Dense check of the arc portion ``[s0, s1]`` against polyline segments ``a..b``."""
+        if s1 <= s0:
+            return True
+        n = math.ceil((s1 - s0) / self.dense_step) + 1
+        if n > 4000:
+            return False
+        step = (s1 - s0) / (n - 1)
+        pts = arc_points(p, t, kappa, np.linspace(s0, s1, n))
+        a = max(a, 0)
+        b = min(b, len(self.samples) - 1)
+        if b <= a:
+            d = np.hypot(pts[:, 0] - self.samples[a, 0], pts[:, 1] - self.samples[a, 1])
+        else:
+            d = points_to_segments_distance(pts, self.samples[a:b], self.samples[a + 1 : b + 1])
+            d = d.min(axis=1)
+        return bool(d.max() <= self.tol - 0.5 * step)
+
+    def verify(
+        self, p: FloatArray, t: FloatArray, kappa: float, k: int, j: int, e_k: float,
+        sig_end: float | None = None, dense_first: bool = False,
+    ) -> tuple[float, FloatArray, float] | None:
+        """Verify the piece ``(p, t, kappa)`` covering samples ``k..j`` two-sided.
+
+        ``e_k`` is the distance of sample ``k`` from ``p`` (the piece's start stands
+        for it). Without ``sig_end`` (the arc length) the piece ends at the foot
+        point of sample ``j``. ``dense_first`` checks the first arc portion densely
+        instead of bounding it (a biarc's second arc, whose start is off sample ``k``).
+
+        Returns ``(length, end, e_end)``, or None when a bound exceeds ``tol``. All
+        bounds are conservative: a piece that passes is within ``tol`` of the
+        polyline both ways over its extent.
+        """
+        tol = self.tol
+        pts = self.samples[k : j + 1]
+        u, v = local_uv(p, t, pts)
+        g = np.abs(circle_gap(u, v, kappa))
+        if kappa != 0.0:
+            phi = np.arctan2(kappa * u, 1.0 - kappa * v)
+            phi[0] = 0.0
+            sig = np.unwrap(phi) / kappa
+        else:
+            sig = u.copy()
+            sig[0] = 0.0
+        given_end = sig_end is not None
+        if sig_end is None:
+            sig_end = float(sig[-1])
+        if not sig_end > 0.0 or abs(kappa * sig_end) > 2.0 * math.pi + 1e-9:
+            return None
+        end = arc_points(p, t, kappa, np.array([sig_end]))[0]
+        q = np.hypot(u, v)
+        de = np.hypot(pts[:, 0] - end[0], pts[:, 1] - end[1])
+        before = sig < 0.0
+        after = sig > sig_end
+        d = np.where(before, q, np.where(after, de, g))
+        if d.size > 1 and d[1:].max() > tol:
+            return None
+        # polyline segment interiors: the farthest point from a circle on a segment is an
+        # end point or the point closest to the centre
+        if kappa != 0.0 and len(pts) > 1:
+            du = np.diff(u)
+            dv = np.diff(v)
+            den = du * du + dv * dv
+            den = np.where(den > 0.0, den, 1.0)
+            ts = np.clip((-u[:-1] * du + (1.0 / kappa - v[:-1]) * dv) / den, 0.0, 1.0)
+            xu = u[:-1] + ts * du
+            xv = v[:-1] + ts * dv
+            gx = np.abs(circle_gap(xu, xv, kappa))
+            inside = (sig[:-1] >= 0.0) & (sig[1:] <= sig_end)
+            xe = np.hypot(
+                xu - (end[0] - p[0]) * t[0] - (end[1] - p[1]) * t[1],
+                xv - (end[1] - p[1]) * t[0] + (end[0] - p[0]) * t[1],
+            )
+            dx = np.where(inside, gx, np.maximum(gx, np.minimum(np.hypot(xu, xv), xe)))
+            if dense_first:
+                dx[0] = 0.0
+            if dx.max() > tol:
+                return None
+        # arc portions between consecutive (running-max) foot points, against the polyline
+        run = np.maximum.accumulate(sig)
+        phi_c = np.clip(run, 0.0, sig_end)
+        idx = np.arange(len(sig))
+        arg = np.maximum.accumulate(np.where(sig >= run, idx, 0))
+        e_at = np.where(sig <= sig_end, g, de)
+        e_at[0] = e_k
+        dphi = np.diff(phi_c)
+        if dphi.size:
+            a_idx = arg[:-1]
+            jit = np.hypot(pts[a_idx, 0] - pts[:-1, 0], pts[a_idx, 1] - pts[:-1, 1])
+            bound = np.maximum(e_at[a_idx], e_at[1:]) + sagitta(kappa, dphi) + jit
+            mask = dphi > 0.0
+            if dense_first:
+                first = np.flatnonzero(mask)
+                if first.size:
+                    f0 = int(first[0])
+                    mask[f0] = False
+                    if not self._arc_near_polyline(
+                        p, t, kappa, 0.0, float(phi_c[f0 + 1]), k - 1, k + f0 + 2
+                    ):
+                        return None
+            if np.any(bound[mask] > tol):
+                return None
+        tail0 = float(phi_c[-1])
+        if given_end:
+            if tail0 < sig_end and not self._arc_near_polyline(
+                p, t, kappa, tail0, sig_end, j - 1, j + 2
+            ):
+                return None
+        elif tail0 < sig_end * (1.0 - 1e-12):
+            return None
+        return sig_end, end, float(g[-1])
+
+    def make_piece(
+        self, p: FloatArray, t: FloatArray, kappa: float, k: int, j: int,
+        verified: tuple[float, FloatArray, float],
+    ) -> Piece:
+        """The :class:`Piece` of a passed :meth:`verify` (its ``(length, end, e_end)``)."""
+        length, end, e_end = verified
+        return Piece(p, t, kappa, length, k, j, end, rotate(t, kappa * length), e_end)
+
+    # -- pieces with a fixed end -------------------------------------------
+
+    def piece_to_sample(
+        self, p: FloatArray, t: FloatArray, k: int, e: float, b: int
+    ) -> Piece | None:
+        """The verified piece from ``(p, t)`` (sample ``k``, distance ``e``) to sample ``b``."""
+        u, v = local_uv(p, t, self.samples[b : b + 1])
+        q2 = float(u[0] ** 2 + v[0] ** 2)
+        if q2 <= 0.0:
+            return None
+        kap = 2.0 * float(v[0]) / q2
+        if abs(kap) * math.sqrt(q2) < 1e-13:
+            kap = 0.0
+        if not self.radius_ok(kap):
+            return None
+        # cheap interval test first
+        lo, up = self.curvature_intervals(p[None, :], t[None, :], k, b)
+        if not (lo[0, -1] - 1e-12 * abs(kap) <= kap <= up[0, -1] + 1e-12 * abs(kap)):
+            return None
+        res = self.verify(p, t, kap, k, b, e)
+        if res is None:
+            return None
+        piece = self.make_piece(p, t, kap, k, b, res)
+        piece.end = self.samples[b].copy()
+        return piece
+
+    def arc_through(
+        self, p: FloatArray, t: FloatArray, q: FloatArray, dist: float
+    ) -> tuple[float, float] | None:
+        """Curvature and length of the arc from ``p`` along ``t`` through ``q``.
+
+        ``dist`` is the scale below which a curvature counts as a line. None when
+        ``q`` is ``p``, the arc is degenerate or its radius is not allowed.
+        """
+        u, v = local_uv(p, t, q[None, :])
+        q2 = float(u[0] ** 2 + v[0] ** 2)
+        if q2 <= 0.0:
+            return None
+        k = 2.0 * float(v[0]) / q2
+        if abs(k) < 1e-15 * max(1.0 / dist, 1.0):
+            k = 0.0  # numerically straight: a line
+        length = float(arc_length_position(u, v, k)[0])
+        if not length > 0.0 or not self.radius_ok(k):
+            return None
+        return k, length
+
+    #: where between start and end the biarc's junction is tried (share of the chord)
+    BIARC_SPLITS = (0.5, 0.4, 0.6, 0.3, 0.7, 0.2, 0.8, 0.12, 0.9, 0.06, 0.94)
+
+    def biarc(
+        self, p0: FloatArray, t0: FloatArray, k: int, e: float, b: int, t1: FloatArray
+    ) -> list[Piece] | None:
+        """Two verified pieces from ``(p0, t0)`` to sample ``b`` arriving with tangent ``t1``.
+
+        ``p0`` stands for sample ``k`` at distance ``e``. The junction is tried at
+        several places (:attr:`BIARC_SPLITS`); the first verified pair is returned.
+        """
+        p1 = self.samples[b]
+        vv = p1 - p0
+        dist2 = float(vv @ vv)
+        if dist2 <= 0.0:
+            return None
+        dist = math.sqrt(dist2)
+        vt0 = float(vv @ t0)
+        vt1 = float(vv @ t1)
+        t01 = float(t0 @ t1)
+        for f in self.BIARC_SPLITS:
+            d1 = f * dist
+            den = vt1 - d1 * (t01 - 1.0)
+            if abs(den) < 1e-300:
+                continue
+            d2 = (0.5 * dist2 - d1 * vt0) / den
+            if not (d2 > 0.0 and math.isfinite(d2)):
+                continue
+            jn = (d2 * (p0 + d1 * t0) + d1 * (p1 - d2 * t1)) / (d1 + d2)
+            first = self.arc_through(p0, t0, jn, dist)
+            if first is None:
+                continue
+            k1, s1 = first
+            tj = rotate(t0, k1 * s1)
+            # None also when the junction fell on the end point: no second arc.
+            second = self.arc_through(jn, tj, p1, dist)
+            if second is None:
+                continue
+            k2, s2 = second
+            te = rotate(tj, k2 * s2)
+            if abs(te[0] * t1[1] - te[1] * t1[0]) > 1e-9 or te @ t1 < 0:
+                continue
+            # split the samples: those whose foot point lies on the first arc
+            uu, vv2 = local_uv(p0, t0, self.samples[k : b + 1])
+            if k1 != 0.0:
+                ph = np.arctan2(k1 * uu, 1.0 - k1 * vv2)
+                ph[0] = 0.0
+                sg = np.unwrap(ph) / k1
+            else:
+                sg = uu
+            over = np.flatnonzero(sg > s1)
+            m = k + (int(over[0]) - 1 if over.size else b - k - 1)
+            m = min(max(m, k), b - 1)
+            r1 = self.verify(p0, t0, k1, k, m, e, sig_end=s1)
+            if r1 is None:
+                continue
+            # the second arc starts at the junction, which stands for sample m
+            e_m = float(np.hypot(*(self.samples[m] - jn)))
+            r2 = self.verify(jn, tj, k2, m, b, e_m, sig_end=s2, dense_first=True)
+            if r2 is None:
+                continue
+            a1 = self.make_piece(p0, t0, k1, k, m, r1)
+            a1.end = jn
+            a1.t_end = tj
+            a2 = self.make_piece(jn, tj, k2, m, b, r2)
+            a2.end = p1.copy()
+            a2.t_end = t1.copy()
+            return [a1, a2]
+        return None
