@@ -71,9 +71,13 @@ def test_plans_are_cached_and_default_tools_are_the_library(client: TestClient) 
     body = {"grid": rows_grid(part)}
     first = client.post("/v1/plans/contour", json=body)
     library = [t for t in client.get("/v1/tools").json()["tools"] if t["kind"] == "flat"]
-    explicit = client.post("/v1/plans/contour", json={
-        **body, "tools": [{k: t[k] for k in ("id", "diameter", "flute_length")} for t in library]})
+    # the library's entries go back as they are (kind included) and hash like the default
+    explicit = client.post("/v1/plans/contour", json={**body, "tools": library})
+    assert explicit.status_code == 200, explicit.text
     assert explicit.json()["task_id"] == first.json()["task_id"]
+    bare = [{k: t[k] for k in ("id", "diameter", "flute_length")} for t in library]
+    again = client.post("/v1/plans/contour", json={**body, "tools": bare})
+    assert again.json()["task_id"] == first.json()["task_id"]
     assert explicit.headers["x-cache"] == "hit"
     stored = client.get(f"/v1/tasks/{first.json()['task_id']}")
     assert stored.json() == first.json()
@@ -98,11 +102,23 @@ GRID = {"dx": 1, "dy": 1, "z": [[0, 1, 0], [1, 2, 1], [0, 1, 0]]}
                 {"id": "a", "diameter": 1, "flute_length": 2}]}, "tools[1].id", "duplicate"),
     ({"tools": [{"id": "a", "diameter": -2, "flute_length": 4}]}, "tools[0].diameter", ""),
     ({"tools": [{"id": "a", "diameter": 2}]}, "tools[0].flute_length", "required"),
+    ({"tools": [{"id": "a", "diameter": 1e-300, "flute_length": 4}]}, "tools[0].diameter",
+     "greater than or equal to 0.01"),
+    ({"tools": [{"id": "a", "kind": "drill", "diameter": 2, "flute_length": 4}]},
+     "tools[0].kind", ""),
     ({"stock_top": 1.0}, "stock_top", ""),
 ])
 def test_bad_plan_requests(client: TestClient, path: str, extra: dict, field: str,
                            reason: str) -> None:
     assert_problem(client.post(path, json={"grid": GRID, **extra}), 422, field, reason)
+
+
+@pytest.mark.parametrize(("path", "wrong"), [("/v1/plans/scanline", "flat"),
+                                             ("/v1/plans/contour", "ball")])
+def test_a_tool_of_the_other_kind_is_refused(client: TestClient, path: str, wrong: str) -> None:
+    tools = [{"id": "a", "kind": wrong, "diameter": 2, "flute_length": 4}]
+    r = client.post(path, json={"grid": GRID, "tools": tools})
+    assert_problem(r, 422, "tools[0].kind", f"a {wrong} end mill")
 
 
 @pytest.mark.parametrize("tolerance", [0, -0.01])

@@ -28,7 +28,7 @@ from service.schemas.plans import (
 from service.tasks import serve_task
 from zwcore import Tool, ZMap, default_tools, tool_library
 from zwcore.contour import plan_contour
-from zwcore.errors import LimitExceededError
+from zwcore.errors import InvalidInputError, LimitExceededError
 from zwcore.scanline import plan_scanline
 from zwcore.tools import ToolKind
 from zwcore.zmap import MAX_ABS_HEIGHT
@@ -80,6 +80,10 @@ def _tools(given: list[ToolIn] | None, kind: ToolKind, max_tools: int) -> list[T
         return list(default_tools(kind))
     if len(given) > max_tools:
         raise LimitExceededError("tools", f"{len(given)} tools exceed the limit of {max_tools}")
+    for i, t in enumerate(given):
+        if t.kind is not None and t.kind != kind:
+            raise InvalidInputError(f"tools[{i}].kind",
+                                    f"a {t.kind} end mill; this plan takes {kind} end mills")
     return list(tool_library([Tool(t.id, kind, t.diameter, t.flute_length) for t in given],
                              kind))
 

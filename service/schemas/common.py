@@ -59,17 +59,26 @@ class GridOut(BaseModel):
     z_b64: str | None = None
 
 
+ToolKind = Literal["ball", "flat"]
+
+
 class ToolIn(StrictModel):
-    """An end mill in the request's tool library."""
+    """An end mill in the request's tool library (``GET /v1/tools`` entries can be sent
+    back as they are)."""
 
     id: str = Field(min_length=1, max_length=64)
-    diameter: FiniteFloat = Field(gt=0, le=1000, description="mm")
-    flute_length: FiniteFloat = Field(gt=0, le=1000, description="length of cut, mm")
+    kind: ToolKind | None = Field(
+        None, description="optional; when given, the kind the plan takes: ball for the "
+        "scan-line plan, flat for the contour plan")
+    # 0.01 mm is the smallest micro end mill made; below it the planners' figures
+    # (scallop heights, guard margins) lose their meaning in float64.
+    diameter: FiniteFloat = Field(ge=0.01, le=1000, description="mm")
+    flute_length: FiniteFloat = Field(ge=0.01, le=1000, description="length of cut, mm")
 
 
 class ToolOut(BaseModel):
     id: str
-    kind: Literal["ball", "flat"]
+    kind: ToolKind
     diameter: float
     flute_length: float
 
