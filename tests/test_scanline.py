@@ -313,3 +313,50 @@ def test_mount_rushmore_full_resolution_descends_through_several_balls() -> None
     assert plan.tool_sequence[-1] == "BEM-D1"
     assert all(s.max_stock_left <= plan.stock_top - float(z.min()) for s in plan.stages)
     assert any(s.clipped_nodes > 0 for s in plan.stages)
+
+
+@pytest.mark.parametrize(("shape", "scale", "fine"), [
+    ((9, 7), 32, (257, 193)), ((5, 40), 8, (33, 300)), ((1, 6), 4, (1, 21)),
+    ((12, 1), 16, (170, 1)), ((20, 20), 2, (38, 39))])
+def test_blocked_evaluation_is_bilinear_at_fine_nodes_bit_for_bit(
+        shape: tuple[int, int], scale: int, fine: tuple[int, int],
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    # The planner and the checks evaluate models in blocks of rows (so a large
+    # grid makes no full-size temporaries); the values must be exactly those of
+    # the whole-array evaluation, whatever the block size.
+    import zwcore.scanline as scanline
+    from zwcore.scanline_checks import axis_weights, eval_rows
+
+    coarse = np.random.default_rng(sum(shape) + scale).normal(0.0, 10.0, shape)
+    ref = bilinear_at_fine_nodes(coarse, scale, fine)
+    ya = axis_weights(scale, fine[0], shape[0])
+    xa = axis_weights(scale, fine[1], shape[1])
+    for block in (1, 7, 1 << 15):
+        monkeypatch.setattr(scanline, "_BLOCK_NODES", block)
+        assert np.array_equal(scanline._upsampled(coarse, scale, fine), ref)
+        rows = max(1, block // fine[1])
+        got = np.concatenate([eval_rows(coarse, scale, a, min(a + rows, fine[0]), ya, xa)
+                              for a in range(0, fine[0], rows)])
+        assert np.array_equal(got, ref)
+
+
+def test_figures_do_not_depend_on_the_block_size(monkeypatch: pytest.MonkeyPatch) -> None:
+    # The checks run block-major over all passes; each figure is the same
+    # reduction as a whole-array one (the volume up to the summation order).
+    import zwcore.scanline_checks as checks
+
+    x = np.linspace(0.0, 40.0, 161)
+    xx, yy = np.meshgrid(x, x)
+    pocket = np.where(np.hypot(xx - 20.0, yy - 20.0) < 8.0, 9.0, 0.0)
+    z = 3.0 * np.sin(xx / 5.0) * np.cos(yy / 7.0) - pocket
+    zmap = ZMap(z, dx=0.25, dy=0.25)
+    plans = []
+    for block in (8, 1 << 20):
+        monkeypatch.setattr(checks, "_BLOCK_NODES", block)
+        plans.append(plan_scanline(zmap))
+    a, b = plans
+    assert a.checks == b.checks and len(a.stages) == len(b.stages)
+    for sa, sb in zip(a.stages, b.stages, strict=True):
+        assert (sa.max_depth_of_cut, sa.max_stock_left) == (sb.max_depth_of_cut, sb.max_stock_left)
+        assert sa.removed_volume == pytest.approx(sb.removed_volume, rel=1e-12, abs=1e-12)
+    _check_invariants(zmap, a, 0.01)

@@ -289,16 +289,26 @@ def steepest_slope(z: F64, sx: float, sy: float,
     float
         ``max |grad f|`` over the surface (0 for a plane at constant height).
     """
-    ex = np.abs(np.diff(z, axis=1)) * (1.0 / sx)  # (ny, nx-1): x edges
-    ey = np.abs(np.diff(z, axis=0)) * (1.0 / sy)  # (ny-1, nx): y edges
-    # The four corners of every cell: (bottom or top x edge) with (left or
-    # right y edge).
+    ny, nx = z.shape
+    cy, cx = ny - 1, nx - 1  # cells
+    if extent is not None:
+        cy, cx = min(cy, extent[0]), min(cx, extent[1])
+    if cy <= 0 or cx <= 0:
+        return 0.0
+    zz = z[: cy + 1, : cx + 1]
     best = 0.0
-    for bx in (ex[:-1], ex[1:]):  # bottom / top x edge of every cell
-        for by in (ey[:, :-1], ey[:, 1:]):  # left / right y edge
-            g = bx * bx + by * by
-            if extent is not None:
-                g = g[: extent[0], : extent[1]]
-            if g.size:
+    # In blocks of cell rows (with the node row above each block), so a large
+    # grid makes no full-size temporaries; every g is the same expression.
+    rows = max(1, _BLOCK_NODES // max(cx + 1, 1))
+    for a in range(0, cy, rows):
+        b = min(a + rows, cy)
+        blk = zz[a:b + 1]
+        ex = np.abs(np.diff(blk, axis=1)) * (1.0 / sx)  # (rows+1, cx): x edges
+        ey = np.abs(np.diff(blk, axis=0)) * (1.0 / sy)  # (rows, cx+1): y edges
+        # The four corners of every cell: (bottom or top x edge) with (left
+        # or right y edge).
+        for bx in (ex[:-1], ex[1:]):  # bottom / top x edge of every cell
+            for by in (ey[:, :-1], ey[:, 1:]):  # left / right y edge
+                g = bx * bx + by * by
                 best = max(best, float(g.max()))
     return float(np.sqrt(best))

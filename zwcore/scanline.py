@@ -60,7 +60,7 @@ from scipy import ndimage
 from zwcore.curvature import min_concave_radius, steepest_slope
 from zwcore.errors import InvalidInputError, PlanningError
 from zwcore.sampling import bilinear_at_fine_nodes
-from zwcore.scanline_checks import PassSpec, figures
+from zwcore.scanline_checks import PassSpec, axis_weights, eval_rows, figures
 from zwcore.scanline_models import Target, nested_targets
 from zwcore.scanline_passes import cross_slopes, plan_strips, scallop_height
 from zwcore.scanline_types import ScanlineChecks, ScanlinePlan, ScanlineStage
@@ -100,6 +100,9 @@ REST_FLUTE_SHARE = 0.25
 #: The rest of an oversized ball is computed only where it spans at most this
 #: many nodes of its level each way (beyond, the concave-radius rule decides).
 REST_MAX_CELLS = 4
+
+#: Nodes per block of rows for the full-resolution work on pass models.
+_BLOCK_NODES = 1 << 15
 
 
 @dataclass
@@ -226,6 +229,45 @@ def _choose(levels: list[_Level], library: Sequence[Tool],
     return chosen
 
 
+def _upsampled(coarse: F64, scale: int, shape: tuple[int, int]) -> F64:
+    """``bilinear_at_fine_nodes(coarse, scale, shape)``, bit for bit, in blocks of rows.
+
+    The whole-array version makes several full-size temporaries; on a large
+    grid those cost more than the arithmetic (fresh pages, no cache reuse).
+    """
+    if scale == 1:
+        return bilinear_at_fine_nodes(coarse, scale, shape)
+    ny, nx = shape
+    ya = axis_weights(scale, ny, coarse.shape[0])
+    xa = axis_weights(scale, nx, coarse.shape[1])
+    out = np.empty(shape)
+    rows = max(1, _BLOCK_NODES // max(nx, 1))
+    for a in range(0, ny, rows):
+        b = min(a + rows, ny)
+        out[a:b] = eval_rows(coarse, scale, a, b, ya, xa)
+    return out
+
+
+def _lift(on: F64, target: F64, shift: float) -> tuple[F64, bool]:
+    """``max(target, on + shift)`` and whether ``on + shift`` stays at or below the target.
+
+    In blocks of rows into the one array the pass keeps (no full-size
+    temporaries); the same operations, node by node, as the whole-array form.
+    """
+    ny, nx = target.shape
+    model = np.empty(target.shape)
+    reached = True
+    rows = max(1, _BLOCK_NODES // max(nx, 1))
+    for a in range(0, ny, rows):
+        b = min(a + rows, ny)
+        lifted = on[a:b] + shift
+        t = target[a:b]
+        if reached and bool((lifted > t).any()):
+            reached = False
+        np.maximum(t, lifted, out=model[a:b])
+    return model, reached
+
+
 def _passes(zmap: ZMap, chosen: list[tuple[_Level, Tool, list[int], float]],
             stock_top: float, tolerance: float, g: float) -> list[PassSpec]:
     ny, nx = zmap.shape
@@ -240,7 +282,7 @@ def _passes(zmap: ZMap, chosen: list[tuple[_Level, Tool, list[int], float]],
         if prev is None:
             on = np.full(target.shape, stock_top)
         else:
-            on = bilinear_at_fine_nodes(prev, 1 << (lev.index - prev_level), target.shape)
+            on = _upsampled(prev, 1 << (lev.index - prev_level), target.shape)
         next_flute = chosen[n + 1][1].flute_length if n + 1 < len(chosen) else None
         # Every pass of this stage is max(T, S + c) with S the incoming model
         # (or an earlier pass, itself such a max): the difference across any
@@ -258,9 +300,7 @@ def _passes(zmap: ZMap, chosen: list[tuple[_Level, Tool, list[int], float]],
         slope_b = slope_t if prev is None else max(
             slope_t, steepest_slope(on, lev.sx, lev.sy, extent=lev.cells))
         while True:
-            lifted = on + (leaves - flute + g)
-            model = np.maximum(target, lifted)
-            reached = not bool((lifted > target).any())
+            model, reached = _lift(on, target, leaves - flute + g)
             finishing = reached and next_flute is None
             if finishing:
                 budget = tolerance
@@ -358,7 +398,7 @@ def plan_scanline(zmap: ZMap, tools: Sequence[Tool] | None = None, *, tolerance:
     if requested is None:
         ceiling = max(ceiling, _default_stock(top, max(library, key=lambda t: t.flute_length)))
     magnitude = max(abs(top), abs(float(part.min())), abs(ceiling), longest,
-                    *(float(np.abs(a).max()) for a in approx[first:]))
+                    *(max(abs(float(a.max())), abs(float(a.min()))) for a in approx[first:]))
     g = _guard(magnitude)
     # The nested margins need room under the stock: a stock at (or a hair
     # above) the part's top leaves none, and then only the finishing level is

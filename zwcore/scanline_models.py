@@ -162,12 +162,16 @@ def repair(low: F64, ceiling: F64, check: NDArray[np.bool_], part: F64, scale: i
         return low, 0
     # A little over the exact blend covers the rounding of the evaluation.
     lam = np.minimum(lam * (1.0 + 1e-9) + np.where(lam > 0.0, 1e-12, 0.0), 1.0)
+    # Every node takes the largest blend of the (up to four) cells it is a
+    # corner of. Cell (r, c) has corners (r or r+1, c or c+1), clamped to the
+    # last node; each of the four placements is a plain shifted slice without
+    # repeated nodes, so an elementwise maximum does what ``maximum.at`` did.
     node = np.zeros((my, mx))
-    r_hi = np.minimum(np.arange(cy) + 1, my - 1)
-    c_hi = np.minimum(np.arange(cx) + 1, mx - 1)
-    for rows in (np.arange(cy), r_hi):
-        for cols in (np.arange(cx), c_hi):
-            np.maximum.at(node, (rows[:, None], cols[None, :]), lam)
+    r1, c1 = min(1, my - 1), min(1, mx - 1)
+    for r0 in (0, r1):
+        for c0 in (0, c1):
+            view = node[r0:r0 + cy, c0:c0 + cx]
+            np.maximum(view, lam, out=view)
     out = low + node * (ceiling - low)
     full = node >= 1.0
     out[full] = ceiling[full]

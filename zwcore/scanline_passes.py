@@ -34,6 +34,9 @@ __all__ = ["StripPlan", "cross_slopes", "pick_feed_for", "plan_strips", "scallop
 
 F64 = NDArray[np.float64]
 
+#: Nodes per block of rows in :func:`cross_slopes`.
+_BLOCK_NODES = 1 << 15
+
 
 def scallop_height(pick_feed: float, slope: float, radius: float) -> float:
     """Scallop height of a ball on a slope, design section 3.
@@ -92,10 +95,24 @@ def cross_slopes(model: F64, sx: float, sy: float,
     """
     cy, cx = cells
     sub = model[: cy + 1, : cx + 1]
-    along_x = (np.abs(np.diff(sub, axis=0)).max(axis=1) * (1.0 / sy)
-               if cy > 0 and sub.shape[0] > 1 else np.zeros(cy))
-    along_y = (np.abs(np.diff(sub, axis=1)).max(axis=0) * (1.0 / sx)
-               if cx > 0 and sub.shape[1] > 1 else np.zeros(cx))
+    ny, nx = sub.shape
+    do_x = cy > 0 and ny > 1
+    do_y = cx > 0 and nx > 1
+    # In blocks of rows (one row of overlap for the differences across
+    # them), so a full-resolution model makes no full-size temporaries; the
+    # maxima are those of the whole-array expressions, bit for bit.
+    rows = max(2, _BLOCK_NODES // max(nx, 1))
+    parts_x: list[F64] = []
+    max_y: F64 | None = None
+    for a in range(0, max(ny - 1, 1), rows):
+        blk = sub[a:min(a + rows, ny - 1) + 1]
+        if do_x:
+            parts_x.append(np.abs(np.diff(blk, axis=0)).max(axis=1))
+        if do_y:
+            m = np.abs(np.diff(blk, axis=1)).max(axis=0)
+            max_y = m if max_y is None else np.maximum(max_y, m)
+    along_x = np.concatenate(parts_x) * (1.0 / sy) if do_x else np.zeros(cy)
+    along_y = max_y * (1.0 / sx) if do_y and max_y is not None else np.zeros(cx)
     return along_x, along_y
 
 
