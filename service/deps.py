@@ -36,21 +36,35 @@ PoolDep = Annotated[ComputePool, Depends(get_pool)]
 _bearer = HTTPBearer(auto_error=False, description="Required when ZW_API_KEYS is set.")
 
 
-def require_api_key(
-    settings: SettingsDep,
-    credentials: Annotated[HTTPAuthorizationCredentials | None, Depends(_bearer)],
-) -> None:
-    """Every ``/v1`` call needs ``Authorization: Bearer <key>`` when keys are configured."""
-    keys = settings.api_key_list
+def api_key_problem(authorization: str | None, keys: list[str]) -> Problem | None:
+    """Why a request with this ``Authorization`` header may not call ``/v1`` (None: it may).
+
+    Used twice: by the middleware, before a body is read (an unauthenticated client must
+    not make the server buffer up to ``ZW_MAX_BODY_BYTES``), and as the routes'
+    dependency, which documents the scheme in the OpenAPI document.
+    """
     if not keys:
-        return
-    if credentials is None or credentials.scheme.lower() != "bearer":
-        raise Problem(401, "Unauthorized", "this call needs Authorization: Bearer <key>",
-                      kind="unauthorized", headers={"WWW-Authenticate": "Bearer"})
-    given = credentials.credentials.encode()
+        return None
+    scheme, _, token = (authorization or "").partition(" ")
+    if scheme.lower() != "bearer" or not token.strip():
+        return Problem(401, "Unauthorized", "this call needs Authorization: Bearer <key>",
+                       kind="unauthorized", headers={"WWW-Authenticate": "Bearer"})
+    given = token.strip().encode()
     # Compare against every key in constant time so timing reveals neither key nor index.
     matched = False
     for key in keys:
         matched |= hmac.compare_digest(given, key.encode())
     if not matched:
-        raise Problem(403, "Forbidden", "the API key is not valid", kind="forbidden")
+        return Problem(403, "Forbidden", "the API key is not valid", kind="forbidden")
+    return None
+
+
+def require_api_key(
+    settings: SettingsDep,
+    credentials: Annotated[HTTPAuthorizationCredentials | None, Depends(_bearer)],
+) -> None:
+    """Every ``/v1`` call needs ``Authorization: Bearer <key>`` when keys are configured."""
+    header = f"{credentials.scheme} {credentials.credentials}" if credentials else None
+    problem = api_key_problem(header, settings.api_key_list)
+    if problem is not None:
+        raise problem

@@ -61,7 +61,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.include_router(tools.router, dependencies=secured)
     app.include_router(health.router)
     app.add_middleware(ServiceMiddleware, max_body_bytes=settings.max_body_bytes,
-                       max_json_values=settings.max_json_values)
+                       max_json_values=settings.max_json_values,
+                       api_keys=settings.api_key_list)
     return app
 
 

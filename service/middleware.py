@@ -12,7 +12,8 @@ import orjson
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from service import metrics
-from service.problems import PROBLEM_JSON
+from service.deps import api_key_problem
+from service.problems import PROBLEM_JSON, problem_response
 
 log = logging.getLogger("zwplan.access")
 
@@ -42,6 +43,8 @@ class ServiceMiddleware:
     """Outermost layer of the app.
 
     - echoes ``X-Request-ID`` (or makes one) on every response;
+    - refuses a ``/v1`` call without a valid API key (when keys are set) before
+      reading its body;
     - bounds the number of JSON values a body may hold (``max_json_values``),
       since parsing multiplies their memory;
     - enforces ``max_body_bytes`` on every request, whether it declares a
@@ -51,10 +54,12 @@ class ServiceMiddleware:
       per request (never the body, never the Authorization header).
     """
 
-    def __init__(self, app: ASGIApp, max_body_bytes: int, max_json_values: int) -> None:
+    def __init__(self, app: ASGIApp, max_body_bytes: int, max_json_values: int,
+                 api_keys: list[str] | None = None) -> None:
         self.app = app
         self.max_body_bytes = max_body_bytes
         self.max_json_values = max_json_values
+        self.api_keys = api_keys or []
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
         if scope["type"] != "http":
@@ -85,6 +90,14 @@ class ServiceMiddleware:
                                 "body": _problem(code, title, detail)})
 
         try:
+            if self.api_keys and scope["path"].startswith("/v1"):
+                auth = headers.get(b"authorization")
+                denied = api_key_problem(auth.decode("latin-1") if auth else None, self.api_keys)
+                if denied is not None:
+                    await problem_response(denied.status, denied.title, denied.detail,
+                                           kind=denied.kind, instance=scope["path"],
+                                           headers=denied.headers)(scope, receive, send_wrapper)
+                    return
             declared = headers.get(b"content-length")
             if declared is not None:
                 try:

@@ -56,3 +56,31 @@ def test_core_errors_from_a_worker_are_problems_naming_the_field(tmp_path) -> No
         assert r.status_code == 422, r.text
         assert r.headers["content-type"].startswith("application/problem+json")
         assert r.json()["errors"][0]["field"] == "points"
+
+
+@pytest.mark.parametrize(("files", "expected"), [
+    ({"cpu.max": "150000 100000\n"}, 1.5),          # cgroup v2, docker --cpus 1.5
+    ({"cpu.max": "max 100000\n"}, None),            # v2, unlimited
+    ({"cpu/cpu.cfs_quota_us": "200000\n", "cpu/cpu.cfs_period_us": "100000\n"}, 2.0),  # v1
+    ({"cpu/cpu.cfs_quota_us": "-1\n", "cpu/cpu.cfs_period_us": "100000\n"}, None),
+    ({}, None),                                     # no cgroup files: not limited
+])
+def test_cpu_quota_of_the_container_is_read(tmp_path, files: dict[str, str],  # type: ignore[no-untyped-def]
+                                            expected: float | None) -> None:
+    from service.settings import _cgroup_cpu_limit
+
+    for name, text in files.items():
+        (tmp_path / name).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / name).write_text(text)
+    assert _cgroup_cpu_limit(tmp_path) == expected
+
+
+def test_pool_size_follows_the_quota(monkeypatch: pytest.MonkeyPatch) -> None:
+    from service import settings
+
+    monkeypatch.setattr(settings, "_cgroup_cpu_limit", lambda: 0.5)
+    assert settings._cpu_count() == 1
+    monkeypatch.setattr(settings, "_cgroup_cpu_limit", lambda: 1.5)
+    assert settings._cpu_count() == min(2, len(os.sched_getaffinity(0)))
+    monkeypatch.setattr(settings, "_cgroup_cpu_limit", lambda: None)
+    assert settings._cpu_count() == len(os.sched_getaffinity(0))

@@ -118,6 +118,41 @@ def test_auth_comes_before_body_parsing(keyed: TestClient) -> None:
         assert_problem(r, 400)
 
 
+@pytest.mark.parametrize(("authorization", "status"), [(None, 401), (f"Bearer {WRONG}", 403)])
+def test_a_refused_call_is_answered_before_its_body_is_read(
+        tmp_path: Path, authorization: str | None, status: int) -> None:
+    """An unauthenticated client cannot make the server buffer a large body."""
+    import asyncio
+
+    from service.main import create_app
+    from service.settings import Settings
+
+    app = create_app(Settings(data_dir=tmp_path, api_keys=",".join(KEYS)))
+    headers = [(b"content-type", b"application/json"), (b"content-length", b"200000000")]
+    if authorization:
+        headers.append((b"authorization", authorization.encode()))
+    scope = {"type": "http", "asgi": {"version": "3.0"}, "http_version": "1.1",
+             "method": "POST", "scheme": "http", "path": "/v1/mrr", "raw_path": b"/v1/mrr",
+             "query_string": b"", "root_path": "", "headers": headers,
+             "client": ("127.0.0.1", 1), "server": ("127.0.0.1", 80)}
+    reads = 0
+    sent: list[dict[str, Any]] = []
+
+    async def receive() -> dict[str, Any]:
+        nonlocal reads
+        reads += 1
+        return {"type": "http.request", "body": b"0" * 65536, "more_body": True}
+
+    async def send(message: dict[str, Any]) -> None:
+        sent.append(message)
+
+    asyncio.run(app(scope, receive, send))  # type: ignore[arg-type]
+    assert reads == 0
+    assert sent[0]["status"] == status
+    assert dict(sent[0]["headers"])[b"content-type"] == PROBLEM.encode()
+    assert json.loads(sent[1]["body"])["status"] == status
+
+
 def test_health_and_metrics_stay_open(keyed: TestClient) -> None:
     for path in OPEN_PATHS:
         for headers in ({}, {"Authorization": f"Bearer {WRONG}"}):

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 from fastapi.testclient import TestClient
 
+import zwcore
 from service.schemas.mrr import MrrResult
 from tests.conftest import make_client
 from zwcore import analyse, at_fine_nodes
@@ -96,6 +97,20 @@ def test_repeat_is_served_from_the_store_and_survives_restart(tmp_path, part) ->
         stored = c.get(f"/v1/tasks/{tid}")
         assert stored.status_code == 200 and stored.json() == first.json()
         assert c.post("/v1/mrr", json=body).headers["x-cache"] == "hit"
+
+
+def test_a_new_core_build_is_a_new_task(tmp_path, part, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    """Results cached by one build of the core are never served by another."""
+    from service import hashing
+
+    body = {"grid": rows_grid(part), "wavelet": "haar"}
+    with make_client(tmp_path) as c:
+        old = c.post("/v1/mrr", json=body).json()["task_id"]
+        build = hashing.core_build()
+        assert build.startswith(zwcore.__version__ + "+") and build == hashing.core_build()
+        monkeypatch.setattr(hashing, "core_build", lambda: build + "-patched")
+        new = c.post("/v1/mrr", json=body)
+        assert new.headers["x-cache"] == "miss" and new.json()["task_id"] != old
 
 
 def test_if_none_match_gets_304(client: TestClient, part: np.ndarray) -> None:
