@@ -152,7 +152,9 @@ class ServiceMiddleware:
         finally:
             elapsed = time.perf_counter() - start
             route = scope.get("route")
-            operation = getattr(route, "name", None) or "unmatched"
+            # the OpenAPI operation id: the name clients, dashboards and logs share
+            operation = (getattr(route, "operation_id", None) or getattr(route, "name", None)
+                         or "unmatched")
             metrics.REQUESTS.labels(operation, str(status)).inc()
             metrics.REQUEST_SECONDS.labels(operation).observe(elapsed)
             state = scope.get("state", {})

@@ -70,6 +70,8 @@ async def serve_task(request: Request, store: TaskStore, pool: ComputePool, *, o
     # A float32 upload is exactly float32 by construction: skip the hashing check.
     exact = dict.fromkeys(arrays or {}, True) if encoding == "float32" else None
     tid = await anyio.to_thread.run_sync(make_task_id, operation, params, arrays, exact)
+    # metrics are labelled by the OpenAPI operation id, as the request metrics and logs are
+    label = getattr(request.scope.get("route"), "operation_id", None) or operation
     request.state.task_id = tid
     # The task id is the content hash, so a named tag is answered without the store.
     if not_modified(request, tid, stored=False):
@@ -80,15 +82,15 @@ async def serve_task(request: Request, store: TaskStore, pool: ComputePool, *, o
         request.state.cache = "not-modified"
         return Response(status_code=304, headers={"ETag": _etag(tid)})
     if body is not None:
-        metrics.CACHE.labels(operation, "hit").inc()
+        metrics.CACHE.labels(label, "hit").inc()
         request.state.cache = "hit"
         return respond(body, tid, encoding, "hit")
 
     (result, compute_ms), shared = await pool.run_once(
-        tid, operation, encode_result, tid, operation, compute, args, in_process=in_process)
+        tid, label, encode_result, tid, operation, compute, args, in_process=in_process)
     request.state.compute_ms = compute_ms
     outcome = "shared" if shared else "miss"
-    metrics.CACHE.labels(operation, outcome).inc()
+    metrics.CACHE.labels(label, outcome).inc()
     request.state.cache = outcome
     if not shared:
         await anyio.to_thread.run_sync(store.put, tid, result)

@@ -103,6 +103,8 @@ def test_metrics_exposition(server: LiveServer) -> None:
         assert http.post("/v1/mrr", json=body).headers["x-cache"] == "miss"
         assert http.post("/v1/mrr", json=body).headers["x-cache"] == "hit"
         assert http.get("/v1/tools").status_code == 200
+        arcs = http.post("/v1/arcs", json={"points": [[0, 0], [10, 0], [20, 5]]})
+        assert arcs.status_code == 200, arcs.text
         r = http.get("/metrics")
     assert r.status_code == 200 and r.headers["content-type"].startswith("text/plain")
     m = samples(r.text)
@@ -110,9 +112,13 @@ def test_metrics_exposition(server: LiveServer) -> None:
     assert m[("zw_requests_total", (("operation", "list_tools"), ("status", "200")))] >= 1
     assert m[("zw_request_seconds_count", (("operation", "compute_mrr"),))] >= 2
     assert m[("zw_request_seconds_sum", (("operation", "compute_mrr"),))] > 0
-    assert m[("zw_compute_seconds_count", (("operation", "mrr"),))] >= 1
-    assert m[("zw_cache_total", (("operation", "mrr"), ("outcome", "hit")))] >= 1
-    assert m[("zw_cache_total", (("operation", "mrr"), ("outcome", "miss")))] >= 1
+    assert m[("zw_compute_seconds_count", (("operation", "compute_mrr"),))] >= 1
+    assert m[("zw_cache_total", (("operation", "compute_mrr"), ("outcome", "hit")))] >= 1
+    assert m[("zw_cache_total", (("operation", "compute_mrr"), ("outcome", "miss")))] >= 1
+    # every family names an operation by its OpenAPI operation id
+    assert m[("zw_requests_total", (("operation", "fit_arcs"), ("status", "200")))] == 1
+    assert m[("zw_compute_seconds_count", (("operation", "fit_arcs"),))] == 1
+    assert m[("zw_cache_total", (("operation", "fit_arcs"), ("outcome", "miss")))] == 1
     assert m[("zw_pool_busy", ())] == 0
     assert m[("zw_pool_capacity", ())] == 2 + 3  # ZW_WORKERS + ZW_MAX_PENDING
     assert ("zw_pool_shed_total", ()) in m
