@@ -47,7 +47,7 @@ def _config(tmp_path: Path) -> Path:
     ``positive_data_acceptance`` expects every schema-valid request to be
     accepted. For operations with a JSON body (grids, tool libraries, point
     curves) that cannot hold: JSON Schema cannot say that rows have equal
-    length, that a grid has at least 2 x 2 nodes and at most ZW_MAX_GRID_CELLS,
+    length, that a grid has at most ZW_MAX_GRID_CELLS nodes (a product of sizes),
     that exactly one of ``z`` / ``z_b64`` is given, that ``z_b64`` decodes to
     ``shape`` x ``dtype`` bytes, or that a curve has two distinct points; the
     service rejects those with a 4xx problem naming the field, as the contract

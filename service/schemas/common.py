@@ -36,8 +36,11 @@ class Grid(StrictModel):
     y0: FiniteFloat = Field(0.0, ge=-1e6, le=1e6, description="y of node (0, 0), mm")
     dx: FiniteFloat = Field(ge=1e-6, le=1e6, description="node spacing along x, mm")
     dy: FiniteFloat = Field(ge=1e-6, le=1e6, description="node spacing along y, mm")
-    z: list[list[FiniteFloat]] | None = Field(None, description="heights, one list per row (y)")
-    shape: tuple[StrictInt, StrictInt] | None = Field(None, description="[ny, nx] of z_b64")
+    # at least 2 x 2 nodes, said in the schema so generated clients know it too
+    z: list[Annotated[list[FiniteFloat], Field(min_length=2)]] | None = Field(
+        None, min_length=2, description="heights, one list per row (y); at least 2 x 2")
+    shape: tuple[Annotated[StrictInt, Field(ge=2)], Annotated[StrictInt, Field(ge=2)]] | None = (
+        Field(None, description="[ny, nx] of z_b64; at least 2 x 2"))
     dtype: Dtype | None = Field(None, description="element type of z_b64")
     z_b64: str | None = Field(None, description="little-endian row-major heights, base64")
 
