@@ -274,3 +274,61 @@ def test_threaded_path_works_in_a_forked_child() -> None:
     os.kill(pid, signal.SIGKILL)
     os.waitpid(pid, 0)
     pytest.fail("analyse hung in a forked child")
+
+
+@pytest.mark.parametrize("lifted", [True, False])
+@pytest.mark.parametrize("strip", [2, 6, 64, 1000])
+@pytest.mark.parametrize("shape", [(37, 40), (40, 37), (33, 33), (64, 18), (2, 2), (3, 2)])
+def test_haar_strips_of_any_size_equal_definition(shape: tuple[int, int], strip: int,
+                                                  lifted: bool) -> None:
+    # Strips with an even and an odd number of rows (p == q and the last row paired
+    # with itself), even and odd widths, threads and bands at every size.
+    z = np.random.default_rng(shape[0] * 100 + shape[1]).normal(size=shape)
+    saved = (_pyramid.STRIP_ELEMENTS, _pyramid.THREAD_MIN_ELEMENTS, _pyramid.MIN_BAND_ROWS,
+             _pyramid.BAND_ELEMENTS, _pyramid.worker_count)
+    try:
+        _pyramid.STRIP_ELEMENTS = strip
+        _pyramid.THREAD_MIN_ELEMENTS, _pyramid.MIN_BAND_ROWS, _pyramid.BAND_ELEMENTS = 0, 1, 64
+        _pyramid.worker_count = lambda: 2
+        _assert_bitwise_equal(z, "haar", lifted)
+    finally:
+        (_pyramid.STRIP_ELEMENTS, _pyramid.THREAD_MIN_ELEMENTS, _pyramid.MIN_BAND_ROWS,
+         _pyramid.BAND_ELEMENTS, _pyramid.worker_count) = saved
+
+
+def test_haar_results_are_separate_contiguous_arrays() -> None:
+    # The bands of every level are carved from one block: each must still be its own
+    # C-contiguous array, overlapping no other.
+    z = np.random.default_rng(11).normal(size=(37, 70))
+    mrr = analyse(z, "haar")
+    arrays = mrr.approximations[:-1] + [getattr(b, name) for b in mrr.details
+                                        for name in ("lh", "hl", "hh")]
+    for a in arrays:
+        assert a.flags.c_contiguous and a.flags.writeable and a.dtype == np.float64
+    for i, a in enumerate(arrays):
+        for b in arrays[i + 1:]:
+            assert not np.shares_memory(a, b)
+
+
+def test_haar_scratch_reuse_across_calls_and_threads() -> None:
+    # Scratch is kept per thread between calls: calls of other sizes (one larger than
+    # what is kept), in a row and from several threads at once, must not disturb it.
+    from concurrent.futures import ThreadPoolExecutor
+
+    grids = [np.random.default_rng(n).normal(size=(n, n + 3)) for n in (700, 40, 1100, 9, 600)]
+    expected = [analyse(g, "haar") for g in grids]
+    saved = _pyramid.SCRATCH_KEEP
+    try:
+        _pyramid.SCRATCH_KEEP = 1 << 17  # the 1100-row grid's scratch is not kept
+        with ThreadPoolExecutor(3) as pool:
+            results = list(pool.map(lambda g: analyse(g, "haar"), grids * 3))
+    finally:
+        _pyramid.SCRATCH_KEEP = saved
+    for got, want in zip(results, expected * 3, strict=True):
+        for a, b in zip(got.approximations, want.approximations, strict=True):
+            assert a.tobytes() == b.tobytes()
+        for a, b in zip(got.details, want.details, strict=True):
+            assert (a.lh.tobytes(), a.hl.tobytes(), a.hh.tobytes()) == \
+                (b.lh.tobytes(), b.hl.tobytes(), b.hh.tobytes())
+    ref = _reference_mrr(grids[0], "haar", True, 2)
+    assert expected[0].approximations[-3].tobytes() == ref[1][0].tobytes()
