@@ -4,8 +4,10 @@ Times :func:`zwcore.contour.plan_contour` with four flat end mills (D20, D12,
 D6, D3 from the default library) on synthetic sculpted z-maps of 512², 1024²
 and 2048² nodes (dx = dy = 0.1 mm, so the part grows with the grid) and on the
 Mount Rushmore relief when ``../shared/data`` is present. Prints the per-phase
-breakdown (MRR, height placement, coefficient editing, checks at every input
-node) and the growth ratios measured in this run.
+breakdown (MRR, height placement, coefficient editing with synthesis to the
+input nodes, checks at every input node) and the growth ratios measured in this
+run; for Rushmore also each stage's spacings and slab volumes, ``*`` marking
+the slabs the flute cap binds (exactly the flute length).
 
 Run: ``.venv/bin/python bench/bench_contour_core.py [--repeat N]``
 """
@@ -85,9 +87,11 @@ def main() -> None:
               f"{plan.stock_top:.4f} mm:")
         for s in plan.stages:
             print(f"  {s.tool.id:<8} level {s.level} cell {s.cell_size[0]:g} mm "
-                  f"{s.spacing_rule:<12} spacings "
-                  + ", ".join(f"{v:.3f}" for v in s.spacings)
-                  + "  | slab volumes " + ", ".join(f"{v:.0f}" for v in s.slab_volumes)
+                  f"flute {s.tool.flute_length:g} {s.spacing_rule:<12} spacings "
+                  + ", ".join(f"{v:.3f}" + "*" * c
+                              for v, c in zip(s.spacings, s.flute_cap_binds, strict=True))
+                  + "  | slab volumes cm3 "
+                  + ", ".join(f"{v / 1e3:.2f}" for v in s.slab_volumes)
                   + f"  | capped {sum(s.flute_cap_binds)}  spread {s.volume_spread:.1e}")
     else:
         print(f"Mount Rushmore: {path} not found, skipped")

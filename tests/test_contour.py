@@ -112,8 +112,16 @@ def _assert_invariants(plan: ContourPlan, zm: ZMap) -> None:
             assert math.isclose(sum(s.slab_volumes), total, rel_tol=1e-9, abs_tol=1e-9 * scale)
         else:
             np.testing.assert_array_equal(fine, prev)
-        # The reported spread is the real one.
+        # Honest flags: a slab flagged as set by the flute is exactly the flute
+        # length thick (to the height quantum) and removes less than the
+        # equal-volume slabs of its stage.
         free = [v for v, c in zip(s.slab_volumes, s.flute_cap_binds, strict=True) if not c]
+        for sp, v, c in zip(s.spacings, s.slab_volumes, s.flute_cap_binds, strict=True):
+            if c:
+                assert abs(sp - s.tool.flute_length) <= QUANTUM, (sp, s.tool.flute_length)
+                if free and s.spacing_rule == "equal_volume":
+                    assert v <= max(free) * (1 + 1e-9)
+        # The reported spread is the real one.
         if len(free) >= 2 and min(free) > 0:
             assert math.isclose(s.volume_spread, max(free) / min(free) - 1, rel_tol=1e-9,
                                 abs_tol=1e-12)
@@ -148,23 +156,63 @@ def test_equal_volume_where_the_cap_does_not_bind(z: np.ndarray, tools: list[Too
     assert plan.checks.ok
 
 
+def _block_max_at_nodes(z: np.ndarray, scale: int) -> np.ndarray:
+    """At every input node, the part's maximum over its level cell (brute force)."""
+    out = np.empty_like(z)
+    for i in range(0, z.shape[0], scale):
+        for k in range(0, z.shape[1], scale):
+            out[i:i + scale, k:k + scale] = z[i:i + scale, k:k + scale].max()
+    return out
+
+
+def _terrace_rule(block_max: np.ndarray, prev: np.ndarray, z_levels: tuple[float, ...],
+                  ) -> np.ndarray:
+    """Every node raised to the lowest contour height at or above it, capped by ``prev``."""
+    out = prev.copy()
+    for idx, v in np.ndenumerate(block_max):
+        above = [h for h in z_levels if h >= v]
+        up = min(above) if above else math.inf  # above every height: keeps prev
+        out[idx] = min(prev[idx], up)
+    return out
+
+
 @given(z=surfaces(), tools=libraries())
 def test_edited_coefficients_synthesise_the_terraces(z: np.ndarray, tools: list[Tool]) -> None:
     zm = ZMap(z)
     plan = plan_contour(zm, tools)
     mrr = analyse(z, "haar")
+    prev = np.full(z.shape, ceil_units(plan.stock_top) * QUANTUM)
+    prev_cells = None
+    fines = []
     for s in plan.stages:
-        edited = edit_coefficients(mrr, s.level, s.model)
-        back = mrr.synthesize(edited.coarsest, edited.details, to_level=s.level)
-        np.testing.assert_array_equal(back, s.model)  # bit for bit
-        changed = not np.array_equal(s.model, mrr.approximations[s.level])
-        assert (edited.edited > 0) == changed
-        assert edited.edited == s.edited_coefficients
-        # The edited coarser levels are the terraces' block maxima: still containing.
-        for j in range(s.level):
-            coarse = mrr.synthesize(edited.coarsest, edited.details, to_level=j)
-            on = cells_at_fine_nodes(coarse, 1 << (s.level - j), s.model.shape)
-            assert (on >= s.model).all()
+        if prev_cells is None:
+            previous = np.full(mrr.approximations[s.level].shape, prev[0, 0])
+        else:
+            previous = cells_at_fine_nodes(prev_cells[0], 1 << (s.level - prev_cells[1]),
+                                           mrr.approximations[s.level].shape)
+        edited = edit_coefficients(mrr, s.level, previous, np.array(s.z_levels))
+        # The representation is the part's from the stage level up, edited: the
+        # approximation raised onto the contour grid, the finer details zero.
+        approx = mrr.approximations[s.level]
+        assert (edited.approximation >= approx).all()
+        assert np.all(np.isin(edited.approximation, np.array(s.z_levels))
+                      | (edited.approximation == previous))
+        assert len(edited.details) == mrr.depth - s.level
+        assert all(b.count_nonzero() == 0 for b in edited.details)
+        changed = int(np.count_nonzero(edited.approximation != approx)) + sum(
+            b.count_nonzero() for b in mrr.details[s.level:])
+        assert edited.edited == changed == s.edited_coefficients
+        fine = edited.synthesize()
+        # Synthesis equals the terrace rule applied independently at every input
+        # node (cell semantics: the block maximum of the node's cell).
+        want = _terrace_rule(_block_max_at_nodes(z, s.scale), prev, s.z_levels)
+        np.testing.assert_array_equal(fine, want)  # bit for bit
+        np.testing.assert_array_equal(edited.synthesize(to_level=s.level), s.model)
+        assert (fine >= z).all()  # contains the part
+        assert (prev >= fine).all()  # and is contained in the previous stage
+        fines.append(fine)
+        prev, prev_cells = fine, (s.model, s.level)
+    assert plan.checks.terraces_from_coefficients
 
 
 def test_stock_top_default_is_part_top_plus_first_flute() -> None:
@@ -272,6 +320,31 @@ def test_pocket_deeper_than_the_flute_gets_several_slabs() -> None:
     assert plan2.checks.ok
 
 
+@pytest.mark.parametrize("depth", [23.0, 30.0, 37.5])
+def test_no_leftover_slab_under_a_narrow_well(depth: float) -> None:
+    # A wide plate with a narrow well whose depth is no multiple of the flute:
+    # below the plate only the well's cells are cut, so slabs there cannot
+    # reach the stage's slab volume within the flute. They must be exactly the
+    # flute length (flagged), and every other slab must remove the same volume;
+    # the old placement left a thinner bottom slab and called it capped.
+    # A tilted plate, so the stage has volume at many heights.
+    z = 0.1 * np.mgrid[0:64, 0:64][0].astype(float)
+    z[28:36, 28:36] = -depth
+    face = Tool("face", "flat", 64.0, 60.0)
+    mill = Tool("D2", "flat", 2.0, 8.0)
+    plan = plan_contour(ZMap(z), [face, mill], stock_top=10.0)
+    s = plan.stages[1]
+    assert s.spacing_rule == "equal_volume"
+    free = [v for v, c in zip(s.slab_volumes, s.flute_cap_binds, strict=True) if not c]
+    assert len(free) >= 2
+    assert max(free) / min(free) - 1 <= 0.01, (s.spacings, s.slab_volumes)
+    for sp, c in zip(s.spacings, s.flute_cap_binds, strict=True):
+        assert (not c) or sp == 8.0
+    assert any(s.flute_cap_binds)
+    assert s.volume_spread == max(free) / min(free) - 1
+    _assert_invariants(plan, ZMap(z))
+
+
 def test_even_step_strategy_spaces_evenly() -> None:
     z = _pyramid(32, 3.0, 4)
     tools = [Tool("big", "flat", 16.0, 20.0), Tool("small", "flat", 2.0, 10.0)]
@@ -299,6 +372,19 @@ def test_mount_rushmore_plan() -> None:
     assert len(plan.contour_spacings) >= 8
     assert plan.stages[-1].mean_stock_left < plan.stages[0].mean_stock_left
     _assert_invariants(plan, zm)
+    for s in plan.stages[1:]:
+        # Every slab is either at the flute length (flagged) or an equal-volume
+        # one: no leftover slab with little volume at the bottom.
+        free = [v for v, c in zip(s.slab_volumes, s.flute_cap_binds, strict=True) if not c]
+        assert len(free) >= 2 and max(free) / min(free) - 1 <= 0.01, s.slab_volumes
+        for sp, c in zip(s.spacings, s.flute_cap_binds, strict=True):
+            assert c == (abs(sp - s.tool.flute_length) <= QUANTUM), (s.tool.id, s.spacings)
+    # The reviewed figures: FEM-D12 had a 23.246 mm slab (flute 26) removing
+    # 1.43 cm3 against 15.44, FEM-D6 12.095 mm (flute 13) and FEM-D3 4.432 mm
+    # (flute 8) slabs flagged as capped.
+    d12 = plan.stages[1]
+    assert d12.spacings[-1] == 26.0 and d12.flute_cap_binds[-1]
+    assert all(sp < 26.0 for sp in d12.spacings[:-1])
 
 
 # --------------------------------------------------------------------------

@@ -86,6 +86,61 @@ def test_placement_respects_cap_and_reports_real_volumes(
     assert h[0] == top_u and h[-1] == bottom_u
     assert all(x > y and x - y <= cap_u for x, y in itertools.pairwise(h))
     assert len(res.capped) == len(h) - 1
+    # Honest flags: a capped slab is exactly the flute length and removes less
+    # than the target, so no slab on its bottom height within the flute could
+    # (W grows with the slab's top).
+    vols = [_brute_w(lower, upper, w, a * QUANTUM, b * QUANTUM) for a, b in itertools.pairwise(h)]
+    for (a, b), v, c in zip(itertools.pairwise(h), vols, res.capped, strict=True):
+        if c:
+            assert a - b == cap_u
+            assert v < res.target
+    # The reported spread is over every slab not flagged.
+    free = [v for v, c in zip(vols, res.capped, strict=True) if not c]
+    if len(free) >= 2 and min(free) > 0:
+        assert abs(volume_spread(vols, res.capped) - (max(free) / min(free) - 1)) <= 1e-6
+
+
+@given(cells=cut_cells(), data=st.data())
+def test_rise_is_exact(cells: tuple[np.ndarray, np.ndarray, np.ndarray],
+                       data: st.DataObject) -> None:
+    lower, upper, w = cells
+    sv = SlabVolumes(lower, upper, w)
+    b = float(data.draw(st.sampled_from(sorted(set(lower.tolist())))))
+    top = float(upper.max())
+    peak = _brute_w(lower, upper, w, top, b)
+    target = data.draw(st.floats(1e-3, 1.5)) * max(peak, 1e-3)
+    a = sv.rise(b, target, top)
+    if a is None:
+        assert target > peak * (1 - 1e-12)
+    else:
+        assert b < a <= top
+        assert abs(_brute_w(lower, upper, w, a, b) - target) <= 1e-9 * max(1.0, target)
+        # The lowest such top: W grows with a, so just below it W is short.
+        lower_a = b + (a - b) * (1 - 1e-6)
+        assert _brute_w(lower, upper, w, lower_a, b) < target
+
+
+def test_thin_tail_gets_flute_length_slabs_not_a_leftover() -> None:
+    # 100 cells cut from 20 to 10 and one cell reaching 27 mm deeper: below 10
+    # only that cell is cut, too little area for the slab volume within an 8 mm
+    # flute. The tail must be covered by slabs of exactly 8 mm (flagged) and the
+    # rest must be equal in volume; 37 mm is no multiple of 8, so the count and
+    # the heights have to absorb the misfit. (The old placement ended with a
+    # thinner bottom slab that it flagged as capped.)
+    lower = np.concatenate((np.full(100, 10.0), [-27.0]))
+    lower[:50] += np.linspace(0.0, 4.0, 50)  # some spread in the shelf
+    upper = np.full(101, 20.0)
+    sv = SlabVolumes(lower, upper, np.ones(101))
+    res = place_equal_volume(sv, floor_units(20.0), ceil_units(-27.0), floor_units(8.0), 9)
+    h = np.array(res.heights) * QUANTUM
+    sp = -np.diff(h)
+    vols = np.array([float(sv.volume(a, [b])[0]) for a, b in itertools.pairwise(h)])
+    assert h[0] == 20.0 and h[-1] == -27.0
+    capped = np.array(res.capped)
+    assert capped.any()
+    assert np.all(sp[capped] == 8.0)
+    free = vols[~capped]
+    assert free.size >= 2 and free.max() / free.min() - 1 <= 0.01, (h, vols, capped)
 
 
 def test_constant_area_gives_even_equal_volume_slabs() -> None:
@@ -96,10 +151,14 @@ def test_constant_area_gives_even_equal_volume_slabs() -> None:
     res = place_equal_volume(sv, floor_units(12.0), 0, floor_units(100.0), 4)
     assert [x * QUANTUM for x in res.heights] == [12.0, 9.0, 6.0, 3.0, 0.0]
     assert res.capped == [False] * 4
-    # A flute of 2.5 mm splits every slab: 5 even slabs, all set by the cap.
+    # A flute of 2.5 mm needs at least 5 slabs.
     res = place_equal_volume(sv, floor_units(12.0), 0, floor_units(2.5), 4)
     assert max(np.diff(res.heights) * -QUANTUM) <= 2.5
     assert len(res.capped) >= 5  # ceil(12 / 2.5)
+    # Five equal 2.4 mm slabs fit the flute: none is capped.
+    assert res.capped == [False] * 5
+    np.testing.assert_allclose(np.array(res.heights) * QUANTUM, [12.0, 9.6, 7.2, 4.8, 2.4, 0.0],
+                               rtol=0, atol=8 * QUANTUM)
 
 
 @given(cells=cut_cells(), data=st.data())

@@ -16,10 +16,15 @@ Pipeline:
    or evenly spaced (``even_step``). The slab count aims at a nominal step-down
    of ``min(diameter, flute length)`` (an axial depth of about one diameter, the
    usual limit for solid-carbide end mills in full engagement); no spacing
-   exceeds the flute length, and a slab the cap would exceed is split evenly.
-5. The stage model is the level model terraced up to the contour heights,
-   produced by editing the Haar coefficients and synthesising
-   (:mod:`zwcore.terraces`).
+   exceeds the flute length. Where no slab within the flute removes the stage's
+   slab volume, the slab is exactly the flute length and flagged; every other
+   slab removes the same volume, the bottom one included
+   (:func:`zwcore.contour_heights.place_equal_volume` states the rule).
+5. The stage model is produced from the part's lifted Haar representation from
+   the stage level up: the level's approximation coefficients raised onto the
+   contour grid, the finer details set to zero, synthesised to the input nodes
+   (:mod:`zwcore.terraces`); the checks compare it with the terrace rule applied
+   on its own.
 
 Models use ``cell`` semantics: a level-``j`` value is a flat cell over a
 ``2**s x 2**s`` block of input nodes (``s = J - j``), and models are compared at
@@ -28,10 +33,11 @@ every input node.
 
 from __future__ import annotations
 
+import itertools
 import math
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
@@ -111,19 +117,23 @@ class ContourStage:
     volume_spread : float
         ``max/min - 1`` of the slab volumes where the flute cap does not bind.
     flute_cap_binds : tuple of bool
-        Per slab: the flute length, not the volume target, set it, which exempts
-        it from equal volume: heavy-roughing slabs when the range needs more
-        than one flute length; the even pieces of a would-be slab thicker than
-        the flute; a last slab that could not remove the target volume even if
-        it were a full flute length thick (too little area at the bottom).
+        Per slab: the flute cap bound it, which exempts it from equal volume. A
+        flagged slab is exactly the flute length thick (to the height quantum)
+        and removes less than the stage's slab volume: no slab from its bottom
+        height, at most a flute long, could remove that volume. Heavy-roughing
+        slabs are evenly spaced (no volume target) and flagged only where that
+        spacing is the flute length itself.
     removed_volume : float
         Sum of the slab volumes, mm³.
     max_stock_left, mean_stock_left : float
         Stock over the part after the stage, over the input nodes, mm.
     edited_coefficients : int
-        Haar coefficients edited to produce the terraces.
+        Coefficients of the part's representation from the stage level up that
+        the edit changed: approximation coefficients raised onto the contour
+        grid plus non-zero finer detail coefficients set to zero.
     model : (my, mx) float64
-        Terrace heights, one flat cell per node at the stage level.
+        Terrace heights, one flat cell per node at the stage level: the edited
+        approximation coefficients.
     """
 
     tool: Tool
@@ -166,8 +176,8 @@ class ContourChecks:
         Each stage's slab volumes add up to the volume between its models,
         summed independently over the input nodes.
     terraces_from_coefficients : bool
-        Synthesis of every stage's edited coefficients reproduced its terraces
-        bit for bit.
+        Synthesis of every stage's edited representation, at every input node,
+        equals the terrace rule applied on its own (cell semantics), bit for bit.
     """
 
     containment: bool
@@ -290,7 +300,11 @@ class _Heights:
 def _heights(k: int, strategy: Strategy, tool: Tool, level_model: F64, previous: F64,
              weight: F64) -> _Heights:
     """Contour heights of one stage, in units of QUANTUM (descending)."""
-    cut = level_model < previous
+    # Cells the stage lowers: a cell whose level model rounds up (to the height
+    # quantum) onto its previous model stays where it is, and nothing is removed
+    # there at any height, so it must not stretch the range (a flat part of the
+    # volume function, at the bottom or the top, would only get empty slabs).
+    cut = np.ceil(level_model / QUANTUM) * QUANTUM < previous
     if not cut.any():  # the previous model already is this level's model here
         return _Heights([], [], "even_flute" if k == 0 else strategy, tool.flute_length)
     lower, upper = level_model[cut], previous[cut]
@@ -300,8 +314,11 @@ def _heights(k: int, strategy: Strategy, tool: Tool, level_model: F64, previous:
     span = top_u - bottom_u
     if k == 0:
         n = -(-span // cap_u)
-        return _Heights(even_heights(top_u, bottom_u, n) if n else [top_u],
-                        [n > 1] * n, "even_flute", tool.flute_length)
+        units = even_heights(top_u, bottom_u, n) if n else [top_u]
+        # Evenly spaced (design 4.3), not equal volume; a slab counts as capped
+        # only where the even spacing is the flute length itself.
+        return _Heights(units, [a - b == cap_u for a, b in itertools.pairwise(units)],
+                        "even_flute", tool.flute_length)
     nominal = min(tool.flute_length, tool.diameter)
     step_u = max(1, floor_units(nominal))
     n = max(1, -(-span // step_u))
@@ -359,10 +376,10 @@ def plan_contour(zmap: ZMap, tools: Sequence[Tool] | None = None, *,
     phase = {"mrr": time.perf_counter() - t0, "heights": 0.0, "terraces": 0.0, "checks": 0.0}
 
     stages: list[ContourStage] = []
-    exact_flags: list[bool] = []
     prev_model: F64 | None = None
     prev_level = 0
     top_q = ceil_units(top) * QUANTUM
+    acc = _Checks(zmap, top_q)
     for k, (tool, j, rule) in enumerate(chosen):
         t1 = time.perf_counter()
         level_model = mrr.approximations[j]
@@ -375,12 +392,19 @@ def plan_contour(zmap: ZMap, tools: Sequence[Tool] | None = None, *,
         h = _heights(k, strat, tool, level_model, previous, weight)
         z_levels = np.array(h.units, dtype=np.float64) * QUANTUM
         t2 = time.perf_counter()
-        target = terrace(level_model, previous, z_levels)
-        edited = edit_coefficients(mrr, j, target)
-        model = edited.synthesize(mrr)
-        exact = bool(model.shape == target.shape and np.array_equal(model, target))
+        # The stage model: the part's representation from level j up, edited
+        # (approximation raised onto the contour grid, finer details zeroed)
+        # and synthesised to the input nodes.
+        edited = edit_coefficients(mrr, j, previous, z_levels)
+        model = edited.approximation
+        fine = edited.synthesize()
         vols = removed_between(previous.ravel(), model.ravel(), weight.ravel(), z_levels)
         t3 = time.perf_counter()
+        # The terrace rule applied on its own (cells, then every input node).
+        rule_fine = cells_at_fine_nodes(terrace(level_model, previous, z_levels), s, z.shape)
+        exact = bool(fine.shape == rule_fine.shape and np.array_equal(fine, rule_fine))
+        left = acc.stage(fine, float(vols.sum()), exact)
+        t4 = time.perf_counter()
         stages.append(ContourStage(
             tool=tool, level=j, scale=s, cell_size=(zmap.dx * s, zmap.dy * s),
             origin=(zmap.x0 + 0.5 * (s - 1) * zmap.dx, zmap.y0 + 0.5 * (s - 1) * zmap.dy),
@@ -390,16 +414,14 @@ def plan_contour(zmap: ZMap, tools: Sequence[Tool] | None = None, *,
             slab_volumes=tuple(float(v) for v in vols),
             volume_spread=volume_spread(vols, h.capped),
             flute_cap_binds=tuple(bool(c) for c in h.capped), removed_volume=float(vols.sum()),
-            max_stock_left=0.0, mean_stock_left=0.0,
+            max_stock_left=left[0], mean_stock_left=left[1],
             edited_coefficients=edited.edited, model=model))
-        exact_flags.append(exact)
         phase["heights"] += t2 - t1
         phase["terraces"] += t3 - t2
+        phase["checks"] += t4 - t3
         prev_model, prev_level = model, j
 
-    t4 = time.perf_counter()
-    stages, checks = _check(zmap, stages, exact_flags, top_q)
-    phase["checks"] = time.perf_counter() - t4
+    checks = acc.result(stages)
     if timings is not None:
         timings.update(phase)
     if chosen and chosen[-1][1] < depth:
@@ -420,36 +442,43 @@ def plan_contour(zmap: ZMap, tools: Sequence[Tool] | None = None, *,
         notes=tuple(notes))
 
 
-def _check(zmap: ZMap, stages: list[ContourStage], exact: list[bool], top_q: float,
-           ) -> tuple[list[ContourStage], ContourChecks]:
-    """Verify the invariants at every input node and fill in the stock left."""
-    z = zmap.z
-    prev_fine: F64 | None = None
-    margin = math.inf
-    add_up = True
-    out = []
-    for st in stages:
-        fine = cells_at_fine_nodes(st.model, st.scale, z.shape)
-        if prev_fine is None:
-            between = float((top_q - fine).sum()) * zmap.cell_area
+class _Checks:
+    """The invariants at every input node, stage by stage (one fine model held)."""
+
+    def __init__(self, zmap: ZMap, top_q: float) -> None:
+        self.zmap = zmap
+        self.top_q = top_q
+        self.prev: F64 | None = None
+        self.margin = math.inf
+        self.add_up = True
+        self.exact = True
+
+    def stage(self, fine: F64, removed: float, exact: bool) -> tuple[float, float]:
+        """Check one stage's synthesised model; returns (max, mean) stock left."""
+        zm = self.zmap
+        z = zm.z
+        if self.prev is None:
+            between = float((self.top_q - fine).sum()) * zm.cell_area
         else:
-            margin = min(margin, float((prev_fine - fine).min()))
-            between = float((prev_fine - fine).sum()) * zmap.cell_area
-        scale = max(abs(between), float(np.abs(fine).max()) * zmap.cell_area * z.size, 1.0)
-        add_up &= abs(st.removed_volume - between) <= 1e-9 * scale
+            self.margin = min(self.margin, float((self.prev - fine).min()))
+            between = float((self.prev - fine).sum()) * zm.cell_area
+        scale = max(abs(between), float(np.abs(fine).max()) * zm.cell_area * z.size, 1.0)
+        self.add_up &= abs(removed - between) <= 1e-9 * scale
+        self.exact &= exact
         left = fine - z
-        margin = min(margin, float(left.min()))
-        out.append(replace(st, max_stock_left=float(left.max()),
-                           mean_stock_left=float(left.mean())))
-        prev_fine = fine
-    spacings = [(sp, st.tool.flute_length) for st in out for sp in st.spacings]
-    spreads = [st.volume_spread for st in out if st.spacing_rule == "equal_volume"]
-    checks = ContourChecks(
-        containment=bool(margin >= 0.0),
-        min_containment_margin=float(margin) if math.isfinite(margin) else 0.0,
-        spacings_within_flute=all(sp <= fl for sp, fl in spacings),
-        spacings_positive=all(sp > 0.0 for sp, _ in spacings),
-        max_volume_spread=max(spreads, default=0.0),
-        volumes_add_up=bool(add_up),
-        terraces_from_coefficients=all(exact))
-    return out, checks
+        self.margin = min(self.margin, float(left.min()))
+        self.prev = fine
+        return float(left.max()), float(left.mean())
+
+    def result(self, stages: list[ContourStage]) -> ContourChecks:
+        spacings = [(sp, st.tool.flute_length) for st in stages for sp in st.spacings]
+        spreads = [st.volume_spread for st in stages if st.spacing_rule == "equal_volume"]
+        margin = self.margin
+        return ContourChecks(
+            containment=bool(margin >= 0.0),
+            min_containment_margin=float(margin) if math.isfinite(margin) else 0.0,
+            spacings_within_flute=all(sp <= fl for sp, fl in spacings),
+            spacings_positive=all(sp > 0.0 for sp, _ in spacings),
+            max_volume_spread=max(spreads, default=0.0),
+            volumes_add_up=bool(self.add_up),
+            terraces_from_coefficients=bool(self.exact))

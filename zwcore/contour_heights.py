@@ -18,10 +18,11 @@ their ``L``); it is continuous from above at those drops. Hence whenever
 ``W(a, b) = V``, which is what the equal-volume placement solves for.
 
 Heights are handled in integer units of :data:`QUANTUM` (``2**-24`` mm, far
-below any machine resolution). Every terrace value is then a multiple of the
-quantum, so the lifted Haar transform of a terraced model (maxima, halved
-differences and their sums) is exact in float64 and synthesis reproduces the
-terraces bit for bit (design 4.5).
+below any machine resolution); a height is rounded up from any level-model
+value it came from, so a terrace never moves into the part.
+
+Where the flute cap binds and what "equal volume" means where ``W`` is flat
+(nothing to remove) is stated in :func:`place_equal_volume`.
 """
 
 from __future__ import annotations
@@ -55,6 +56,8 @@ QUANTUM = 2.0 ** -24
 _GRID = 128
 # Breakpoints below which a bracket is searched exactly rather than on a grid.
 _EXACT = 256
+# Slab counts tried per chain direction before settling for the most even placement.
+_COUNTS = 5
 
 
 def ceil_units(z: float) -> int:
@@ -134,6 +137,27 @@ class SlabVolumes:
         """``W(a, b)`` for each ``b < a``: what the slab ``[b, a]`` removes, mm³."""
         return self._volume(a, np.atleast_1d(np.asarray(b, dtype=np.float64)))[0]
 
+    def rise(self, b: float, target: float, hi_limit: float) -> float | None:
+        """The lowest ``a`` in ``(b, hi_limit]`` with ``W(a, b) = target``, else ``None``.
+
+        For a fixed bottom ``b`` the slab's cells are fixed (``L <= b < P``) and
+        ``W(a, b)`` is continuous, piecewise linear and non-decreasing in ``a``
+        with breakpoints at the group tops ``P``, so ``a`` is exact.
+        """
+        below = self._below(np.array([b]))[:, 0]
+        act = (self.tops > b) & (below > 0.0)
+        t, w = self.tops[act], below[act]
+        if t.size == 0:
+            return None
+        rate = np.cumsum(w[::-1])[::-1]  # weight of the groups still rising above t[k-1]
+        done = np.concatenate(([0.0], np.cumsum(w * (t - b))))[:-1]
+        at_t = done + rate * (t - b)  # W(t[k], b)
+        k = int(np.searchsorted(at_t, target, side="left"))
+        if k == t.size:
+            return None
+        a = b + (target - done[k]) / rate[k]
+        return a if a <= hi_limit else None
+
     def crossing(self, a: float, target: float, lo_limit: float) -> float | None:
         """A height ``b`` in ``[lo_limit, a)`` with ``W(a, b) = target``.
 
@@ -181,8 +205,10 @@ class EqualVolumeResult:
     heights : list of int
         Contour heights in units of :data:`QUANTUM`, descending, first the top.
     capped : list of bool
-        Per slab: its thickness was set by the flute length (a would-be slab
-        thicker than the flute, split evenly), so it is exempt from equal volume.
+        Per slab: the flute cap bound it. Such a slab is exactly the flute length
+        (``cap_u`` units) thick and removes less than ``target``, so no slab on
+        its bottom height within the flute could remove ``target``; it is exempt
+        from equal volume. Every other slab is an equal-volume slab.
     target : float
         Slab volume aimed at, mm³.
     """
@@ -192,41 +218,95 @@ class EqualVolumeResult:
     target: float
 
 
-def _greedy(sv: SlabVolumes, top_u: int, bottom_u: int, cap_u: int, target: float,
-            limit: int) -> tuple[list[int], list[bool]]:
-    """Slabs of volume ``target`` from the top down; capped runs split evenly."""
+@dataclass(frozen=True)
+class _Chain:
+    """One greedy chain of slabs for a slab volume ``v``.
+
+    ``heights`` end on the bottom; the last slab is unfinished when ``rest > 0``:
+    it removes less than ``v`` and is thinner than the flute, ``rest`` being the
+    larger of the two fractions. ``phase = finished slabs + rest`` does not
+    decrease as ``v`` falls, and a chain with ``phase == n`` is exactly ``n``
+    finished slabs (see :func:`place_equal_volume`).
+    """
+
+    v: float
+    heights: list[int]
+    capped: list[bool]
+    rest: float
+    rest_by_thickness: bool
+
+    @property
+    def phase(self) -> float:
+        return len(self.capped) - (1.0 if self.rest > 0.0 else 0.0) + self.rest
+
+
+def _chain(sv: SlabVolumes, top_u: int, bottom_u: int, cap_u: int, v: float,
+           limit: int) -> _Chain:
+    """Slabs of volume ``v`` from the top down; where none fits the flute, a
+    flute-length slab; what is left above the bottom is the unfinished last slab."""
     heights: list[int] = [top_u]
     capped: list[bool] = []
     a_u = top_u
     bottom = bottom_u * QUANTUM
-    while a_u > bottom_u and len(capped) <= limit:
+    while a_u > bottom_u:
+        if len(capped) >= limit:  # far more slabs than wanted: count the rest as slabs
+            heights.append(bottom_u)
+            capped.append(False)
+            return _Chain(v, heights, capped, 1.0 + (a_u - bottom_u) / cap_u, False)
         a = a_u * QUANTUM
         lo_u = max(bottom_u, a_u - cap_u)
-        b = sv.crossing(a, target, lo_u * QUANTUM)
+        b = sv.crossing(a, v, lo_u * QUANTUM)
         if b is not None:
             b_u = min(max(ceil_units(b), lo_u), a_u - 1)
             heights.append(b_u)
             capped.append(False)
             a_u = b_u
-            continue
-        if lo_u == bottom_u:
-            # The rest is less than one slab. It counts as capped when even a
-            # flute-length slab above the bottom could not remove the target
-            # (the deepest cells have too little area): then the flute length,
-            # not the placement, limits its volume.
-            reach_u = min(top_u, bottom_u + cap_u)
-            reach = float(sv.volume(reach_u * QUANTUM, [bottom])[0])
+        elif a_u - cap_u >= bottom_u:
+            # No slab within the flute removes v: the cap binds, a flute-length slab.
+            a_u -= cap_u
+            heights.append(a_u)
+            capped.append(True)
+        else:
+            by_volume = float(sv.volume(a, [bottom])[0]) / v
+            by_thickness = (a_u - bottom_u) / cap_u
             heights.append(bottom_u)
-            capped.append(reach < target * (1.0 - 1e-9))
-            break
-        # The flute cap binds: find where the slab would end and split it evenly.
-        b = sv.crossing(a, target, bottom)
-        end_u = bottom_u if b is None else max(ceil_units(b), bottom_u)
-        pieces = -(-(a_u - end_u) // cap_u)
-        heights.extend(even_heights(a_u, end_u, pieces)[1:])
-        capped.extend([True] * pieces)
-        a_u = end_u
-    return heights, capped
+            capped.append(False)
+            return _Chain(v, heights, capped, max(by_volume, by_thickness, 1e-300),
+                          by_thickness >= by_volume)
+    return _Chain(v, heights, capped, 0.0, False)
+
+
+def _chain_up(sv: SlabVolumes, top_u: int, bottom_u: int, cap_u: int, v: float,
+              limit: int) -> _Chain:
+    """:func:`_chain` from the bottom up, in mirrored units (``-height``), so that
+    its unfinished slab is last as well: slabs of volume ``v`` from the bottom
+    (:meth:`SlabVolumes.rise`), flute-length slabs where none fits the flute."""
+    heights: list[int] = [-bottom_u]
+    capped: list[bool] = []
+    b_u = bottom_u
+    while b_u < top_u:
+        if len(capped) >= limit:
+            heights.append(-top_u)
+            capped.append(False)
+            return _Chain(v, heights, capped, 1.0 + (top_u - b_u) / cap_u, False)
+        hi_u = min(top_u, b_u + cap_u)
+        a = sv.rise(b_u * QUANTUM, v, hi_u * QUANTUM)
+        if a is not None:
+            b_u = max(min(floor_units(a), hi_u), b_u + 1)
+            heights.append(-b_u)
+            capped.append(False)
+        elif b_u + cap_u <= top_u:
+            b_u += cap_u
+            heights.append(-b_u)
+            capped.append(True)
+        else:
+            by_volume = float(sv.volume(top_u * QUANTUM, [b_u * QUANTUM])[0]) / v
+            by_thickness = (top_u - b_u) / cap_u
+            heights.append(-top_u)
+            capped.append(False)
+            return _Chain(v, heights, capped, max(by_volume, by_thickness, 1e-300),
+                          by_thickness >= by_volume)
+    return _Chain(v, heights, capped, 0.0, False)
 
 
 def _slab_volumes(sv: SlabVolumes, heights: Sequence[int]) -> F64:
@@ -258,11 +338,11 @@ def place_equal_volume(sv: SlabVolumes, top_u: int, bottom_u: int, cap_u: int,
     cap_u : int
         Flute length in units: no spacing exceeds it.
     n_target : int
-        Number of slabs aimed at (the nominal step-down's count); the achieved
-        count may differ by the slabs the flute cap splits.
+        Number of slabs aimed at (the nominal step-down's count), capped slabs
+        included; at least ``ceil((top_u - bottom_u) / cap_u)`` are used.
     rtol : float
-        Spread (``max/min - 1``) that counts as even; a placement beyond it
-        triggers the wider search described below.
+        Spread (``max/min - 1`` over the equal-volume slabs) that counts as even;
+        beyond it other slab counts are tried.
 
     Returns
     -------
@@ -270,106 +350,177 @@ def place_equal_volume(sv: SlabVolumes, top_u: int, bottom_u: int, cap_u: int,
 
     Notes
     -----
-    For a slab volume ``V`` the greedy pass cuts slabs of exactly ``V`` from the
-    top (:meth:`SlabVolumes.crossing`); the last slab holds what is left. The
-    count falls as ``V`` grows, and at the ``V`` where it drops to ``n_target``
-    the last slab is full too, so ``V`` is bisected (geometrically) for that
-    transition. Candidates on both sides are compared by their real slab
-    volumes, together with the variant that merges a sliver of a last slab into
-    the one above when the flute allows, and the most even one wins.
+    The rule. Every slab is one of two kinds:
 
-    With few cells the count can jump past ``n_target`` without the last slab
-    filling (the first crossing jumps when a cell leaves the sum). Then the slab
-    volume is scanned over ``total / (4 n + 4) .. total`` and the count
-    transitions found are bisected, nearest to ``n_target`` first, until a
-    chain within ``rtol`` appears; otherwise the most even one is returned and
-    its spread reported.
+    * an equal-volume slab: it removes ``V`` (the stage's slab volume) and is
+      at most the flute length thick;
+    * a capped slab: it is exactly the flute length thick and removes less than
+      ``V``. Since ``W(a, b)`` grows with the slab's top ``a``, no slab on the
+      same bottom height within the flute could remove ``V``: the cap binds
+      (the area to cut there is too small).
+
+    There is no third kind, in particular no leftover slab at either end. Where
+    ``W`` is flat, nothing is there to remove: below ``bottom_u`` (the lowest
+    height the stage lowers a cell to) and above ``top_u``, so the heights never
+    leave ``[bottom_u, top_u]``; inside, a band where little or nothing is cut
+    is crossed by capped slabs or inside an equal-volume slab. "Equal volume"
+    means equal among all slabs that are not capped: the count and ``V`` are
+    chosen so that the chain of slabs lands exactly on the far end with a
+    finished slab (an equal-volume one, or a capped one of the full flute
+    length).
+
+    The search. For a slab volume ``v`` a greedy chain runs from one end: from
+    the bottom up (:func:`_chain_up`, tried first: for a fixed bottom ``W`` is
+    continuous and monotone in the top, so each slab is exact), or from the top
+    down (:func:`_chain`). It cuts slabs of volume ``v``, flute-length slabs
+    where none fits the flute, and ends with an unfinished slab whose ``rest``
+    is the larger of its volume and thickness fractions. ``phase = finished +
+    rest`` falls as ``v`` grows, continuously except where a cell joins or
+    leaves a slab; ``v`` is bisected for ``phase = n``. There the unfinished
+    slab has just become full (an equal-volume slab) or just reached the flute
+    length (a capped slab, re-laid at exactly the flute length from the end,
+    which moves the neighbouring equal-volume slab by the small misfit). Where
+    a jump skips ``n``, the counts next to ``n_target`` are tried, then the
+    other direction. Flags are then derived from the real volumes (above), and
+    the placement within ``rtol`` with the count closest to ``n_target`` wins;
+    failing that, the most even one, with its real spread.
     """
     span = top_u - bottom_u
     if span <= 0:
         return EqualVolumeResult([top_u], [], 0.0)
-    n_target = max(1, n_target)
-    limit = 4 * n_target + 4 * (-(-span // cap_u)) + 16
-
-    def run(v: float) -> tuple[list[int], list[bool]]:
-        return _greedy(sv, top_u, bottom_u, cap_u, v, limit)
-
+    n_min = -(-span // cap_u)
+    n_target = max(1, n_target, n_min)
+    limit = 4 * n_target + 16
     total = max(sv.total, 1e-300) * (1.0 + 1e-9)
-    best = _best_of(sv, _bracket(run, total, n_target), cap_u, n_target, rtol)
-    if not best[0][0]:
-        return best[1]
-    # Discrete cell heights can leave no even chain at the nominal count (the
-    # last slab's volume jumps rather than fills). Scan the slab volume over a
-    # wide range and refine every count transition found, nearest counts first,
-    # until one is even; the flute cap holds in every candidate.
-    volumes = np.geomspace(total / (4.0 * n_target + 4.0), total, 48)
-    grid = [(float(v), run(float(v))) for v in volumes]
-    best = min(best, _best_of(sv, grid, cap_u, n_target, rtol), key=lambda b: b[0])
-    pairs = [(grid[i], grid[i + 1]) for i in range(len(grid) - 1)
-             if len(grid[i][1][1]) > len(grid[i + 1][1][1])]
-    pairs.sort(key=lambda p: abs(len(p[1][1][1]) - n_target))
-    for lo, hi in pairs[:8]:
-        if not best[0][0]:
+    best: tuple[tuple[bool, int, float], EqualVolumeResult] | None = None
+    for chain in (_chain_up, _chain):
+        mirror = chain is _chain_up
+        lo_u = -top_u if mirror else bottom_u
+        cache: dict[float, _Chain] = {}
+
+        def run(v: float, chain: Callable[..., _Chain] = chain, cache: dict[float, _Chain] = cache,
+                ) -> _Chain:
+            if v not in cache:
+                cache[v] = chain(sv, top_u, bottom_u, cap_u, v, limit)
+            return cache[v]
+
+        for n in _counts(n_target, n_min, limit)[:_COUNTS]:
+            for cand in _candidates(_solve(run, cache, total, n), lo_u, cap_u):
+                if mirror:
+                    cand = EqualVolumeResult([-x for x in reversed(cand.heights)],
+                                             cand.capped[::-1], cand.target)
+                res, key = _judge(sv, cand, cap_u, n_target, rtol)
+                if best is None or key < best[0]:
+                    best = (key, res)
+            if best is not None and not best[0][0]:
+                break
+        if best is not None and not best[0][0]:
             break
-        cands = _bisect(run, lo, hi, len(hi[1][1]))
-        best = min(best, _best_of(sv, cands, cap_u, n_target, rtol), key=lambda b: b[0])
+    assert best is not None
     return best[1]
 
 
-Run = tuple[float, tuple[list[int], list[bool]]]
+def _judge(sv: SlabVolumes, cand: EqualVolumeResult, cap_u: int, n_target: int, rtol: float,
+           ) -> tuple[EqualVolumeResult, tuple[bool, int, float]]:
+    """Honest flags and the ranking key of a placement.
+
+    A slab counts as capped only if it is exactly the flute length thick and
+    removes less than the target (so no slab from its bottom height, at most a
+    flute long, removes the target: ``W`` grows with the slab's top). The key
+    ranks within ``rtol`` first, then the count closest to ``n_target``, then
+    the spread.
+    """
+    h = cand.heights
+    vols = _slab_volumes(sv, h)
+    capped = [h[i] - h[i + 1] == cap_u and bool(vols[i] < cand.target)
+              for i in range(len(h) - 1)]
+    spread = volume_spread(vols, capped)
+    return (EqualVolumeResult(list(h), capped, cand.target),
+            (spread > rtol, abs(len(capped) - n_target), spread))
 
 
-def _bisect(run: Callable[[float], tuple[list[int], list[bool]]], lo: Run, hi: Run,
-            n: int) -> list[Run]:
-    """Narrow ``lo`` (more than ``n`` slabs) and ``hi`` (at most ``n``) onto the transition."""
-    (lo_v, lo_run), (hi_v, hi_run) = lo, hi
-    while hi_v > lo_v * (1.0 + 1e-10):
-        mid = math.sqrt(lo_v * hi_v)
-        res = run(mid)
-        if len(res[1]) > n:
-            lo_v, lo_run = mid, res
+def _counts(n_target: int, n_min: int, limit: int) -> list[int]:
+    """Slab counts to try: ``n_target`` first, then alternately more and fewer."""
+    out = [n_target]
+    for d in range(1, limit):
+        if n_target + d <= limit:
+            out.append(n_target + d)
+        if n_target - d >= n_min:
+            out.append(n_target - d)
+    return out
+
+
+def _solve(run: Callable[[float], _Chain], cache: dict[float, _Chain], total: float,
+           n: int) -> list[_Chain]:
+    """Chains on both sides of ``phase = n`` (one when a chain hits it exactly).
+
+    The bracket starts from the chains already run (for other counts).
+    """
+    hi = run(total)  # no slab removes more than everything: all capped, phase <= n_min
+    if hi.phase >= n:
+        return [hi]
+    lo: _Chain | None = None
+    for c in cache.values():
+        if c.phase >= n and (lo is None or c.v > lo.v):
+            lo = c
+        elif c.phase < n and c.v < hi.v:
+            hi = c
+    if lo is None:
+        lo_v = total / (2.0 * n)
+        lo = run(lo_v)
+        for _ in range(60):
+            if lo.phase >= n:
+                break
+            lo_v *= 0.25
+            lo = run(lo_v)
         else:
-            hi_v, hi_run = mid, res
-    return [(hi_v, hi_run), (lo_v, lo_run)]
+            return [lo]
+    while hi.v > lo.v * (1.0 + 1e-10):
+        if lo.phase == n:
+            return [lo]
+        mid = run(math.sqrt(lo.v * hi.v))
+        if mid.phase >= n:
+            lo = mid
+        else:
+            hi = mid
+    return [lo, hi]
 
 
-def _bracket(run: Callable[[float], tuple[list[int], list[bool]]], total: float, n: int,
-             ) -> list[Run]:
-    """Greedy runs on both sides of the slab volume at which the count drops to ``n``."""
-    hi_v = total
-    hi_run = run(hi_v)
-    if len(hi_run[1]) > n:
-        return [(hi_v, hi_run)]  # the flute cap alone needs more slabs
-    lo_v = hi_v / (8.0 * n)
-    lo_run = run(lo_v)
-    for _ in range(20):
-        if len(lo_run[1]) > n:
-            break
-        lo_v *= 0.25
-        lo_run = run(lo_v)
-    else:
-        return [(lo_v, lo_run)]
-    # At the transition the last slab is as full as it gets.
-    return _bisect(run, (lo_v, lo_run), (hi_v, hi_run), n)
+def _candidates(chains: list[_Chain], bottom_u: int, cap_u: int) -> list[EqualVolumeResult]:
+    """Finished placements from the chains next to ``phase = n``.
 
-
-def _best_of(sv: SlabVolumes, candidates: list[Run],
-             cap_u: int, n_target: int, rtol: float,
-             ) -> tuple[tuple[bool, int, float], EqualVolumeResult]:
-    """The most even candidate: within ``rtol`` first, then closest count, then spread."""
-    best: tuple[tuple[bool, int, float], EqualVolumeResult] | None = None
-    for v, (heights, capped) in candidates:
-        options = [(heights, capped)]
-        # A sliver left at the bottom: merge it into the slab above if the flute allows.
-        if len(capped) >= 2 and not capped[-2] and heights[-3] - heights[-1] <= cap_u:
-            options.append((heights[:-2] + heights[-1:], [*capped[:-2], False]))
-        for h, c in options:
-            spread = volume_spread(_slab_volumes(sv, h), c)
-            key = (spread > rtol, abs(len(c) - n_target), spread)
-            if best is None or key < best[0]:
-                best = (key, EqualVolumeResult(list(h), list(c), v))
-    assert best is not None
-    return best
+    A nearly full last slab is kept as an equal-volume slab when its volume is
+    what filled up; when its thickness did, it becomes a capped slab of exactly
+    the flute length. A sliver at the bottom is dropped. Either way the capped
+    slabs at the bottom are re-laid at exactly the flute length from the bottom
+    up, which moves the lowest equal-volume slab's bottom by the (small) misfit.
+    """
+    out = []
+    for c in chains:
+        if c.rest == 0.0:
+            out.append(EqualVolumeResult(list(c.heights), list(c.capped), c.v))
+            continue
+        h, cap = c.heights[:-1], c.capped[:-1]  # the finished slabs
+        j = len(cap)
+        while j > 0 and cap[j - 1]:
+            j -= 1
+        run = len(cap) - j  # capped slabs right above the unfinished one
+        if c.rest_by_thickness:
+            ks = [run + 1, run]
+        else:
+            out.append(EqualVolumeResult(list(c.heights), list(c.capped), c.v))
+            ks = [run]
+        for k in ks:
+            tail = [bottom_u + i * cap_u for i in range(k, -1, -1)]
+            if j == 0:
+                ok = tail[0] == h[0]
+                heights = tail
+            else:
+                ok = h[j - 1] > tail[0] and h[j - 1] - tail[0] <= cap_u
+                heights = [*h[:j], *tail]
+            if ok:
+                out.append(EqualVolumeResult(heights, [*cap[:j], *([True] * k)], c.v))
+    return out
 
 
 def removed_between(upper: F64, lower: F64, weight: F64, heights: ArrayLike) -> F64:

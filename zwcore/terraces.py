@@ -3,14 +3,14 @@ design section 4, step 5).
 
 A contour stage's model is its level model with every cell raised to the
 lowest contour height at or above it, capped by the previous stage model (a
-cell the stage does not reach keeps the earlier height). In the Haar MRR of
-the part that model is reached by editing coefficients: the approximation
-coefficients of the coarser levels become the block maxima of the terraces
-(the overcut-free lift, so the edited coarse levels still contain the model)
-and the detail coefficients of every level up to the stage level become the
-terraces' differences, mostly zero inside a flat terrace. Synthesis of the
-edited representation gives the terraces back exactly as long as the terrace
-heights are multiples of :data:`zwcore.contour_heights.QUANTUM`.
+cell the stage does not reach keeps the earlier height). It is produced from
+the part's lifted Haar representation from the stage level up, the level's
+approximation coefficients (block maxima) and the finer detail bands: the
+approximation coefficients are raised onto the contour grid and the finer
+details set to zero, and synthesis of that edited representation gives the
+terraced model at every input node, each cell flat (:func:`edit_coefficients`).
+The lifted Haar synthesis of zero details is exact (``a - |0| ± 0``), so the
+synthesised model equals the terrace rule bit for bit.
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from zwcore.wavelets import Bands, Multiresolution, analysis_step
+from zwcore.wavelets import Bands, Multiresolution, synthesis_step
 
 __all__ = ["EditedMRR", "cell_weights", "edit_coefficients", "terrace"]
 
@@ -82,33 +82,46 @@ def cell_weights(shape: tuple[int, int], scale: int, fine_shape: tuple[int, int]
 
 @dataclass(frozen=True, eq=False)
 class EditedMRR:
-    """The part's Haar MRR with the coefficients up to one level edited.
+    """The part's lifted Haar representation from one level up, with edited coefficients.
 
     Attributes
     ----------
-    coarsest : (1, 1) float64
-        Edited level-0 approximation.
-    details : list of Bands
-        ``details[j]`` turns edited level ``j`` into ``j + 1``, for ``j <
-        level``; the part's own bands follow for the finer levels.
     level : int
-        The edited level: synthesis up to it gives the stage model.
+        The stage level ``j``.
+    approximation : (my, mx) float64
+        Edited level-``j`` approximation: the part's block maxima raised onto the
+        contour grid (the terraces, one value per cell).
+    details : list of Bands
+        Edited bands for levels ``j .. J-1`` (``details[i]`` turns level ``j + i``
+        into ``j + i + 1``): all zero, so every cell stays flat.
     edited : int
-        Coefficients (approximation and detail) that differ from the part's.
+        Coefficients that differ from the part's: raised approximation
+        coefficients plus non-zero detail coefficients set to zero.
     """
 
-    coarsest: F64
-    details: list[Bands]
     level: int
+    approximation: F64
+    details: list[Bands]
     edited: int
 
-    def synthesize(self, mrr: Multiresolution) -> F64:
-        """The stage model: synthesis of the edited representation to ``level``."""
-        return mrr.synthesize(self.coarsest, self.details, to_level=self.level)
+    def synthesize(self, to_level: int | None = None) -> F64:
+        """The stage model at the input nodes (or at ``to_level``): synthesis of the
+        edited representation, the lifted Haar steps with the edited bands."""
+        z = self.approximation
+        stop = len(self.details) if to_level is None else to_level - self.level
+        for bands in self.details[:stop]:
+            z = synthesis_step(z, bands, "haar", lifted=True)
+        return z
 
 
-def edit_coefficients(mrr: Multiresolution, level: int, model: F64) -> EditedMRR:
-    """Edit the Haar coefficients of ``mrr`` so that level ``level`` becomes ``model``.
+def _zero_bands(b: Bands) -> Bands:
+    zero = np.zeros(b.lh.shape)
+    return Bands(lh=zero, hl=zero, hh=zero, fine_shape=b.fine_shape, padding=b.padding)
+
+
+def edit_coefficients(mrr: Multiresolution, level: int, previous: F64,
+                      heights_desc: F64) -> EditedMRR:
+    """Edit the part's lifted Haar coefficients into a terraced stage model (Fig. 8).
 
     Parameters
     ----------
@@ -116,8 +129,10 @@ def edit_coefficients(mrr: Multiresolution, level: int, model: F64) -> EditedMRR
         Lifted Haar MRR of the part.
     level : int
         Stage level ``j``.
-    model : (my, mx) float64
-        Target terraces, shaped like ``mrr.approximations[level]``.
+    previous : (my, mx) float64
+        Previous stage model on the level-``j`` cells (``>= mrr.approximations[j]``).
+    heights_desc : (n,) float64
+        Contour heights, descending.
 
     Returns
     -------
@@ -125,25 +140,23 @@ def edit_coefficients(mrr: Multiresolution, level: int, model: F64) -> EditedMRR
 
     Notes
     -----
-    The edit of each band is the difference between the terraces' coefficients
-    and the part's (Fig. 8); walking down from ``level`` with the lifted step
-    gives the terraces' coefficients. Levels above ``level`` keep the part's
-    bands, so the same representation still refines towards the part.
+    The representation of the part from level ``j`` up is its level-``j``
+    approximation (block maxima) and the detail bands of levels ``j .. J-1``.
+    The edit raises every approximation coefficient to the lowest contour height
+    at or above it, capped by ``previous`` (:func:`terrace`), and sets every
+    finer detail coefficient to zero. In a lifted Haar step a coarse value
+    ``a`` and details ``w`` give the children ``a - |w| ± w``, so zero details
+    copy ``a`` to all four children: synthesis of the edited representation is
+    the terraced model at every input node, each cell flat (cell semantics).
+    The part's own representation is not changed.
     """
     if mrr.wavelet != "haar" or not mrr.lifted:
         raise ValueError("coefficient editing needs a lifted Haar MRR")
-    if model.shape != mrr.approximations[level].shape:
-        raise ValueError(f"model shape {model.shape} differs from level {level}'s "
-                         f"{mrr.approximations[level].shape}")
-    cur = model
-    bands: list[Bands] = []
-    edited = 0
-    for j in range(level - 1, -1, -1):
-        cur, b = analysis_step(cur, "haar", lifted=True)
-        old = mrr.details[j]
-        edited += sum(int(np.count_nonzero(new != prev)) for new, prev in
-                      ((b.lh, old.lh), (b.hl, old.hl), (b.hh, old.hh)))
-        bands.append(b)
-    bands.reverse()
-    edited += int(np.count_nonzero(cur != mrr.approximations[0]))
-    return EditedMRR(cur, bands + list(mrr.details[level:]), level, edited)
+    approx = mrr.approximations[level]
+    if previous.shape != approx.shape:
+        raise ValueError(f"previous model shape {previous.shape} differs from level "
+                         f"{level}'s {approx.shape}")
+    raised = terrace(approx, previous, heights_desc)
+    details = mrr.details[level:]
+    edited = int(np.count_nonzero(raised != approx)) + sum(b.count_nonzero() for b in details)
+    return EditedMRR(level, raised, [_zero_bands(b) for b in details], edited)
