@@ -70,3 +70,23 @@ def test_unbounded_work_is_refused(client: TestClient) -> None:
     assert_problem(client.post("/v1/arcs", json=body), 413, "tolerance", "larger tolerance")
     far = {"points": [[0, 0], [2e6, 0]]}
     assert_problem(client.post("/v1/arcs", json=far), 422, "points[1][0]", "")
+
+
+def test_offset_reports_reversed_segments(client: TestClient) -> None:
+    """An L of two 10 mm lines offset 100 mm into its inner corner: both offset lines
+    would run backwards, and the response says so (nothing vanished)."""
+    body = {"points": [[0, 0], [10, 0], [10, 10]], "offset": 100.0}
+    off = client.post("/v1/arcs", json=body).json()["offset"]
+    assert off["vanished_arcs"] == []
+    assert off["reversed_segments"] == [0, 1]
+    small = client.post("/v1/arcs", json={**body, "offset": 5.0}).json()["offset"]
+    assert small["reversed_segments"] == []
+
+
+def test_readme_arc_example_has_lines_on_its_straight_runs(client: TestClient) -> None:
+    body = {"points": [[0, 0], [10, 0], [20, 0], [27.07, 2.93], [30, 10]],
+            "tolerance": 0.05, "gcode": True}
+    r = client.post("/v1/arcs", json=body).json()
+    kinds = [s["kind"] for s in r["segments"]]
+    assert kinds == ["line", "arc", "line", "line"]
+    assert all(s["radius"] < 10 for s in r["segments"] if s["kind"] == "arc")

@@ -30,8 +30,15 @@ import numpy as np
 from numpy.typing import NDArray
 
 from zwcore.arcfallback import fillet_stretch
-from zwcore.arcgeom import arc_length_position, arc_points, circle_gap, local_uv, rotate
-from zwcore.arcpieces import Piece, ToleranceBand
+from zwcore.arcgeom import (
+    arc_length_position,
+    arc_points,
+    circle_gap,
+    local_uv,
+    points_to_segments_distance,
+    rotate,
+)
+from zwcore.arcpieces import Anchor, Piece, ToleranceBand, is_flat
 
 FloatArray = NDArray[np.float64]
 
@@ -60,6 +67,21 @@ class _State:
     t_first: FloatArray | None
     depth: int
     fresh: bool = False
+
+
+@dataclass
+class _Cand:
+    """A candidate piece from a state: it ends at ``end`` with tangent ``t_end`` standing
+    for sample ``j``; ``sig_end`` is its length when given (else the foot point of
+    ``j``), ``special`` marks anchor pieces, ``bonus`` is added to its rank score."""
+
+    j: int
+    kappa: float
+    end: FloatArray
+    t_end: FloatArray
+    bonus: float
+    sig_end: float | None = None
+    special: bool = False
 
 
 def _unwind(st: _State) -> list[Piece]:
@@ -110,6 +132,9 @@ class Fitter:
         self.samples = samples
         self.tol = tol
         self.cum = self.band.cum
+        #: straight runs the chain should follow with lines (see :meth:`_anchor_candidates`);
+        #: when set, arcs over them or flat arcs (:meth:`_over_anchor`) rank last
+        self.anchors: list[Anchor] = []
 
     # -- the start of a run: the tangent is not given ------------------------
 
@@ -267,15 +292,31 @@ class Fitter:
                 if fin is not None:
                     return [fin], []
         starts = [t_start] if t_start is not None else self._free_tangents(p0, a, b)
+        if t_start is None and not loop:
+            for an in self.anchors:
+                if an.i0 == a and np.array_equal(an.q, p0):
+                    # a straight run from the start: its line first
+                    starts = [an.d.copy(), *starts]
         level: list[_State] = [_State(p0, t, a, 0.0, None, None, t, 0) for t in starts]
         forced_at: list[int] = []
+        flat_fin: tuple[list[Piece], int] | None = None
         while True:
-            # finish from any state of this level
+            if flat_fin is not None:
+                if flat_fin[1] == 0:
+                    return flat_fin[0], forced_at
+                flat_fin = (flat_fin[0], flat_fin[1] - 1)
+            # finish from any state of this level (with anchors: a flat last arc only
+            # when no state of this level or the next two finishes otherwise)
             for st in level:
                 assert st.t is not None
                 if not loop:
                     fin2 = band.piece_to_sample(st.p, st.t, st.k, st.e, b)
                     if fin2 is not None:
+                        if self.anchors and self._over_anchor(st.k, b, fin2.kappa,
+                                                              fin2.length):
+                            if flat_fin is None:
+                                flat_fin = ([*_unwind(st), fin2], 2)
+                            continue
                         return [*_unwind(st), fin2], forced_at
                 elif st.parent is not None:
                     assert st.t_first is not None
@@ -286,6 +327,8 @@ class Fitter:
             if nxt:
                 level = nxt
                 continue
+            if flat_fin is not None:
+                return flat_fin[0], forced_at
             # a biarc bridge from a stuck state onto a sample with the polyline's direction
             for st in level if self.use_bridge else []:
                 br = self._bridge(st, b, loop)
@@ -319,10 +362,8 @@ class Fitter:
             level = [fb[1]]
             continue
 
-    def _candidates(
-        self, st: _State, b: int
-    ) -> list[tuple[int, float, FloatArray, FloatArray, float]]:
-        """Candidate pieces ``(j, kappa, end, t_end, own_bonus)`` from a state (unverified)."""
+    def _candidates(self, st: _State, b: int) -> list[_Cand]:
+        """Candidate pieces from a state (unverified)."""
         band = self.band
         p, t, k = st.p, st.t, st.k
         assert t is not None
@@ -351,46 +392,156 @@ class Fitter:
                 end = arc_points(p, t, float(kk), sj)[0]
                 tend = rotate(t, float(kk) * float(sj[0]))
                 bonus = 0.3 * float(self.cum[j] - self.cum[k]) if kk == 0.0 else 0.0
-                out.append((j, float(kk), end, tend, bonus))
+                out.append(_Cand(j, float(kk), end, tend, bonus))
+        if self.anchors:
+            out.extend(self._anchor_candidates(st, b))
         return out
 
+    def _anchor_candidates(self, st: _State, b: int) -> list[_Cand]:
+        """Pieces that make the chain follow the next straight run with a line.
+
+        From any state: the arc that lands tangentially on the next anchor's line
+        (its curvature follows from the state and the line in closed form). From a
+        state on an anchor's line: the line up to the tangent point of the fillet onto
+        the next anchor (radius from the input's distance to the lines' intersection),
+        from where the landing arc is that fillet.
+        """
+        p, t, k = st.p, st.t, st.k
+        assert t is not None
+        tol = self.tol
+        here: Anchor | None = None
+        nxt: Anchor | None = None
+        for an in self.anchors:
+            if an.i1 <= k:
+                continue
+            on = (abs(float(t[0] * an.d[1] - t[1] * an.d[0])) <= 1e-12
+                  and float(t @ an.d) > 0.0
+                  and abs(float((p - an.q) @ np.array([-an.d[1], an.d[0]])))
+                  <= 1e-9 * tol + 1e-13 * float(np.abs(p).max()))
+            if on and an.i0 <= k + 1:
+                here = an
+                continue
+            nxt = an
+            break
+        if nxt is None:
+            return []
+        out: list[_Cand] = []
+        d = nxt.d
+        nd = np.array([-d[1], d[0]])
+        n = np.array([-t[1], t[0]])
+        delta = math.atan2(float(t[0] * d[1] - t[1] * d[0]), float(t @ d))
+        if 1e-9 < abs(delta) < math.pi - 1e-3:
+            # landing arc: nd . (p + (sin D t + (1 - cos D) n) / kappa - q) = 0
+            h0 = float(nd @ (p - nxt.q))
+            w = float(nd @ (math.sin(delta) * t + (1.0 - math.cos(delta)) * n))
+            if h0 != 0.0:
+                kap = -w / h0
+                if kap * delta > 0.0 and self.band.radius_ok(kap):
+                    s_end = delta / kap
+                    j = self._last_before(p, t, kap, k, min(nxt.i1, b - 1), s_end)
+                    if j > k:
+                        end = arc_points(p, t, kap, np.array([s_end]))[0]
+                        out.append(_Cand(j, kap, end, d.copy(), 0.0, s_end, True))
+        if here is not None:
+            # the fillet between this line and the next one
+            dh = here.d
+            cr = float(dh[0] * d[1] - dh[1] * d[0])
+            turn = math.atan2(cr, float(dh @ d))
+            if 1e-6 < abs(turn) < math.pi - 1e-3:
+                # intersection V = q_here + a dh = q_next + c d
+                rhs = nxt.q - here.q
+                alpha = float(rhs[0] * d[1] - rhs[1] * d[0]) / cr
+                vtx = here.q + alpha * dh
+                hi = min(nxt.i1, b)
+                seg_d = points_to_segments_distance(
+                    vtx[None, :], self.samples[k:hi], self.samples[k + 1 : hi + 1])
+                m = float(seg_d.min()) if seg_d.size else 0.0
+                half = 0.5 * abs(turn)
+                den = 1.0 / math.cos(half) - 1.0
+                for f in (1.0, 0.97, 1.03):
+                    rad = f * m / den if den > 0.0 else 0.0
+                    s_line = float(dh @ (vtx - p)) - rad * math.tan(half)
+                    if not s_line > 0.0 or rad <= 0.0:
+                        continue
+                    j = self._last_before(p, dh, 0.0, k, min(nxt.i1, b - 1), s_line)
+                    if j > k:
+                        out.append(_Cand(j, 0.0, p + s_line * dh, dh.copy(), 0.0, s_line,
+                                         True))
+        return out
+
+    def _last_before(
+        self, p: FloatArray, t: FloatArray, kap: float, k: int, hi: int, s_end: float
+    ) -> int:
+        """Last sample in ``k..hi`` whose foot point on the piece lies before ``s_end``."""
+        if hi <= k:
+            return k
+        u, v = local_uv(p, t, self.samples[k + 1 : hi + 1])
+        if kap != 0.0:
+            sig = np.unwrap(np.arctan2(kap * u, 1.0 - kap * v)) / kap
+        else:
+            sig = u
+        over = np.flatnonzero(sig > s_end)
+        return k + (int(over[0]) if over.size else len(sig))
+
     def _expand(self, level: list[_State], b: int) -> list[_State]:
-        """The next level: the best verified pieces from all states, by look-ahead reach."""
+        """The next level: the best verified pieces from all states, by look-ahead reach.
+
+        With anchors, anchor pieces (:meth:`_anchor_candidates`) take up to half the
+        beam first, and flat arcs rank after every other candidate.
+        """
         band = self.band
-        rows: list[tuple[int, int, float, FloatArray, FloatArray, float]] = []
+        rows: list[tuple[int, _Cand]] = []
         for si, st in enumerate(level):
-            for j, kk, end, tend, bonus in self._candidates(st, b):
-                rows.append((si, j, kk, end, tend, bonus))
+            for c in self._candidates(st, b):
+                rows.append((si, c))
         out: list[_State] = []
         if rows:
-            ep = np.array([r[3] for r in rows])
-            et = np.array([r[4] for r in rows])
-            js = np.array([r[1] for r in rows], dtype=np.int64)
+            ep = np.array([r[1].end for r in rows])
+            et = np.array([r[1].t_end for r in rows])
+            js = np.array([r[1].j for r in rows], dtype=np.int64)
             reach, lreach = band.reach_with_lines(ep, et, js, b)
             reach = np.where(js >= b, b, reach)
             lreach = np.where(js >= b, b, lreach)
             lscore = self.cum[lreach] + 0.3 * (self.cum[lreach] - self.cum[js])
-            score = np.maximum(self.cum[reach], lscore) + np.array([r[5] for r in rows])
-            isarc = np.array([r[2] != 0.0 for r in rows])
-            order = np.lexsort((-js, isarc, -score))
+            score = np.maximum(self.cum[reach], lscore) + np.array([r[1].bonus for r in rows])
+            isarc = np.array([r[1].kappa != 0.0 for r in rows])
+            if self.anchors:
+                flat = np.array([
+                    r[1].kappa != 0.0 and self._over_anchor(
+                        level[r[0]].k, r[1].j, r[1].kappa,
+                        self._approx_len(level[r[0]], r[1]))
+                    for r in rows])
+                special = np.array([r[1].special for r in rows])
+                order = np.lexsort((-js, isarc, -score, flat))
+                order = np.concatenate([order[special[order]], order[~special[order]]])
+                n_special_max = self.BEAM // 2
+            else:
+                order = np.lexsort((-js, isarc, -score))
+                n_special_max = 0
             seen: set[tuple[int, int, int]] = set()
             checks = 0
+            n_special = 0
             for i in order:
                 if len(out) >= self.BEAM or checks >= 12 * self.BEAM:
                     break
-                si, j, kk, _end, _tend, _ = rows[int(i)]
+                si, c = rows[int(i)]
+                if c.special and n_special >= n_special_max:
+                    continue
                 st = level[si]
-                key = (int(reach[i]), j, round(math.atan2(et[i][1], et[i][0]) * 1e3))
+                key = (int(reach[i]), c.j, round(math.atan2(et[i][1], et[i][0]) * 1e3))
                 if key in seen:
                     continue
                 checks += 1
                 assert st.t is not None
-                res = band.verify(st.p, st.t, kk, st.k, j, st.e)
+                res = band.verify(st.p, st.t, c.kappa, st.k, c.j, st.e, sig_end=c.sig_end)
                 if res is None:
                     continue
                 seen.add(key)
-                pc = band.make_piece(st.p, st.t, kk, st.k, j, res)
-                out.append(_State(pc.end, pc.t_end, j, pc.e_end, st, pc, st.t_first,
+                pc = band.make_piece(st.p, st.t, c.kappa, st.k, c.j, res)
+                if c.special:
+                    n_special += 1
+                    pc.t_end = c.t_end.copy()  # exactly the anchor's direction
+                out.append(_State(pc.end, pc.t_end, c.j, pc.e_end, st, pc, st.t_first,
                                   st.depth + 1))
         if not out:
             for st in level:
@@ -433,6 +584,27 @@ class Fitter:
                 break
             j = k + max(1, (j - k) // 2)
         return None
+
+    def _over_anchor(self, k: int, j: int, kappa: float, length: float) -> bool:
+        """True for an arc over samples ``k..j`` that is flat or covers more than half of
+        an anchor (a straight run the chain should follow with a line)."""
+        if kappa == 0.0:
+            return False
+        if is_flat(kappa, length, self.tol):
+            return True
+        for an in self.anchors:
+            over = self.cum[min(j, an.i1)] - self.cum[max(k, an.i0)]
+            if over > 0.5 * (self.cum[an.i1] - self.cum[an.i0]):
+                return True
+        return False
+
+    def _approx_len(self, st: _State, c: _Cand) -> float:
+        """Length of candidate ``c`` from ``st`` (its given length, or the chord's arc)."""
+        if c.sig_end is not None:
+            return c.sig_end
+        chord = float(np.hypot(*(c.end - st.p)))
+        x = 0.5 * c.kappa * chord
+        return chord * (math.asin(min(abs(x), 1.0)) / abs(x) if x != 0.0 else 1.0)
 
     # -- ways out of a stuck level ---------------------------------------------
 

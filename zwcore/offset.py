@@ -14,6 +14,13 @@ reported as corners of the offset chain, so the caller sees that the path is no
 longer a clean offset there (choose a smaller tool, or re-fit with a larger
 corner radius).
 
+Reversed segments: at an inner corner the two offset pieces are trimmed at their
+intersection; when the offset is larger than a piece allows, that intersection
+lies beyond the piece's other end and the trimmed piece would run backwards (a
+line whose direction flips, an arc whose trimmed sweep wraps the other way round).
+The chain is still returned, but such pieces are reported by index (in the input
+chain), like vanished arcs: the path gouges there.
+
 Sharp corners of the input: on the outside of a corner the offset pieces do
 not meet and a rounding arc of radius ``|distance|`` about the corner point
 joins them tangentially (as NC cutter compensation does); on the inside they
@@ -31,13 +38,25 @@ self-intersections or use a tool small enough for the part's features.
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 
 from zwcore.arcs import ArcChain, Segment, chain_tangents
 from zwcore.errors import InvalidInputError
 
-__all__ = ["offset_chain"]
+__all__ = ["OffsetResult", "offset_chain"]
+
+
+class OffsetResult(NamedTuple):
+    """What :func:`offset_chain` returns (a tuple: ``chain, vanished, reversed``)."""
+
+    #: the offset chain
+    chain: ArcChain
+    #: indices (input chain) of arcs whose offset radius would be zero or negative
+    vanished: tuple[int, ...]
+    #: indices (input chain) of segments whose trimmed offset runs backwards
+    reversed: tuple[int, ...]
 
 _Pt = tuple[float, float]
 
@@ -138,7 +157,7 @@ def _with_start(seg: Segment, start: _Pt) -> Segment:
     return _arc_from(seg.center, seg.radius, start, seg.end, bool(seg.ccw), 0.0)
 
 
-def offset_chain(chain: ArcChain, distance: float) -> tuple[ArcChain, tuple[int, ...]]:
+def offset_chain(chain: ArcChain, distance: float) -> OffsetResult:
     """Offset a chain by a signed ``distance`` (mm; ``> 0`` = left of travel).
 
     Parameters
@@ -150,7 +169,9 @@ def offset_chain(chain: ArcChain, distance: float) -> tuple[ArcChain, tuple[int,
 
     Returns
     -------
-    offset : ArcChain
+    OffsetResult
+        ``(chain, vanished, reversed)``:
+    chain : ArcChain
         The offset chain. Its ``corners`` are the junctions that are not C1:
         trimmed inner corners and the ends of connectors that replace vanished
         arcs; outer corners are rounded and therefore smooth. Deviation fields
@@ -158,6 +179,11 @@ def offset_chain(chain: ArcChain, distance: float) -> tuple[ArcChain, tuple[int,
     vanished : tuple of int
         Indices (into ``chain.segments``) of arcs whose offset radius would be
         zero or negative; each is replaced by a straight connector.
+    reversed : tuple of int
+        Indices (into ``chain.segments``) of segments whose offset, trimmed at an
+        inner corner, runs backwards: a line whose offset direction is opposite to
+        its own (or that shrank to nothing), an arc whose trimmed offset sweeps the
+        other way or further than its untrimmed offset. The path gouges there.
 
     Raises
     ------
@@ -170,7 +196,7 @@ def offset_chain(chain: ArcChain, distance: float) -> tuple[ArcChain, tuple[int,
     segs = chain.segments
     n = len(segs)
     if d == 0.0 or n == 0:
-        return chain, ()
+        return OffsetResult(chain, (), ())
     corner_set = set(chain.corners)
     out: list[Segment] = []
     kinds: list[str] = []  # "seg", "conn" (vanished arc), "round"
@@ -189,6 +215,7 @@ def offset_chain(chain: ArcChain, distance: float) -> tuple[ArcChain, tuple[int,
     # corners of the input: round the outside, trim the inside
     result: list[Segment] = []
     rkinds: list[str] = []
+    rsrc: list[int] = []  # input segment of each result segment (-1: rounding arc)
     n_j = n if chain.closed else n - 1
     pending_start: dict[int, _Pt] = {}
     for i in range(n):
@@ -197,6 +224,7 @@ def offset_chain(chain: ArcChain, distance: float) -> tuple[ArcChain, tuple[int,
             cur = _with_start(cur, pending_start.pop(i))
         result.append(cur)
         rkinds.append(kinds[i])
+        rsrc.append(i)
         if i >= n_j or i not in corner_set:
             continue
         nxt_i = (i + 1) % n
@@ -213,6 +241,7 @@ def offset_chain(chain: ArcChain, distance: float) -> tuple[ArcChain, tuple[int,
         if outer:
             result.append(_arc_from(corner_pt, abs(d), a_end, b_start, d < 0, 0.0))
             rkinds.append("round")
+            rsrc.append(-1)
         else:
             cands = _intersections(cur, out[nxt_i])
             if cands:
@@ -226,6 +255,7 @@ def offset_chain(chain: ArcChain, distance: float) -> tuple[ArcChain, tuple[int,
             else:
                 result.append(Segment("line", a_end, b_start))
                 rkinds.append("conn")
+                rsrc.append(-1)
     if chain.closed and result:
         # the first segment may have been trimmed at its start after the loop went round
         last = result[-1]
@@ -249,4 +279,20 @@ def offset_chain(chain: ArcChain, distance: float) -> tuple[ArcChain, tuple[int,
         max_kink_smooth=float(max(smooth)) if smooth else 0.0,
         tolerance=chain.tolerance,
     )
-    return off_chain, tuple(vanished)
+    reversed_: list[int] = []
+    for seg, kind, i in zip(result, rkinds, rsrc, strict=True):
+        if kind == "seg" and _runs_backwards(seg, segs[i], out[i]):
+            reversed_.append(i)
+    return OffsetResult(off_chain, tuple(vanished), tuple(sorted(set(reversed_))))
+
+
+def _runs_backwards(seg: Segment, orig: Segment, untrimmed: Segment) -> bool:
+    """True when the trimmed offset ``seg`` of ``orig`` runs against it (see
+    :func:`offset_chain`); ``untrimmed`` is the offset before trimming."""
+    if seg.kind == "line":
+        ox, oy = orig.end[0] - orig.start[0], orig.end[1] - orig.start[1]
+        dx, dy = seg.end[0] - seg.start[0], seg.end[1] - seg.start[1]
+        return dx * ox + dy * oy <= 0.0
+    assert seg.sweep is not None and untrimmed.sweep is not None
+    slack = 1e-9 * max(1.0, abs(untrimmed.sweep))
+    return (seg.sweep > 0) != (untrimmed.sweep > 0) or abs(seg.sweep) > abs(untrimmed.sweep) + slack

@@ -46,10 +46,11 @@ def arcs_result(points: np.ndarray, body: ArcsRequest) -> dict[str, Any]:
     }
     path = chain
     if body.offset != 0.0:
-        path, vanished = offset_chain(chain, body.offset)
+        path, vanished, reversed_ = offset_chain(chain, body.offset)
         result["offset"] = {"distance": body.offset,
                             "segments": [_segment(s) for s in path.segments],
-                            "vanished_arcs": list(vanished)}
+                            "vanished_arcs": list(vanished),
+                            "reversed_segments": list(reversed_)}
     if body.gcode:
         result["gcode"] = to_gcode(path, feed=body.feed)
     return result

@@ -51,6 +51,11 @@ class OffsetOut(BaseModel):
     segments: list[SegmentOut]
     vanished_arcs: list[int] = Field(
         description="arcs of the fitted chain whose radius would vanish or invert at this offset")
+    reversed_segments: list[int] = Field(
+        default_factory=list,
+        description="segments of the fitted chain whose offset, trimmed at an inner corner, "
+                    "runs backwards (a line whose direction flips, an arc that wraps the other "
+                    "way): the offset is larger than the segment allows and the path gouges")
 
 
 class ArcsResult(BaseModel):
