@@ -15,6 +15,7 @@ from __future__ import annotations
 import asyncio
 import concurrent.futures
 import multiprocessing
+import os
 import threading
 import time
 from collections.abc import Callable
@@ -26,6 +27,41 @@ from service import metrics
 from service.problems import Problem
 
 T = TypeVar("T")
+
+
+#: How often a worker process checks that the server that started it is still there.
+PARENT_POLL_SECONDS = 0.5
+
+
+def _server_alive(pid: int) -> bool:
+    try:
+        with open(f"/proc/{pid}/stat", "rb") as f:
+            # a zombie is gone for our purpose: it will never send work again
+            return f.read().rsplit(b")", 1)[1].split()[0] != b"Z"
+    except FileNotFoundError:
+        return False
+    except OSError:  # pragma: no cover - no /proc: ask the kernel
+        try:
+            os.kill(pid, 0)
+        except ProcessLookupError:
+            return False
+        return True
+
+
+def _watch_server(pid: int) -> None:
+    """Worker initializer: exit when the server process is gone.
+
+    A worker blocks on its job queue, which never reaches end-of-file (the worker
+    holds both ends), so a server killed hard (SIGKILL, the OOM killer, a test
+    harness's timeout) would leave its workers, and their open output pipes, behind
+    for ever.
+    """
+    def watch() -> None:
+        while _server_alive(pid):
+            time.sleep(PARENT_POLL_SECONDS)
+        os._exit(0)
+
+    threading.Thread(target=watch, name="zw-watch-server", daemon=True).start()
 
 
 def _process_context() -> multiprocessing.context.BaseContext:
@@ -66,14 +102,15 @@ class ComputePool:
         with self._lock:
             if self._process_executor is None:
                 self._process_executor = ProcessPoolExecutor(
-                    self.processes, mp_context=_process_context())
+                    self.processes, mp_context=_process_context(),
+                    initializer=_watch_server, initargs=(os.getpid(),))
             return self._process_executor
 
     def _drop_broken(self, executor: Executor) -> None:
         with self._lock:
             if self._process_executor is executor:
                 self._process_executor = None
-        executor.shutdown(wait=False, cancel_futures=True)
+        _stop_processes(executor)
 
     async def run(self, operation: str, fn: Callable[..., T], *args: Any,
                   in_process: bool = False) -> T:
@@ -145,7 +182,20 @@ class ComputePool:
     def shutdown(self) -> None:
         self._executor.shutdown(wait=False, cancel_futures=True)
         if self._process_executor is not None:
-            self._process_executor.shutdown(wait=False, cancel_futures=True)
+            _stop_processes(self._process_executor)
+
+
+def _stop_processes(executor: Executor) -> None:
+    """Shut a process pool down now: queued jobs are cancelled and running ones
+    terminated (their callers are gone or get a 503), so a server stopping with a
+    long fit in flight neither waits for it nor leaves the worker behind."""
+    # ProcessPoolExecutor has no public way to stop running jobs before Python 3.14
+    # (terminate_workers); its worker table is the documented-by-source way in.
+    workers = dict(getattr(executor, "_processes", None) or {})
+    executor.shutdown(wait=False, cancel_futures=True)
+    for proc in workers.values():
+        if proc.is_alive():
+            proc.terminate()
 
 
 def _worker_lost() -> Problem:

@@ -84,3 +84,55 @@ def test_pool_size_follows_the_quota(monkeypatch: pytest.MonkeyPatch) -> None:
     assert settings._cpu_count() == min(2, len(os.sched_getaffinity(0)))
     monkeypatch.setattr(settings, "_cgroup_cpu_limit", lambda: None)
     assert settings._cpu_count() == len(os.sched_getaffinity(0))
+
+
+def _gone(pid: int, within: float) -> bool:
+    """The process has exited (or is a zombie waiting to be reaped) within ``within`` s."""
+    import time
+
+    from service.compute import _server_alive
+
+    deadline = time.monotonic() + within
+    while time.monotonic() < deadline:
+        if not _server_alive(pid):
+            return True
+        time.sleep(0.05)
+    return False
+
+
+def test_shutdown_stops_a_worker_in_the_middle_of_a_long_job() -> None:
+    import time
+
+    async def scenario() -> int:
+        pool = ComputePool(1, 2, processes=1)
+        worker = await pool.run("op", os.getpid, in_process=True)
+        job = asyncio.ensure_future(pool.run("op", time.sleep, 60, in_process=True))
+        await asyncio.sleep(0.3)  # the worker is inside the sleep
+        pool.shutdown()
+        job.cancel()
+        return worker
+
+    worker = asyncio.run(scenario())
+    assert _gone(worker, within=10), "worker left running after shutdown"
+
+
+def test_workers_exit_when_the_server_is_killed_hard() -> None:
+    """A server killed with SIGKILL runs no shutdown: its workers must notice alone."""
+    import subprocess
+    import sys
+
+    script = (
+        "import asyncio, os, signal\n"
+        "from service.compute import ComputePool\n"
+        "async def main():\n"
+        "    pool = ComputePool(1, 1, processes=2)\n"
+        "    pids = {await pool.run('op', os.getpid, in_process=True) for _ in range(4)}\n"
+        "    print(*pids, flush=True)\n"
+        "    os.kill(os.getpid(), signal.SIGKILL)\n"
+        "asyncio.run(main())\n")
+    out = subprocess.run([sys.executable, "-c", script], capture_output=True, timeout=60,
+                         cwd=os.path.dirname(os.path.dirname(__file__)))
+    pids = [int(p) for p in out.stdout.split()]
+    assert pids, out.stderr.decode()
+    for pid in pids:
+        assert _gone(pid, within=10), f"worker {pid} outlived its server"
