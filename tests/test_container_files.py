@@ -183,6 +183,9 @@ def test_compose_two_replicas_share_redis_behind_nginx() -> None:
     assert (COMPOSE.parent / build["context"] / build.get("dockerfile", "Dockerfile")) \
         .resolve() == DOCKERFILE
     assert api["deploy"]["replicas"] == 2
+    # a CPU quota the pool sizes itself to, and a PID 1 that reaps the fitting workers
+    assert float(api["deploy"]["resources"]["limits"]["cpus"]) >= 1
+    assert api.get("init") is True
     # Replicas cannot each publish the same host port: only the balancer publishes.
     assert "ports" not in api
     env = api["environment"]
