@@ -1,6 +1,6 @@
 # syntax=docker/dockerfile:1
 # zwplan service image: `docker build -t zwplan .` then
-# `docker run -p 8000:8000 -v zwdata:/data zwplan` (or `docker compose up` for
+# `docker run --init -p 8000:8000 -v zwdata:/data zwplan` (or `docker compose up` for
 # two replicas behind nginx sharing Redis; see compose.yaml).
 
 # --- build: install the project and its dependencies into a virtualenv -------
