@@ -365,10 +365,11 @@ def test_lines_and_fillets_are_valid(case):
 
 
 @pytest.mark.xfail(strict=False, reason=(
-    "open: in about 1 of 10 generated curves (short fillets between nearby lines, "
-    "coarse noisy sampling) the anchored refit does not reach every straight run and "
-    "an arc of huge radius remains; see zwcore/arcs.py step 3b"))
-@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+    "open: rare (0 of 900 uniformly drawn curves, but hypothesis finds one in most "
+    "100-example runs) curves whose last straight part is short or follows short "
+    "fillets keep one arc of huge radius: the anchored refit's ending there has more "
+    "segments and is rejected; see zwcore/arclines.py"))
+@settings(max_examples=100, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(lines_and_fillets())
 def test_lines_and_fillets_give_lines(case):
     """Lines joined by tangent fillets (noise up to 0.03 mm): no arc of huge radius, and
@@ -600,8 +601,7 @@ def fallback_everywhere(monkeypatch):
             raise arcfit.Stuck
         self._expand = lambda level, b: []
         self.use_bridge = False
-        self._full_circle = lambda a, b: None
-        self._finish_free = lambda *args: None
+        self.one_piece_runs = False
         return orig_run(self, a, b, loop, allow_forced, t_start)
 
     monkeypatch.setattr(arcfit.Fitter, "run", run)

@@ -1,8 +1,10 @@
 """The per-run search of the C1 arc chain: a beam of junction states.
 
 The pieces themselves (curvature intervals from a junction, reach scans,
-two-sided verification, biarcs) are in :mod:`zwcore.arcpieces`; this module
-decides which pieces make the chain.
+two-sided verification, biarcs) are in :mod:`zwcore.arcpieces`, run starts without a
+given tangent and one-piece runs in :mod:`zwcore.arcstart`, and the straight runs a
+refit follows with lines in :mod:`zwcore.arclines`; this module decides which pieces
+make the chain.
 
 The seed's sequential least-squares fit fails because it hands each arc's end
 tangent to the next arc without asking whether the next arc can live with it.
@@ -33,12 +35,12 @@ from zwcore.arcfallback import fillet_stretch
 from zwcore.arcgeom import (
     arc_length_position,
     arc_points,
-    circle_gap,
     local_uv,
-    points_to_segments_distance,
     rotate,
 )
-from zwcore.arcpieces import Anchor, Piece, ToleranceBand, is_flat
+from zwcore.arclines import StraightRuns
+from zwcore.arcpieces import Piece, ToleranceBand
+from zwcore.arcstart import free_start, free_start_tangents, full_circle, one_piece_to_end
 
 FloatArray = NDArray[np.float64]
 
@@ -73,7 +75,8 @@ class _State:
 class _Cand:
     """A candidate piece from a state: it ends at ``end`` with tangent ``t_end`` standing
     for sample ``j``; ``sig_end`` is its length when given (else the foot point of
-    ``j``), ``special`` marks anchor pieces, ``bonus`` is added to its rank score."""
+    ``j``), ``special`` marks pieces onto straight runs (:class:`StraightRuns`),
+    ``bonus`` is added to its rank score."""
 
     j: int
     kappa: float
@@ -118,6 +121,9 @@ class Fitter:
                    0.56, 0.44)
     #: junction states kept per level
     BEAM = 4
+    #: a run that one piece (or a loop that one full circle) covers is that piece
+    #: (:mod:`zwcore.arcstart`); off: the beam fits it (tests of the fallback)
+    one_piece_runs = True
     #: biarc bridges out of stuck states (off: the caller's fallback after a failed check)
     use_bridge = True
     #: arc length (in tolerances) a fallback stretch covers before the beam resumes
@@ -132,137 +138,11 @@ class Fitter:
         self.samples = samples
         self.tol = tol
         self.cum = self.band.cum
-        #: straight runs the chain should follow with lines (see :meth:`_anchor_candidates`);
-        #: when set, arcs over them or flat arcs (:meth:`_over_anchor`) rank last
-        self.anchors: list[Anchor] = []
-
-    # -- the start of a run: the tangent is not given ------------------------
-
-    def free_start(self, p: FloatArray, k: int, b: int) -> tuple[FloatArray, int]:
-        """Tangent at a run start that lets the first piece reach furthest.
-
-        Returns the unit tangent and the last sample the first piece can cover
-        from it (interval test).
-        """
-        band, samples = self.band, self.samples
-        d = np.hypot(samples[k + 1 : b + 1, 0] - p[0], samples[k + 1 : b + 1, 1] - p[1])
-        far = np.flatnonzero(d >= 3.0 * self.tol)
-        i0 = k + 1 + (int(far[0]) if far.size else len(d) - 1)
-        th0 = math.atan2(samples[i0, 1] - p[1], samples[i0, 0] - p[0])
-        span, n = 1.4, 57
-        best_th, best_r = th0, k
-        for _ in range(3):
-            ths = best_th + np.linspace(-span, span, n)
-            ts = np.stack([np.cos(ths), np.sin(ths)], axis=1)
-            r = band.reach(np.repeat(p[None, :], n, axis=0), ts, k, b, 64)
-            top = np.flatnonzero(r == r.max())
-            # the middle of the best range: robust to the grid and to noise
-            mid = int(top[len(top) // 2])
-            best_th, best_r = float(ths[mid]), int(r[mid])
-            span = 2.0 * span / (n - 1)
-            n = 21
-        # a straight start is preferred when a line reaches nearly as far as the best arc
-        ths = best_th + np.linspace(-0.2, 0.2, 81)
-        lr, lth = band.line_reach(p, ths, k, b)
-        if lr > k and self.cum[lr] - self.cum[k] >= 0.9 * (self.cum[best_r] - self.cum[k]):
-            return np.array([math.cos(lth), math.sin(lth)]), best_r
-        return np.array([math.cos(best_th), math.sin(best_th)]), best_r
-
-    def _free_tangents(self, p: FloatArray, k: int, b: int) -> list[FloatArray]:
-        """A few start tangents at a run start (no tangent given), best first."""
-        t0, _r0 = self.free_start(p, k, b)
-        out = [t0]
-        th0 = math.atan2(t0[1], t0[0])
-        for d in (0.04, -0.04, 0.12, -0.12):
-            out.append(np.array([math.cos(th0 + d), math.sin(th0 + d)]))
-        return out
-
-    # -- whole runs as one piece -----------------------------------------------
-
-    def _finish_free(self, p: FloatArray, k: int, b: int, th_guess: float) -> Piece | None:
-        """One piece from ``p`` (free tangent) ending exactly at sample ``b``.
-
-        The start tangent is the chord's or the one of the minimax circle through
-        both ends (golden-section search about ``th_guess``).
-        """
-        band, samples = self.band, self.samples
-        pts = samples[k + 1 : b + 1]
-        dx, dy = samples[b] - p
-        chord = math.atan2(dy, dx)
-
-        def worst(th: float) -> float:
-            t = np.array([math.cos(th), math.sin(th)])
-            ub, vb = local_uv(p, t, samples[b : b + 1])
-            q2 = float(ub[0] ** 2 + vb[0] ** 2)
-            if q2 <= 0.0:
-                return math.inf
-            kap = float(2.0 * vb[0] / q2)
-            u, v = local_uv(p, t, pts)
-            return float(np.abs(circle_gap(u, v, kap)).max())
-
-        cands = [chord]
-        # golden-section search for the minimax circle through both ends
-        rel = math.remainder(th_guess - chord, 2.0 * math.pi)
-        lo, hi = min(rel, 0.0) - 0.3, max(rel, 0.0) + 0.3
-        lo, hi = max(lo, -1.5), min(hi, 1.5)
-        gr = (math.sqrt(5.0) - 1.0) / 2.0
-        a, c = lo, hi
-        x1, x2 = c - gr * (c - a), a + gr * (c - a)
-        f1, f2 = worst(chord + x1), worst(chord + x2)
-        for _ in range(48):
-            if f1 < f2:
-                c, x2, f2 = x2, x1, f1
-                x1 = c - gr * (c - a)
-                f1 = worst(chord + x1)
-            else:
-                a, x1, f1 = x1, x2, f2
-                x2 = a + gr * (c - a)
-                f2 = worst(chord + x2)
-        cands.append(chord + 0.5 * (a + c))
-        for th in cands:
-            t = np.array([math.cos(th), math.sin(th)])
-            ub, vb = local_uv(p, t, samples[b : b + 1])
-            q2 = float(ub[0] ** 2 + vb[0] ** 2)
-            if q2 <= 0.0:
-                continue
-            kap = 0.0 if th == chord else float(2.0 * vb[0] / q2)
-            if not band.radius_ok(kap):
-                continue
-            res = band.verify(p, t, kap, k, b, float(np.hypot(*(samples[k] - p))))
-            if res is not None:
-                piece = band.make_piece(p, t, kap, k, b, res)
-                piece.end = samples[b].copy()
-                return piece
-        return None
-
-    def _full_circle(self, a: int, b: int) -> Piece | None:
-        """A whole closed run as one full circle through its first sample (if it fits)."""
-        pts = self.samples[a:b]
-        if len(pts) < 3:
-            return None
-        c0 = pts.mean(axis=0)
-        x = pts - c0
-        mat = np.column_stack([x[:, 0], x[:, 1], np.ones(len(x))])
-        rhs = (x * x).sum(axis=1)
-        sol, *_ = np.linalg.lstsq(mat, rhs, rcond=None)
-        c = c0 + 0.5 * sol[:2]
-        p = self.samples[a]
-        r = float(np.hypot(*(p - c)))
-        if not (r > 0 and math.isfinite(r)):
-            return None
-        xx = self.samples[a : b + 1]
-        area = float(np.sum(xx[:-1, 0] * xx[1:, 1] - xx[1:, 0] * xx[:-1, 1]))
-        kap = 1.0 / r if area > 0 else -1.0 / r
-        rv = (p - c) / r
-        t = np.array([-rv[1], rv[0]]) if kap > 0 else np.array([rv[1], -rv[0]])
-        if abs(kap) < self.band.kmin:  # any small radius: the whole loop is one circle
-            return None
-        res = self.band.verify(p, t, kap, a, b, 0.0)
-        if res is None or abs(abs(kap * res[0]) - 2.0 * math.pi) > 1e-6:
-            return None
-        piece = self.band.make_piece(p, t, kap, a, b, (2.0 * math.pi / abs(kap), p.copy(), 0.0))
-        piece.t_end = t.copy()
-        return piece
+        #: straight runs the chain should follow with lines; when set, pieces onto them
+        #: are proposed and chains with fewer arcs over them rank and finish first
+        self.straight: StraightRuns | None = None
+        #: landing biarcs found at the last level, joining the beam one level later
+        self._landed: list[_State] = []
 
     # -- the beam ---------------------------------------------------------------
 
@@ -280,23 +160,23 @@ class Fitter:
         (empty in practice: the fallback joins C1).
         """
         band = self.band
-        if loop:
-            circ = self._full_circle(a, b)
+        if loop and self.one_piece_runs:
+            circ = full_circle(self.band, a, b)
             if circ is not None:
                 return [circ], []
         p0 = self.samples[a].copy()
         if not loop and t_start is None:
-            t0, r0 = self.free_start(p0, a, b)
-            if r0 >= b:
-                fin = self._finish_free(p0, a, b, math.atan2(t0[1], t0[0]))
+            t0, r0 = free_start(self.band, p0, a, b)
+            if r0 >= b and self.one_piece_runs:
+                fin = one_piece_to_end(self.band, p0, a, b, math.atan2(t0[1], t0[0]))
                 if fin is not None:
                     return [fin], []
-        starts = [t_start] if t_start is not None else self._free_tangents(p0, a, b)
-        if t_start is None and not loop:
-            for an in self.anchors:
-                if an.i0 == a and np.array_equal(an.q, p0):
-                    # a straight run from the start: its line first
-                    starts = [an.d.copy(), *starts]
+        starts = [t_start] if t_start is not None else free_start_tangents(self.band, p0, a, b)
+        sr = self.straight
+        if t_start is None and not loop and sr is not None:
+            d0 = sr.start_direction(a, p0)
+            if d0 is not None:
+                starts = [d0, *starts]  # a straight run from the start: its line first
         level: list[_State] = [_State(p0, t, a, 0.0, None, None, t, 0) for t in starts]
         forced_at: list[int] = []
         flat_fin: tuple[list[Piece], int] | None = None
@@ -305,24 +185,33 @@ class Fitter:
                 if flat_fin[1] == 0:
                     return flat_fin[0], forced_at
                 flat_fin = (flat_fin[0], flat_fin[1] - 1)
-            # finish from any state of this level (with anchors: a flat last arc only
-            # when no state of this level or the next two finishes otherwise)
+            # finish from any state of this level (with anchors: the chain with the fewest
+            # arcs over straight runs; one with such arcs only when no state of this
+            # level or the next two finishes without)
+            fins: list[list[Piece]] = []
             for st in level:
                 assert st.t is not None
                 if not loop:
                     fin2 = band.piece_to_sample(st.p, st.t, st.k, st.e, b)
                     if fin2 is not None:
-                        if self.anchors and self._over_anchor(st.k, b, fin2.kappa,
-                                                              fin2.length):
-                            if flat_fin is None:
-                                flat_fin = ([*_unwind(st), fin2], 2)
-                            continue
-                        return [*_unwind(st), fin2], forced_at
+                        if sr is None:
+                            return [*_unwind(st), fin2], forced_at
+                        fins.append([*_unwind(st), fin2])
                 elif st.parent is not None:
                     assert st.t_first is not None
                     clo = self._try_close(st.p, st.t, st.k, st.e, b, st.t_first)
                     if clo is not None:
                         return _unwind(st) + clo, forced_at
+            if fins:
+                assert sr is not None
+                best = min(fins, key=sr.count_over)
+                n_over = sr.count_over(best)
+                if n_over == 0:
+                    return best, forced_at
+                if flat_fin is None:
+                    flat_fin = (best, 2)
+                elif n_over < sr.count_over(flat_fin[0]):
+                    flat_fin = (best, flat_fin[1])
             nxt = self._expand(level, b)
             if nxt:
                 level = nxt
@@ -393,101 +282,17 @@ class Fitter:
                 tend = rotate(t, float(kk) * float(sj[0]))
                 bonus = 0.3 * float(self.cum[j] - self.cum[k]) if kk == 0.0 else 0.0
                 out.append(_Cand(j, float(kk), end, tend, bonus))
-        if self.anchors:
-            out.extend(self._anchor_candidates(st, b))
+        if self.straight is not None:
+            for j, kk, end, tend, s_end in self.straight.candidates(p, t, k, b):
+                out.append(_Cand(j, kk, end, tend, 0.0, s_end, True))
         return out
-
-    def _anchor_candidates(self, st: _State, b: int) -> list[_Cand]:
-        """Pieces that make the chain follow the next straight run with a line.
-
-        From any state: the arc that lands tangentially on the next anchor's line
-        (its curvature follows from the state and the line in closed form). From a
-        state on an anchor's line: the line up to the tangent point of the fillet onto
-        the next anchor (radius from the input's distance to the lines' intersection),
-        from where the landing arc is that fillet.
-        """
-        p, t, k = st.p, st.t, st.k
-        assert t is not None
-        tol = self.tol
-        here: Anchor | None = None
-        nxt: Anchor | None = None
-        for an in self.anchors:
-            if an.i1 <= k:
-                continue
-            on = (abs(float(t[0] * an.d[1] - t[1] * an.d[0])) <= 1e-12
-                  and float(t @ an.d) > 0.0
-                  and abs(float((p - an.q) @ np.array([-an.d[1], an.d[0]])))
-                  <= 1e-9 * tol + 1e-13 * float(np.abs(p).max()))
-            if on and an.i0 <= k + 1:
-                here = an
-                continue
-            nxt = an
-            break
-        if nxt is None:
-            return []
-        out: list[_Cand] = []
-        d = nxt.d
-        nd = np.array([-d[1], d[0]])
-        n = np.array([-t[1], t[0]])
-        delta = math.atan2(float(t[0] * d[1] - t[1] * d[0]), float(t @ d))
-        if 1e-9 < abs(delta) < math.pi - 1e-3:
-            # landing arc: nd . (p + (sin D t + (1 - cos D) n) / kappa - q) = 0
-            h0 = float(nd @ (p - nxt.q))
-            w = float(nd @ (math.sin(delta) * t + (1.0 - math.cos(delta)) * n))
-            if h0 != 0.0:
-                kap = -w / h0
-                if kap * delta > 0.0 and self.band.radius_ok(kap):
-                    s_end = delta / kap
-                    j = self._last_before(p, t, kap, k, min(nxt.i1, b - 1), s_end)
-                    if j > k:
-                        end = arc_points(p, t, kap, np.array([s_end]))[0]
-                        out.append(_Cand(j, kap, end, d.copy(), 0.0, s_end, True))
-        if here is not None:
-            # the fillet between this line and the next one
-            dh = here.d
-            cr = float(dh[0] * d[1] - dh[1] * d[0])
-            turn = math.atan2(cr, float(dh @ d))
-            if 1e-6 < abs(turn) < math.pi - 1e-3:
-                # intersection V = q_here + a dh = q_next + c d
-                rhs = nxt.q - here.q
-                alpha = float(rhs[0] * d[1] - rhs[1] * d[0]) / cr
-                vtx = here.q + alpha * dh
-                hi = min(nxt.i1, b)
-                seg_d = points_to_segments_distance(
-                    vtx[None, :], self.samples[k:hi], self.samples[k + 1 : hi + 1])
-                m = float(seg_d.min()) if seg_d.size else 0.0
-                half = 0.5 * abs(turn)
-                den = 1.0 / math.cos(half) - 1.0
-                for f in (1.0, 0.97, 1.03):
-                    rad = f * m / den if den > 0.0 else 0.0
-                    s_line = float(dh @ (vtx - p)) - rad * math.tan(half)
-                    if not s_line > 0.0 or rad <= 0.0:
-                        continue
-                    j = self._last_before(p, dh, 0.0, k, min(nxt.i1, b - 1), s_line)
-                    if j > k:
-                        out.append(_Cand(j, 0.0, p + s_line * dh, dh.copy(), 0.0, s_line,
-                                         True))
-        return out
-
-    def _last_before(
-        self, p: FloatArray, t: FloatArray, kap: float, k: int, hi: int, s_end: float
-    ) -> int:
-        """Last sample in ``k..hi`` whose foot point on the piece lies before ``s_end``."""
-        if hi <= k:
-            return k
-        u, v = local_uv(p, t, self.samples[k + 1 : hi + 1])
-        if kap != 0.0:
-            sig = np.unwrap(np.arctan2(kap * u, 1.0 - kap * v)) / kap
-        else:
-            sig = u
-        over = np.flatnonzero(sig > s_end)
-        return k + (int(over[0]) if over.size else len(sig))
 
     def _expand(self, level: list[_State], b: int) -> list[_State]:
         """The next level: the best verified pieces from all states, by look-ahead reach.
 
-        With anchors, anchor pieces (:meth:`_anchor_candidates`) take up to half the
-        beam first, and flat arcs rank after every other candidate.
+        With straight runs to follow, pieces onto them take up to half the beam first,
+        then candidates rank by the arcs over straight runs in their chain, and landing
+        biarcs (:meth:`StraightRuns.landing_biarc`) join one level later.
         """
         band = self.band
         rows: list[tuple[int, _Cand]] = []
@@ -505,14 +310,17 @@ class Fitter:
             lscore = self.cum[lreach] + 0.3 * (self.cum[lreach] - self.cum[js])
             score = np.maximum(self.cum[reach], lscore) + np.array([r[1].bonus for r in rows])
             isarc = np.array([r[1].kappa != 0.0 for r in rows])
-            if self.anchors:
+            sr = self.straight
+            if sr is not None:
                 flat = np.array([
-                    r[1].kappa != 0.0 and self._over_anchor(
-                        level[r[0]].k, r[1].j, r[1].kappa,
-                        self._approx_len(level[r[0]], r[1]))
+                    sr.is_over(level[r[0]].k, r[1].j, r[1].kappa,
+                               self._approx_len(level[r[0]], r[1]))
                     for r in rows])
                 special = np.array([r[1].special for r in rows])
-                order = np.lexsort((-js, isarc, -score, flat))
+                # arcs over straight runs in the chain so far, this candidate's included
+                before = [sr.count_over(_unwind(st)) for st in level]
+                n_over = np.array([before[r[0]] for r in rows]) + flat
+                order = np.lexsort((-js, isarc, -score, n_over))
                 order = np.concatenate([order[special[order]], order[~special[order]]])
                 n_special_max = self.BEAM // 2
             else:
@@ -543,6 +351,19 @@ class Fitter:
                     pc.t_end = c.t_end.copy()  # exactly the anchor's direction
                 out.append(_State(pc.end, pc.t_end, c.j, pc.e_end, st, pc, st.t_first,
                                   st.depth + 1))
+        if self.straight is not None:
+            # a landing biarc is two pieces: its end joins the level after next
+            out.extend(self._landed)
+            self._landed = []
+            for st in level:
+                assert st.t is not None
+                got = self.straight.landing_biarc(st.p, st.t, st.k, st.e, b)
+                if got is not None:
+                    a1, a2 = got
+                    mid = _State(a1.end, a1.t_end, a1.j, a1.e_end, st, a1, st.t_first,
+                                 st.depth + 1)
+                    self._landed.append(_State(a2.end, a2.t_end, a2.j, a2.e_end, mid, a2,
+                                               st.t_first, st.depth + 2))
         if not out:
             for st in level:
                 assert st.t is not None
@@ -584,19 +405,6 @@ class Fitter:
                 break
             j = k + max(1, (j - k) // 2)
         return None
-
-    def _over_anchor(self, k: int, j: int, kappa: float, length: float) -> bool:
-        """True for an arc over samples ``k..j`` that is flat or covers more than half of
-        an anchor (a straight run the chain should follow with a line)."""
-        if kappa == 0.0:
-            return False
-        if is_flat(kappa, length, self.tol):
-            return True
-        for an in self.anchors:
-            over = self.cum[min(j, an.i1)] - self.cum[max(k, an.i0)]
-            if over > 0.5 * (self.cum[an.i1] - self.cum[an.i0]):
-                return True
-        return False
 
     def _approx_len(self, st: _State, c: _Cand) -> float:
         """Length of candidate ``c`` from ``st`` (its given length, or the chord's arc)."""

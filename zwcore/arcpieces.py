@@ -35,8 +35,7 @@ from zwcore.arcgeom import (
 
 FloatArray = NDArray[np.float64]
 
-__all__ = ["Anchor", "Piece", "ToleranceBand", "is_flat", "straight_run"]
-
+__all__ = ["Piece", "ToleranceBand"]
 
 
 @dataclass
@@ -438,14 +437,19 @@ class ToleranceBand:
     BIARC_SPLITS = (0.5, 0.4, 0.6, 0.3, 0.7, 0.2, 0.8, 0.12, 0.9, 0.06, 0.94)
 
     def biarc(
-        self, p0: FloatArray, t0: FloatArray, k: int, e: float, b: int, t1: FloatArray
+        self, p0: FloatArray, t0: FloatArray, k: int, e: float, b: int, t1: FloatArray,
+        p1: FloatArray | None = None, splits: tuple[float, ...] = BIARC_SPLITS,
     ) -> list[Piece] | None:
         """Two verified pieces from ``(p0, t0)`` to sample ``b`` arriving with tangent ``t1``.
 
-        ``p0`` stands for sample ``k`` at distance ``e``. The junction is tried at
-        several places (:attr:`BIARC_SPLITS`); the first verified pair is returned.
+        ``p0`` stands for sample ``k`` at distance ``e``. The pair ends at ``p1`` when
+        given (it then stands for sample ``b``: the second piece's ``e_end`` is their
+        distance), else at sample ``b``. The junction is tried at several places
+        (``splits``: lengths of the first tangent leg as shares of the chord, by default
+        :attr:`BIARC_SPLITS`); the first verified pair is returned.
         """
-        p1 = self.samples[b]
+        at_sample = p1 is None
+        p1 = self.samples[b] if p1 is None else p1
         vv = p1 - p0
         dist2 = float(vv @ vv)
         if dist2 <= 0.0:
@@ -454,7 +458,7 @@ class ToleranceBand:
         vt0 = float(vv @ t0)
         vt1 = float(vv @ t1)
         t01 = float(t0 @ t1)
-        for f in self.BIARC_SPLITS:
+        for f in splits:
             d1 = f * dist
             den = vt1 - d1 * (t01 - 1.0)
             if abs(den) < 1e-300:
@@ -501,137 +505,7 @@ class ToleranceBand:
             a2 = self.make_piece(jn, tj, k2, m, b, r2)
             a2.end = p1.copy()
             a2.t_end = t1.copy()
+            if not at_sample:
+                a2.e_end = float(np.hypot(*(self.samples[b] - p1)))
             return [a1, a2]
         return None
-
-
-# ---------------------------------------------------------------------------
-# flat arcs and the straight runs under them (line anchors)
-
-#: an arc at least :data:`FLAT_MIN_LEN` tolerances long whose sagitta is below this
-#: share of the tolerance is *flat*: its chord, a line, is within a quarter tolerance of
-#: it, so the input there is a straight run the chain should follow with a line
-FLAT_SAGITTA = 0.25
-FLAT_MIN_LEN = 20.0
-#: a straight run keeps all its samples within this share of ``tol`` of one line
-#: (the rest of the band is left for the pieces joining it) ...
-STRAIGHT_BAND = 0.5
-#: ... over at least this many tolerances (15 mm at 0.1 mm): a circle stays that
-#: straight only above a radius of ``L^2 / (16 * 0.5 tol)`` = 2800 tolerances, and a
-#: sine's inflection (amplitude 10, wavelength 50: 12 mm) is not a straight run
-STRAIGHT_MIN_LEN = 150.0
-
-
-def is_flat(kappa: float, length: float, tol: float) -> bool:
-    """True for an arc of ``length`` >= :data:`FLAT_MIN_LEN` tolerances whose sagitta is
-    below :data:`FLAT_SAGITTA` tolerances (a line where the tangent missed the run)."""
-    return (
-        kappa != 0.0
-        and length >= FLAT_MIN_LEN * tol
-        and float(sagitta(kappa, np.array([length]))[0]) < FLAT_SAGITTA * tol
-    )
-
-
-@dataclass
-class Anchor:
-    """A straight run of the samples: ``i0..i1`` lie within :data:`STRAIGHT_BAND`
-    tolerances of the line through ``q`` with unit direction ``d`` (along the travel)."""
-
-    i0: int
-    i1: int
-    q: FloatArray
-    d: FloatArray
-
-
-def _line_fit(
-    x: FloatArray, pivot: FloatArray | None = None
-) -> tuple[FloatArray, FloatArray, float]:
-    """Least-squares line through ``x`` (through ``pivot`` if given): a point on it,
-    the unit direction along ``x``'s order, the largest distance of ``x`` from it."""
-    c = x.mean(axis=0) if pivot is None else pivot
-    y = x - c
-    m = y.T @ y
-    # the principal axis of the 2x2 scatter matrix, in closed form
-    th = 0.5 * math.atan2(2.0 * m[0, 1], m[0, 0] - m[1, 1])
-    d = np.array([math.cos(th), math.sin(th)])
-    if float(d @ (x[-1] - x[0])) < 0.0:
-        d = -d
-    off = y[:, 1] * d[0] - y[:, 0] * d[1]
-    return c, d, float(np.abs(off).max()) if len(off) else 0.0
-
-
-def straight_run(
-    samples: FloatArray, k: int, j: int, a: int, b: int, tol: float, pin_start: bool,
-    pin_end: bool,
-) -> Anchor | None:
-    """The maximal straight run (within ``a..b``) grown from samples ``k..j`` (or from
-    their first, last or middle half), or None when none of these is straight (see
-    :data:`STRAIGHT_BAND`).
-
-    Grown both ways by galloping and bisection. ``pin_start``/``pin_end``: a run that
-    reaches sample ``a``/``b`` gets the line through that sample (the chain must
-    start/end exactly there, on the line), if that line still keeps the band.
-    """
-    band = STRAIGHT_BAND * tol
-
-    def straight(i0: int, i1: int) -> bool:
-        return i1 - i0 < 2 or _line_fit(samples[i0 : i1 + 1])[2] <= band
-
-    # the whole span, else its end parts or its middle half
-    q4 = (j - k) // 4
-    for kk, jj in ((k, j), (k + 2 * q4, j), (k, j - 2 * q4), (k + q4, j - q4)):
-        if jj - kk >= 2 and straight(kk, jj):
-            k, j = kk, jj
-            break
-    else:
-        return None
-
-    def grow(fixed: int, moving: int, limit: int, sgn: int) -> int:
-        good, step = moving, max(1, abs(moving - fixed) // 4)
-        while good != limit:
-            cand = good + sgn * step
-            cand = min(cand, limit) if sgn > 0 else max(cand, limit)
-            ok = straight(fixed, cand) if sgn > 0 else straight(cand, fixed)
-            if ok:
-                good = cand
-                step *= 2
-                continue
-            lo, hi = good, cand  # lo straight, hi not
-            while abs(hi - lo) > 1:
-                mid = (lo + hi) // 2
-                if (straight(fixed, mid) if sgn > 0 else straight(mid, fixed)):
-                    lo = mid
-                else:
-                    hi = mid
-            return lo
-        return good
-
-    i1 = grow(k, j, b, 1)
-    i0 = grow(i1, k, a, -1)
-    q, d, _ = _line_fit(samples[i0 : i1 + 1])
-    for pin, flag in ((a, pin_start and i0 == a), (b, pin_end and i1 == b)):
-        if not flag:
-            continue
-
-        def pinned(m: int, pin: int = pin) -> bool:
-            lo, hi = (pin, m) if pin == a else (m, pin)
-            return hi - lo < 2 or _line_fit(samples[lo : hi + 1], samples[pin])[2] <= band
-
-        # the longest part of the run from the pinned end that a line through it keeps
-        far = i1 if pin == a else i0
-        if not pinned(far):
-            good, bad = pin, far
-            while abs(bad - good) > 1:
-                mid = (good + bad) // 2
-                if pinned(mid):
-                    good = mid
-                else:
-                    bad = mid
-            far = good
-        if abs(far - pin) >= 2:
-            lo, hi = (pin, far) if pin == a else (far, pin)
-            i0, i1 = lo, hi
-            q = samples[pin].copy()
-            d = _line_fit(samples[lo : hi + 1], q)[1]
-            break
-    return Anchor(i0, i1, q, d)

@@ -16,19 +16,17 @@ Method (as built)
    the interval) are ranked by how far the *next* piece reaches from their end
    state, and the best few verified ones survive. This keeps junctions mid-band
    with tangents along the curve, the cause of the seed's sequential failures.
-3b. Straight runs (:func:`zwcore.arcpieces.straight_run`): where the fitted chain of a
-   run lays an arc over a straight run of the input -- a *flat* arc (sagitta below
-   ``FLAT_SAGITTA`` tolerances over at least ``FLAT_MIN_LEN``), or an arc whose samples
-   (or half of them) a line keeps within ``STRAIGHT_BAND`` tolerances over a run of at
-   least ``STRAIGHT_MIN_LEN`` tolerances -- the tangent entering the run missed it. The
-   run is refitted with those straight runs (and those under long lines) as *anchors*:
-   the beam then also proposes the arc landing tangentially on the next anchor's line
-   and, from a state on an anchor, the line to the tangent point of the fillet onto the
-   next anchor, and ranks arcs over anchors last; anchors at a run's ends pass through
-   its end point. The refit is kept when it has fewer arcs over straight runs and no
-   more segments. Open: with short fillets between nearby lines or coarse noisy
-   sampling the refit sometimes still misses a run (about 1 in 10 generated
-   line-and-fillet curves keep one arc of huge radius; ``tests/test_arcs.py``).
+3b. Straight runs (:mod:`zwcore.arclines`): where the fitted chain of a run lays an
+   arc over a straight run of the input -- a *flat* arc (sagitta below a quarter
+   tolerance over at least 20 tolerances), or an arc whose samples (or half of them) a
+   line keeps within half a tolerance over at least 150 tolerances -- the tangent
+   entering the run missed it. The run is refitted with those straight runs (and those
+   under long lines) as *anchors*: the beam also proposes the arc landing tangentially
+   on the next anchor's line, a biarc landing on it where one arc does not fit, and
+   from a state on an anchor's line the line to the tangent point of the fillet onto
+   the next one; chains with fewer arcs over anchors rank and finish first. Anchors at
+   a run's ends pass through its end point. The refit is kept when it has fewer arcs
+   over straight runs and at most one more segment per arc it removed.
 4. Bridges: a state from which nothing verified can be placed tries a biarc onto
    a nearby sample with the polyline's direction (the second arc is verified
    with the true distance of its first sample).
@@ -61,14 +59,9 @@ from numpy.typing import ArrayLike, NDArray
 
 from zwcore.arcfit import Fitter, Stuck
 from zwcore.arcgeom import rotate
-from zwcore.arcpieces import (
-    FLAT_MIN_LEN,
-    STRAIGHT_MIN_LEN,
-    Anchor,
-    Piece,
-    is_flat,
-    straight_run,
-)
+from zwcore.arclines import Anchor, StraightRuns, refit_along_straight_runs
+from zwcore.arcpieces import Piece
+from zwcore.arcstart import free_start
 from zwcore.arcverify import densify, deviations
 from zwcore.errors import InvalidInputError
 
@@ -405,9 +398,11 @@ def fit_arcs(
     loop = closed and not cs
 
     def assemble(bridge: bool) -> tuple[list[Piece], list[int], list[int]]:
-        def mk(work: float) -> Fitter:
+        def mk(work: float, anchors: list[Anchor]) -> Fitter:
             f = Fitter(samples, tol, work, max_radius)
             f.use_bridge = bridge
+            if anchors:
+                f.straight = StraightRuns(f.band, anchors)
             return f
 
         def fit_beam(
@@ -415,33 +410,19 @@ def fit_arcs(
         ) -> tuple[list[Piece], list[int]]:
             for work in (0.95, 0.8, 0.6, 0.4):
                 try:
-                    f = mk(work)
-                    f.anchors = anchors
-                    return f.run(a, b, loop, allow_forced=False, t_start=t_start)
+                    return mk(work, anchors).run(a, b, loop, allow_forced=False,
+                                                 t_start=t_start)
                 except Stuck:
                     continue
             # the beam with a filleted-polyline fallback wherever it is stuck: never fails
-            f = mk(0.9)
-            f.anchors = anchors
-            return f.run(a, b, loop, allow_forced=True, t_start=t_start)
+            return mk(0.9, anchors).run(a, b, loop, allow_forced=True, t_start=t_start)
 
         def fit_run(a: int, b: int, t_start: FloatArray | None) -> tuple[list[Piece], list[int]]:
-            got = fit_beam(a, b, t_start, [])
-            pins = {"pin_start": t_start is None and not loop, "pin_end": not loop}
-            bad = _arcs_over_straight(got[0], samples, a, b, tol, **pins)
-            if not bad:
-                return got
-            # arcs over straight runs: the tangent missed the run. Refit with the straight
-            # runs (under them and under the long lines) as anchors the chain follows with
-            # lines; kept when it has fewer such arcs and no more segments.
-            anchors = _anchors_of(got[0], bad, samples, a, b, tol, **pins)
-            if not anchors:
-                return got
-            alt = fit_beam(a, b, t_start, anchors)
-            n_bad = len(_arcs_over_straight(alt[0], samples, a, b, tol, **pins))
-            if n_bad < len(bad) and len(alt[0]) <= len(got[0]):
-                return alt
-            return got
+            # arcs over straight runs (the tangent missed the run) are refitted with those
+            # runs as anchors the chain follows with lines (zwcore.arclines)
+            return refit_along_straight_runs(
+                lambda anchors: fit_beam(a, b, t_start, anchors), samples, a, b, tol,
+                pin_start=t_start is None and not loop, pin_end=not loop)
 
         n_runs = len(bounds) - 1
         results: list[tuple[list[Piece], list[int]] | None] = [None] * n_runs
@@ -480,7 +461,7 @@ def fit_arcs(
         # (the closure lands at a good or a bad place), so a few separate fits from
         # turned start tangents are tried and the shortest valid chain is kept.
         fz = Fitter(samples, tol, 0.95, max_radius)
-        t0, _ = fz.free_start(samples[0].copy(), 0, m_last)
+        t0, _ = free_start(fz.band, samples[0].copy(), 0, m_last)
         for d in LOOP_START_TURNS:
             tt = rotate(t0, d)
             try:
@@ -523,56 +504,6 @@ def fit_arcs(
         tolerance=tol,
         forced_corners=tuple(sorted(set(forced_j))),
     )
-
-
-def _arcs_over_straight(
-    pieces: Sequence[Piece], samples: FloatArray, a: int, b: int, tol: float, *,
-    pin_start: bool, pin_end: bool,
-) -> dict[int, Anchor]:
-    """The arcs of a run's chain that lie over a straight run of the input, with it.
-
-    An arc is over a straight run when it is flat (:func:`~zwcore.arcpieces.is_flat`)
-    or when its samples (or their first, last or middle half) lie within the straight
-    band of a line that grows to a run of at least :data:`STRAIGHT_MIN_LEN` tolerances.
-    """
-    out: dict[int, Anchor] = {}
-    cum_len = None
-    for i, pc in enumerate(pieces):
-        if pc.kappa == 0.0 or pc.length < FLAT_MIN_LEN * tol:
-            continue
-        an = straight_run(samples, pc.k, pc.j, a, b, tol, pin_start, pin_end)
-        if an is None:
-            continue
-        if cum_len is None:
-            cum_len = np.concatenate(
-                [[0.0], np.cumsum(np.hypot(*(np.diff(samples, axis=0).T)))])
-        if is_flat(pc.kappa, pc.length, tol) or (
-                cum_len[an.i1] - cum_len[an.i0] >= STRAIGHT_MIN_LEN * tol):
-            out[i] = an
-    return out
-
-
-def _anchors_of(
-    pieces: Sequence[Piece], bad: dict[int, Anchor], samples: FloatArray, a: int, b: int,
-    tol: float, *, pin_start: bool, pin_end: bool,
-) -> list[Anchor]:
-    """Anchors of a refit: the straight runs under the arcs ``bad`` and the long lines."""
-    out: list[Anchor] = []
-    for i, pc in enumerate(pieces):
-        if out and pc.j <= out[-1].i1:
-            continue
-        an: Anchor | None = None
-        if i in bad:
-            an = bad[i]
-        elif pc.kappa == 0.0 and pc.length >= FLAT_MIN_LEN * tol:
-            an = straight_run(samples, pc.k, pc.j, a, b, tol, pin_start, pin_end)
-        if an is None:
-            continue
-        if out and an.i1 <= out[-1].i1:
-            continue
-        # (runs may overlap where a short fillet joins them: both bands contain it)
-        out.append(an)
-    return out
 
 
 def _replace_end(seg: Segment, end: tuple[float, float]) -> Segment:
