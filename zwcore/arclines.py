@@ -15,11 +15,13 @@ beam's questions about the anchors:
   (:meth:`StraightRuns.landing_biarc`);
 - which arcs lie over a straight run (:meth:`StraightRuns.is_over`), so that chains
   with fewer of them rank first and finish first.
+
+A refit's end may need extra short pieces (its junctions differ a little from the plain
+fit's): pinned ends are also redone from the last few junctions (:func:`_landings`).
 """
 
 from __future__ import annotations
 
-import itertools
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -28,7 +30,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from zwcore.arcgeom import arc_points, local_uv, points_to_segments_distance, sagitta
-from zwcore.arcpieces import Piece, ToleranceBand
+from zwcore.arcpieces import Piece, ToleranceBand, merge_lines
+from zwcore.arcstart import shorter_ends
 
 FloatArray = NDArray[np.float64]
 
@@ -217,9 +220,11 @@ def arcs_over_straight(
 
 def anchors_of(
     pieces: Sequence[Piece], bad: dict[int, Anchor], samples: FloatArray, a: int, b: int,
-    tol: float, *, pin_start: bool, pin_end: bool,
+    tol: float, *, pin_start: bool, pin_end: bool, own_lines: bool = False,
 ) -> list[Anchor]:
-    """Anchors of a refit: the straight runs under the arcs ``bad`` and the long lines."""
+    """Anchors of a refit: the straight runs under the arcs ``bad`` and the long lines
+    (``own_lines``: a long line away from the run's ends on its own line, so the refit
+    can keep the pieces joining it; else on the run's least-squares line)."""
     out: list[Anchor] = []
     for i, pc in enumerate(pieces):
         if out and pc.j <= out[-1].i1:
@@ -229,6 +234,9 @@ def anchors_of(
             an = bad[i]
         elif pc.kappa == 0.0 and pc.length >= FLAT_MIN_LEN * tol:
             an = straight_run(samples, pc.k, pc.j, a, b, tol, pin_start, pin_end)
+            if own_lines and an is not None and not (
+                    np.array_equal(an.q, samples[a]) or np.array_equal(an.q, samples[b])):
+                an = Anchor(an.i0, an.i1, pc.p.copy(), pc.t.copy())
         if an is None:
             continue
         if out and an.i1 <= out[-1].i1:
@@ -248,7 +256,7 @@ FitResult = tuple[list[Piece], list[int]]
 
 def refit_along_straight_runs(
     fit: Callable[[list[Anchor]], FitResult], samples: FloatArray, a: int, b: int,
-    tol: float, *, pin_start: bool, pin_end: bool,
+    tol: float, *, pin_start: bool, pin_end: bool, band: ToleranceBand | None = None,
 ) -> FitResult:
     """Fit samples ``a..b`` and, where the chain lays arcs over straight runs, refit.
 
@@ -259,52 +267,94 @@ def refit_along_straight_runs(
         and the forced-corner indices.
     samples : ndarray, shape (M, 2)
         The sample polyline.
-    a, b : int
-        The run's first and last sample.
-    tol : float
-        The tolerance.
+    a, b, tol : int, int, float
+        The run's first and last sample; the tolerance.
     pin_start, pin_end : bool
         The chain passes through sample ``a`` / ``b`` with a free tangent there: a
         straight run reaching it gets the line through it (:func:`straight_run`).
+    band : ToleranceBand, optional
+        The band to verify replacement ends in (:func:`~zwcore.arcstart.shorter_ends`).
 
     Returns
     -------
     tuple
-        The refit when it has fewer arcs over straight runs and at most one more
-        segment per arc it removed (a line where the input is straight is worth a
-        segment), else the plain fit.
+        The best refit (fewest arcs over straight runs, then fewest segments) with fewer
+        arcs over straight runs and at most one more segment per arc it removed (a line
+        where the input is straight is worth a segment), else the plain fit. The long
+        lines are anchored on the run's least-squares lines, else on their own lines;
+        for a pinned end the refit's and the plain fit's ends are also redone with fewer
+        pieces (:func:`~zwcore.arcstart.shorter_ends`, :func:`_landings`).
     """
     got = _merge_lines(fit([]))
     pins = {"pin_start": pin_start, "pin_end": pin_end}
     bad = arcs_over_straight(got[0], samples, a, b, tol, **pins)
-    if not bad:
-        return got
-    anchors = anchors_of(got[0], bad, samples, a, b, tol, **pins)
-    if not anchors:
-        return got
-    alt = _merge_lines(fit(anchors))
-    n_bad = len(arcs_over_straight(alt[0], samples, a, b, tol, **pins))
-    if n_bad < len(bad) and len(alt[0]) <= len(got[0]) + len(bad) - n_bad:
-        return alt
-    return got
+    best, best_key = got, (len(bad), 0)
+    tried: list[list[tuple[float, ...]]] = []
+    for own in (False, True) if bad else ():
+        anchors = anchors_of(got[0], bad, samples, a, b, tol, **pins, own_lines=own)
+        key = [(an.i0, an.i1, *an.q, *an.d) for an in anchors]
+        if not anchors or key in tried:
+            continue
+        tried.append(key)
+        alts = [_merge_lines(fit(anchors))]
+        if band is not None and pin_end:
+            ends = [got[0][-1].t_end, alts[0][0][-1].t_end]
+            land = _landings(anchors[-1], band, b)
+            for base, forced in (alts[0], got):
+                if not forced:
+                    alts.extend((ch, []) for ch in shorter_ends(base, band, b, ends, land))
+        for alt in alts:
+            n_bad = len(arcs_over_straight(alt[0], samples, a, b, tol, **pins))
+            extra = len(alt[0]) - len(got[0])
+            if n_bad < len(bad) and extra <= len(bad) - n_bad and (n_bad, extra) < best_key:
+                best, best_key = alt, (n_bad, extra)
+        if best_key[0] == 0:
+            break
+    return best
+
+
+def _landings(
+    an: Anchor, band: ToleranceBand, b: int
+) -> Callable[[Piece, float], list[list[Piece]]]:
+    """Ends of a run on the straight run ``an`` pinned through its end sample ``b``: from
+    the start of a piece (and the distance of its first sample), the arc (or biarc)
+    landing tangentially on the line and the line to ``b`` (see :func:`shorter_ends`)."""
+    runs = StraightRuns(band, [an])
+    pinned = an.i1 == b and bool(np.array_equal(an.q, band.samples[b]))
+
+    def land(pc: Piece, e: float) -> list[list[Piece]]:
+        if not pinned or pc.k >= an.i1 - 1:
+            return []
+        out: list[list[Piece]] = []
+        for j, kap, _end, tend, s_end in runs.candidates(pc.p, pc.t, pc.k, b):
+            res = band.verify(pc.p, pc.t, kap, pc.k, j, e, sig_end=s_end)
+            if kap != 0.0 and res is not None:
+                arc = band.make_piece(pc.p, pc.t, kap, pc.k, j, res)
+                arc.t_end = tend.copy()
+                out.append([arc])
+        if not out:
+            two = runs.landing_biarc(pc.p, pc.t, pc.k, e, b)
+            out = [two] if two is not None else []
+        for pieces in out:
+            last = pieces[-1]
+            res = band.verify(last.end, last.t_end, 0.0, last.j, b, last.e_end) if (
+                last.j < b) else None
+            if res is None:
+                pieces.clear()
+                continue
+            line = band.make_piece(last.end, last.t_end, 0.0, last.j, b, res)
+            line.end = band.samples[b].copy()
+            line.t_end = last.t_end.copy()
+            pieces.append(line)
+        return [pieces for pieces in out if pieces]
+
+    return land
 
 
 def _merge_lines(got: FitResult) -> FitResult:
-    """The fit with consecutive lines merged (at a C1 junction two lines are collinear:
-    their union is one line covering the same samples); forced-corner indices kept."""
-    pieces, forced = got
-    if forced or not any(
-            a.kappa == 0.0 and c.kappa == 0.0 for a, c in itertools.pairwise(pieces)):
-        return got
-    out: list[Piece] = []
-    for pc in pieces:
-        prev = out[-1] if out else None
-        if prev is not None and prev.kappa == 0.0 and pc.kappa == 0.0:
-            out[-1] = Piece(prev.p, prev.t, 0.0, prev.length + pc.length, prev.k, pc.j,
-                            pc.end, prev.t.copy(), pc.e_end)
-        else:
-            out.append(pc)
-    return out, forced
+    """The fit with consecutive lines merged (:func:`~zwcore.arcpieces.merge_lines`),
+    unless it has forced corners (their indices would shift)."""
+    return got if got[1] else (merge_lines(got[0]), got[1])
 
 
 # ---------------------------------------------------------------------------

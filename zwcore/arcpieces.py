@@ -35,7 +35,7 @@ from zwcore.arcgeom import (
 
 FloatArray = NDArray[np.float64]
 
-__all__ = ["Piece", "ToleranceBand"]
+__all__ = ["Piece", "ToleranceBand", "merge_lines"]
 
 
 @dataclass
@@ -509,3 +509,17 @@ class ToleranceBand:
                 a2.e_end = float(np.hypot(*(self.samples[b] - p1)))
             return [a1, a2]
         return None
+
+
+def merge_lines(pieces: list[Piece]) -> list[Piece]:
+    """``pieces`` with consecutive lines merged (at a C1 junction two lines are collinear:
+    their union is one line covering the same samples)."""
+    out: list[Piece] = []
+    for pc in pieces:
+        prev = out[-1] if out else None
+        if prev is not None and prev.kappa == 0.0 and pc.kappa == 0.0:
+            out[-1] = Piece(prev.p, prev.t, 0.0, prev.length + pc.length, prev.k, pc.j,
+                            pc.end, prev.t.copy(), pc.e_end)
+        else:
+            out.append(pc)
+    return out

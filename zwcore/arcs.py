@@ -25,8 +25,11 @@ Method (as built)
    on the next anchor's line, a biarc landing on it where one arc does not fit, and
    from a state on an anchor's line the line to the tangent point of the fillet onto
    the next one; chains with fewer arcs over anchors rank and finish first. Anchors at
-   a run's ends pass through its end point. The refit is kept when it has fewer arcs
-   over straight runs and at most one more segment per arc it removed.
+   a run's ends pass through its end point. Long lines are anchored on the run's
+   least-squares line, else on their own line; a pinned end is also redone from the
+   last few junctions (:func:`zwcore.arcstart.shorter_ends`). The best refit is kept
+   when it has fewer arcs over straight runs and at most one more segment per arc it
+   removed.
 4. Bridges: a state from which nothing verified can be placed tries a biarc onto
    a nearby sample with the polyline's direction (the second arc is verified
    with the true distance of its first sample).
@@ -422,7 +425,8 @@ def fit_arcs(
             # runs as anchors the chain follows with lines (zwcore.arclines)
             return refit_along_straight_runs(
                 lambda anchors: fit_beam(a, b, t_start, anchors), samples, a, b, tol,
-                pin_start=t_start is None and not loop, pin_end=not loop)
+                pin_start=t_start is None and not loop, pin_end=not loop,
+                band=mk(0.95, []).band)
 
         n_runs = len(bounds) - 1
         results: list[tuple[list[Piece], list[int]] | None] = [None] * n_runs

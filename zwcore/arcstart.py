@@ -4,12 +4,14 @@ A run of the C1 chain (:mod:`zwcore.arcfit`) that starts at the curve's first po
 at a corner has no tangent handed to it: :func:`free_start` picks the one from which the
 first piece reaches furthest (a line when it reaches nearly as far). A run that one piece
 covers is that piece (:func:`one_piece_to_end`), and a closed curve that one circle fits
-is that full circle (:func:`full_circle`).
+is that full circle (:func:`full_circle`). A fitted run's end can sometimes be done
+with fewer pieces from the start of one of its last pieces (:func:`shorter_ends`).
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 from numpy.typing import NDArray
@@ -19,7 +21,9 @@ from zwcore.arcpieces import Piece, ToleranceBand
 
 FloatArray = NDArray[np.float64]
 
-__all__ = ["free_start", "free_start_tangents", "full_circle", "one_piece_to_end"]
+__all__ = [
+    "free_start", "free_start_tangents", "full_circle", "one_piece_to_end", "shorter_ends",
+]
 
 
 def free_start(band: ToleranceBand, p: FloatArray, k: int, b: int) -> tuple[FloatArray, int]:
@@ -151,3 +155,35 @@ def full_circle(band: ToleranceBand, a: int, b: int) -> Piece | None:
     piece = band.make_piece(p, t, kap, a, b, (2.0 * math.pi / abs(kap), p.copy(), 0.0))
     piece.t_end = t.copy()
     return piece
+
+
+def shorter_ends(
+    pieces: list[Piece], band: ToleranceBand, b: int, ends: list[FloatArray],
+    more: Callable[[Piece, float], list[list[Piece]]] | None = None,
+) -> list[list[Piece]]:
+    """``pieces`` (a run ending at sample ``b``) with their end replaced by no more pieces.
+
+    From the start of one of the last few pieces: the single piece to ``b``, the biarc to
+    ``b`` arriving along one of the tangents ``ends``, and the pieces ``more`` proposes
+    from that piece's start (given the piece and the distance of its first sample). A
+    refit whose junctions differ a little from the plain fit's may need extra short
+    pieces at its end; these endings do without them.
+    """
+    out: list[list[Piece]] = []
+    for s in range(len(pieces) - 2, max(len(pieces) - 7, 0) - 1, -1):
+        pc = pieces[s]
+        if pc.k >= b - 1:
+            continue
+        e = pieces[s - 1].e_end if s > 0 else 0.0
+        tails: list[list[Piece]] = []
+        one = band.piece_to_sample(pc.p, pc.t, pc.k, e, b)
+        if one is not None:
+            tails.append([one])
+        for t1 in ends:
+            two = band.biarc(pc.p, pc.t, pc.k, e, b, t1)
+            if two is not None:
+                tails.append(two)
+        if more is not None:
+            tails.extend(more(pc, e))
+        out.extend([*pieces[:s], *tail] for tail in tails if s + len(tail) <= len(pieces))
+    return out
