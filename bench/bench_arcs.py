@@ -28,7 +28,7 @@ from scipy.optimize import minimize
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from curves import ARCWELDER_REFERENCE, BENCH_CURVES, ellipse
+from curves import ARCWELDER_REFERENCE, BENCH_CURVES, coarse_ellipse, coarse_spiral, ellipse
 
 from zwcore.arcs import fit_arcs
 
@@ -162,6 +162,16 @@ def main() -> None:
         print(f"{len(pts):9d} {step:10.5f} {len(chain.segments):4d} {dt:7.3f}"
               f" {1e6 * dt / len(pts):9.2f} {ratio:>13s}")
         prev = (len(pts), dt)
+    # coarse polygons at a tight tolerance: every edge a straight run, a line per edge
+    # and a fillet per vertex (about two segments a point); the time must stay linear
+    print("\nCoarse polygon, tol 0.01 (a line per edge, a fillet per vertex)")
+    print(f"{'curve':22s} {'points':>6s} {'seg':>4s} {'arc':>4s} {'line':>4s} {'time s':>7s}")
+    coarse = [(f"spiral {n} pts", *coarse_spiral(n)) for n in (42, 84, 168)]
+    coarse += [(f"ellipse 30x15 {n} pts", *coarse_ellipse(n)) for n in (42, 84)]
+    for label, pts, closed in coarse:
+        dt, chain = _timed(pts, closed, 0.01)
+        print(f"{label:22s} {len(pts):6d} {len(chain.segments):4d} {chain.n_arcs:4d}"
+              f" {chain.n_lines:4d} {dt:7.3f}")
     print("\nArcWelder 2.0 on the 0.02 mm ellipse (24,223 points): 10.3 s (issue text)")
     _ = math.pi
 

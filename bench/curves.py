@@ -21,6 +21,8 @@ __all__ = [
     "archimedean_spiral",
     "circle",
     "clothoid",
+    "coarse_ellipse",
+    "coarse_spiral",
     "die_edge",
     "ellipse",
     "naca2412",
@@ -155,6 +157,22 @@ BENCH_CURVES: dict[str, Callable[..., tuple[FloatArray, bool]]] = {
     "naca2412": naca2412,
     "die_edge": die_edge,
 }
+
+def coarse_spiral(n: int = 84, per_turn: int = 42) -> tuple[FloatArray, bool]:
+    """A coarse polygon of an Archimedean-like spiral (r = 30 + 3 t): ``n`` points,
+    ``per_turn`` a turn, open. At a tight tolerance (0.01) every edge is a straight run
+    hundreds of tolerances long: a line per edge and a small fillet at each vertex."""
+    t = 2.0 * np.pi * np.arange(n) / per_turn
+    r = 30.0 + 3.0 * t
+    return np.stack([r * np.cos(t), r * np.sin(t)], axis=1), False
+
+
+def coarse_ellipse(n: int = 42, a: float = 30.0, b: float = 15.0) -> tuple[FloatArray, bool]:
+    """A coarse closed polygon of ``n`` points on an ellipse ``a x b`` (see
+    :func:`coarse_spiral`)."""
+    t = 2.0 * np.pi * np.arange(n) / n
+    return np.stack([a * np.cos(t), b * np.sin(t)], axis=1), True
+
 
 #: ArcWelder 2.0 at the same tolerance (issue text): arcs, lines (None: not given)
 ARCWELDER_REFERENCE: dict[str, tuple[int | None, int | None]] = {

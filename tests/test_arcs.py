@@ -22,7 +22,7 @@ from zwcore.errors import InvalidInputError
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))
 import itertools
 
-from curves import ARCWELDER_REFERENCE, BENCH_CURVES
+from curves import ARCWELDER_REFERENCE, BENCH_CURVES, coarse_ellipse
 
 # ----------------------------------------------------------------------------
 # independent geometry helpers
@@ -788,3 +788,35 @@ def test_repeated_points_hypothesis(big, n_before, n_after, tol, size, closed):
     pts = np.vstack([np.repeat(base[None], n_before, 0), base + np.array([size, 0.5 * size]),
                      np.repeat(base[None], n_after, 0)])
     _finite_or_rejected(pts, tol, closed)
+
+
+def test_coarse_ellipse_polygon_tight_tolerance_gives_lines_along_edges():
+    """A 42-point polygon of a 30 x 15 ellipse at tol 0.01: each edge (hundreds of
+    tolerances long) is a straight run and each vertex turns by ~8.6 degrees, below the
+    corner angle. The chain is a valid C1 loop of about a line per edge and a fillet per
+    vertex: no arc of huge radius, and all edges but the two meeting at the loop's start
+    point (where the closure joins) are followed by a line over most of their length.
+    (This input once took minutes: the fit's work is now linear in the segments.)"""
+    pts, closed = coarse_ellipse(42)
+    tol = 0.01
+    chain = fit_arcs(pts, tol, closed=closed)
+    assert_valid(chain, pts, tol, closed)
+    assert chain.corners == ()
+    assert flat_arcs(chain, tol) == []
+    assert len(chain.segments) <= 2 * len(pts) + 2
+    lines = [s for s in chain.segments if s.kind == "line"]
+    followed = 0
+    for i in range(len(pts)):
+        a, b = pts[i], pts[(i + 1) % len(pts)]
+        length = float(np.hypot(*(b - a)))
+        d = (b - a) / length
+        best = 0.0
+        for s in lines:
+            s0, s1 = np.array(s.start), np.array(s.end)
+            if max(abs(float(d[0] * (q - a)[1] - d[1] * (q - a)[0])) for q in (s0, s1)) > tol:
+                continue
+            lo = max(0.0, min(float(d @ (s0 - a)), float(d @ (s1 - a))))
+            hi = min(length, max(float(d @ (s0 - a)), float(d @ (s1 - a))))
+            best = max(best, hi - lo)
+        followed += best >= 0.5 * length
+    assert followed >= len(pts) - 2, followed

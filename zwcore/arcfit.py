@@ -33,7 +33,6 @@ from numpy.typing import NDArray
 
 from zwcore.arcfallback import fillet_stretch
 from zwcore.arcgeom import (
-    arc_length_position,
     arc_points,
     local_uv,
     rotate,
@@ -57,7 +56,8 @@ class _State:
 
     ``p`` stands for sample ``k`` at distance ``e``; ``piece`` is the piece that
     ended here (None at the run start), ``parent`` the state it started from,
-    ``t_first`` the chain's first tangent (a loop must close onto it).
+    ``t_first`` the chain's first tangent (a loop must close onto it); ``n_over``
+    counts the chain's arcs over straight runs once known (:meth:`Fitter._n_over`).
     """
 
     p: FloatArray
@@ -69,6 +69,10 @@ class _State:
     t_first: FloatArray | None
     depth: int
     fresh: bool = False
+    n_over: int | None = None
+    #: :meth:`ToleranceBand.longest_piece_bounds` from here, once asked (see
+    #: :meth:`Fitter._bounds`)
+    bounds: tuple[FloatArray, FloatArray] | None = None
 
 
 @dataclass
@@ -97,6 +101,15 @@ def _unwind(st: _State) -> list[Piece]:
         node = node.parent
     out.reverse()
     return out
+
+
+def _approx_len(c: _Cand, chord: float) -> float:
+    """Length of candidate ``c`` whose chord is ``chord`` long (its given length, or the
+    chord's arc)."""
+    if c.sig_end is not None:
+        return c.sig_end
+    x = 0.5 * c.kappa * chord
+    return chord * (math.asin(min(abs(x), 1.0)) / abs(x) if x != 0.0 else 1.0)
 
 
 class Fitter:
@@ -138,6 +151,8 @@ class Fitter:
         self.samples = samples
         self.tol = tol
         self.cum = self.band.cum
+        self._j_fractions = np.array(self.J_FRACTIONS)
+        self._k_fractions = np.array(self.band.K_FRACTIONS)
         #: straight runs the chain should follow with lines; when set, pieces onto them
         #: are proposed and chains with fewer arcs over them rank and finish first
         self.straight: StraightRuns | None = None
@@ -179,16 +194,17 @@ class Fitter:
                 starts = [d0, *starts]  # a straight run from the start: its line first
         level: list[_State] = [_State(p0, t, a, 0.0, None, None, t, 0) for t in starts]
         forced_at: list[int] = []
-        flat_fin: tuple[list[Piece], int] | None = None
+        # (chain, levels left, its arcs over straight runs)
+        flat_fin: tuple[list[Piece], int, int] | None = None
         while True:
             if flat_fin is not None:
                 if flat_fin[1] == 0:
                     return flat_fin[0], forced_at
-                flat_fin = (flat_fin[0], flat_fin[1] - 1)
+                flat_fin = (flat_fin[0], flat_fin[1] - 1, flat_fin[2])
             # finish from any state of this level (with anchors: the chain with the fewest
             # arcs over straight runs; one with such arcs only when no state of this
             # level or the next two finishes without)
-            fins: list[list[Piece]] = []
+            fins: list[tuple[int, list[Piece]]] = []
             for st in level:
                 assert st.t is not None
                 if not loop:
@@ -196,22 +212,22 @@ class Fitter:
                     if fin2 is not None:
                         if sr is None:
                             return [*_unwind(st), fin2], forced_at
-                        fins.append([*_unwind(st), fin2])
+                        fins.append((self._n_over(st) + sr.is_over(
+                            fin2.k, fin2.j, fin2.kappa, fin2.length), [*_unwind(st), fin2]))
                 elif st.parent is not None:
                     assert st.t_first is not None
-                    clo = self._try_close(st.p, st.t, st.k, st.e, b, st.t_first)
+                    clo = self._try_close(st, b, st.t_first)
                     if clo is not None:
                         return _unwind(st) + clo, forced_at
             if fins:
                 assert sr is not None
-                best = min(fins, key=sr.count_over)
-                n_over = sr.count_over(best)
+                n_over, best = min(fins, key=lambda f: f[0])
                 if n_over == 0:
                     return best, forced_at
                 if flat_fin is None:
-                    flat_fin = (best, 2)
-                elif n_over < sr.count_over(flat_fin[0]):
-                    flat_fin = (best, flat_fin[1])
+                    flat_fin = (best, 2, n_over)
+                elif n_over < flat_fin[2]:
+                    flat_fin = (best, flat_fin[1], n_over)
             nxt = self._expand(level, b)
             if nxt:
                 level = nxt
@@ -253,39 +269,60 @@ class Fitter:
 
     def _candidates(self, st: _State, b: int) -> list[_Cand]:
         """Candidate pieces from a state (unverified)."""
-        band = self.band
         p, t, k = st.p, st.t, st.k
         assert t is not None
         jlimit = b - 1
         if jlimit <= k:
             return []
-        lo1, up1 = band.longest_piece_bounds(p, t, k, b)
+        lo1, up1 = self._bounds(st, b)
         jm = min(k + len(lo1), jlimit)
         if jm <= k:
             return []
         span = self.cum[jm] - self.cum[k]
-        js = sorted(
-            {
-                int(min(max(np.searchsorted(self.cum, self.cum[k] + f * span, side="right") - 1,
-                            k + 1), jm))
-                for f in self.J_FRACTIONS
-            },
-            reverse=True,
-        )
+        at = np.searchsorted(self.cum, self.cum[k] + self._j_fractions * span, side="right")
+        js = sorted({min(max(int(i) - 1, k + 1), jm) for i in at}, reverse=True)
+        jj, kk = self._candidate_kappas(js, k, lo1, up1)
         out = []
-        for j in js:
-            kap = band.candidate_kappas(float(lo1[j - k - 1]), float(up1[j - k - 1]))
-            uj, vj = local_uv(p, t, self.samples[j : j + 1])
-            for kk in kap:
-                sj = arc_length_position(uj, vj, float(kk))
-                end = arc_points(p, t, float(kk), sj)[0]
-                tend = rotate(t, float(kk) * float(sj[0]))
-                bonus = 0.3 * float(self.cum[j] - self.cum[k]) if kk == 0.0 else 0.0
-                out.append(_Cand(j, float(kk), end, tend, bonus))
+        if jj.size:
+            # all candidates at once (numpy's overhead per call dominates one-point calls):
+            # the foot point of sample j on each piece, its end point and end tangent
+            u, v = local_uv(p, t, self.samples[jj])
+            line = kk == 0.0
+            sj = np.where(line, u, np.arctan2(kk * u, 1.0 - kk * v) / np.where(line, 1.0, kk))
+            ends = arc_points(p, t, kk, sj)
+            tends = rotate(t, kk * sj)
+            bonus = np.where(line, 0.3 * (self.cum[jj] - self.cum[k]), 0.0).tolist()
+            for i, (j, kap) in enumerate(zip(jj.tolist(), kk.tolist(), strict=True)):
+                out.append(_Cand(j, kap, ends[i], tends[i], bonus[i]))
         if self.straight is not None:
-            for j, kk, end, tend, s_end in self.straight.candidates(p, t, k, b):
-                out.append(_Cand(j, kk, end, tend, 0.0, s_end, True))
+            for j, kap, end, tend, s_end in self.straight.candidates(p, t, k, b):
+                out.append(_Cand(j, kap, end, tend, 0.0, s_end, True))
         return out
+
+    def _candidate_kappas(
+        self, js: list[int], k: int, lo1: FloatArray, up1: FloatArray
+    ) -> tuple[NDArray[np.int64], FloatArray]:
+        """The ends and curvatures of the candidates from a state at sample ``k``:
+        :meth:`ToleranceBand.candidate_kappas` for each end ``j`` of ``js`` (running bounds
+        ``lo1, up1``), in that order, as flat arrays."""
+        band = self.band
+        if band.kmin > 0.0:
+            pairs = [(j, kap) for j in js for kap in band.candidate_kappas(
+                float(lo1[j - k - 1]), float(up1[j - k - 1]))]
+            return (np.array([q[0] for q in pairs], dtype=np.int64),
+                    np.array([q[1] for q in pairs], dtype=np.float64))
+        ja = np.array(js, dtype=np.int64)
+        lo = np.maximum(lo1[ja - k - 1], -band.kcap)
+        hi = np.minimum(up1[ja - k - 1], band.kcap)
+        ok = lo <= hi
+        # per end: a line first when allowed, then the fractions of the interval
+        vals = np.concatenate(
+            [np.zeros((len(ja), 1)),
+             lo[:, None] + self._k_fractions[None, :] * (hi - lo)[:, None]], axis=1)
+        mask = np.concatenate(
+            [(ok & (lo <= 0.0) & (hi >= 0.0))[:, None],
+             np.repeat(ok[:, None], len(self._k_fractions), axis=1)], axis=1)
+        return np.repeat(ja[:, None], vals.shape[1], axis=1)[mask], vals[mask]
 
     def _expand(self, level: list[_State], b: int) -> list[_State]:
         """The next level: the best verified pieces from all states, by look-ahead reach.
@@ -312,13 +349,15 @@ class Fitter:
             isarc = np.array([r[1].kappa != 0.0 for r in rows])
             sr = self.straight
             if sr is not None:
+                sp = np.array([level[r[0]].p for r in rows])
+                chord = np.hypot(ep[:, 0] - sp[:, 0], ep[:, 1] - sp[:, 1]).tolist()
                 flat = np.array([
-                    sr.is_over(level[r[0]].k, r[1].j, r[1].kappa,
-                               self._approx_len(level[r[0]], r[1]))
-                    for r in rows])
+                    c.kappa != 0.0 and sr.is_over(level[si].k, c.j, c.kappa,
+                                                  _approx_len(c, chord[i]))
+                    for i, (si, c) in enumerate(rows)])
                 special = np.array([r[1].special for r in rows])
                 # arcs over straight runs in the chain so far, this candidate's included
-                before = [sr.count_over(_unwind(st)) for st in level]
+                before = [self._n_over(st) for st in level]
                 n_over = np.array([before[r[0]] for r in rows]) + flat
                 order = np.lexsort((-js, isarc, -score, n_over))
                 order = np.concatenate([order[special[order]], order[~special[order]]])
@@ -357,7 +396,8 @@ class Fitter:
             self._landed = []
             for st in level:
                 assert st.t is not None
-                got = self.straight.landing_biarc(st.p, st.t, st.k, st.e, b)
+                got = self.straight.landing_biarc(st.p, st.t, st.k, st.e, b,
+                                                  len(self._bounds(st, b)[0]))
                 if got is not None:
                     a1, a2 = got
                     mid = _State(a1.end, a1.t_end, a1.j, a1.e_end, st, a1, st.t_first,
@@ -367,7 +407,7 @@ class Fitter:
         if not out:
             for st in level:
                 assert st.t is not None
-                lo1, up1 = band.longest_piece_bounds(st.p, st.t, st.k, b)
+                lo1, up1 = self._bounds(st, b)
                 jm = min(st.k + len(lo1), b - 1)
                 if jm <= st.k:
                     continue
@@ -406,13 +446,32 @@ class Fitter:
             j = k + max(1, (j - k) // 2)
         return None
 
-    def _approx_len(self, st: _State, c: _Cand) -> float:
-        """Length of candidate ``c`` from ``st`` (its given length, or the chord's arc)."""
-        if c.sig_end is not None:
-            return c.sig_end
-        chord = float(np.hypot(*(c.end - st.p)))
-        x = 0.5 * c.kappa * chord
-        return chord * (math.asin(min(abs(x), 1.0)) / abs(x) if x != 0.0 else 1.0)
+    def _bounds(self, st: _State, b: int) -> tuple[FloatArray, FloatArray]:
+        """The running curvature bounds of the longest piece from ``st`` (asked for by
+        the candidates, the closing biarc and the landing biarc: computed once)."""
+        if st.bounds is None:
+            assert st.t is not None
+            st.bounds = self.band.longest_piece_bounds(st.p, st.t, st.k, b)
+        return st.bounds
+
+    def _n_over(self, st: _State) -> int:
+        """Arcs over straight runs in the chain ending at ``st``
+        (:meth:`StraightRuns.is_over`), carried along the states: each piece is looked at
+        once, not once per candidate."""
+        sr = self.straight
+        assert sr is not None
+        todo: list[_State] = []
+        node: _State | None = st
+        while node is not None and node.n_over is None:
+            todo.append(node)
+            node = node.parent
+        count = node.n_over if node is not None and node.n_over is not None else 0
+        for nd in reversed(todo):
+            pc = nd.piece
+            if pc is not None:
+                count += sr.is_over(pc.k, pc.j, pc.kappa, pc.length)
+            nd.n_over = count
+        return count
 
     # -- ways out of a stuck level ---------------------------------------------
 
@@ -472,16 +531,16 @@ class Fitter:
 
     # -- closing a loop ----------------------------------------------------------
 
-    def _try_close(
-        self, p: FloatArray, t: FloatArray, k: int, e: float, b: int, t1: FloatArray
-    ) -> list[Piece] | None:
+    def _try_close(self, st: _State, b: int, t1: FloatArray) -> list[Piece] | None:
         """A closing biarc from ``(p, t)`` onto sample ``b`` with tangent ``t1``.
 
         A biarc can span about two pieces' worth: it is tried once the rest is within
         :attr:`CLOSE_SPAN` single-piece reaches of this state.
         """
-        lo1, _up1 = self.band.longest_piece_bounds(p, t, k, b)
+        assert st.t is not None
+        k = st.k
+        lo1, _up1 = self._bounds(st, b)
         reach = self.cum[min(k + len(lo1), b)] - self.cum[k]
         if self.cum[b] - self.cum[k] > self.CLOSE_SPAN * max(reach, 1e-300):
             return None
-        return self.band.biarc(p, t, k, e, b, t1)
+        return self.band.biarc(st.p, st.t, k, st.e, b, t1)

@@ -12,6 +12,8 @@ Units: mm and radians.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numpy.typing import NDArray
 
@@ -19,14 +21,19 @@ FloatArray = NDArray[np.float64]
 
 __all__ = [
     "arc_length_position",
+    "arc_point",
     "arc_points",
     "circle_gap",
     "kappa_bounds",
+    "line_fit",
     "local_uv",
     "point_to_arc_distance",
     "points_to_segments_distance",
     "rotate",
+    "rotate1",
     "sagitta",
+    "sagitta1",
+    "unwrap",
 ]
 
 
@@ -37,6 +44,16 @@ def rotate(t: FloatArray, angle: float | FloatArray) -> FloatArray:
     x = t[..., 0]
     y = t[..., 1]
     return np.stack([c * x - s * y, s * x + c * y], axis=-1)
+
+
+def rotate1(t: FloatArray, angle: float) -> FloatArray:
+    """:func:`rotate` of one unit vector ``(2,)`` by a scalar angle, in scalar arithmetic
+    (the same figures without numpy's overhead on two elements)."""
+    c = math.cos(angle)
+    s = math.sin(angle)
+    x = float(t[0])
+    y = float(t[1])
+    return np.array([c * x - s * y, s * x + c * y])
 
 
 def local_uv(p: FloatArray, t: FloatArray, pts: FloatArray) -> tuple[FloatArray, FloatArray]:
@@ -88,9 +105,13 @@ def arc_length_position(u: FloatArray, v: FloatArray, kappa: float) -> FloatArra
 
 
 def arc_points(
-    p: FloatArray, t: FloatArray, kappa: float, sigma: FloatArray
+    p: FloatArray, t: FloatArray, kappa: float | FloatArray, sigma: FloatArray
 ) -> FloatArray:
-    """Points ``(M, 2)`` at arc lengths ``sigma`` ``(M,)`` along the piece (stable for kappa=0)."""
+    """Points ``(M, 2)`` at arc lengths ``sigma`` ``(M,)`` along the piece (stable for kappa=0).
+
+    ``kappa`` may also be an ``(M,)`` array: point ``i`` lies on the piece of curvature
+    ``kappa[i]`` from ``(p, t)``.
+    """
     sigma = np.asarray(sigma, dtype=np.float64)
     a = kappa * sigma
     # sin(a)/kappa = sigma*sinc(a/pi); (1-cos a)/kappa = sigma*(a/2)*sinc(a/(2 pi))^2
@@ -100,11 +121,64 @@ def arc_points(
     return p[None, :] + x[:, None] * t[None, :] + y[:, None] * n[None, :]
 
 
+def arc_point(p: FloatArray, t: FloatArray, kappa: float, sigma: float) -> FloatArray:
+    """:func:`arc_points` at one arc length, in scalar arithmetic (the same figures)."""
+    a = kappa * sigma
+    x = sigma * _sinc(a / math.pi)
+    y = sigma * (0.5 * a) * _sinc(a / (2.0 * math.pi)) ** 2
+    tx = float(t[0])
+    ty = float(t[1])
+    return np.array([float(p[0]) + x * tx + y * -ty, float(p[1]) + x * ty + y * tx])
+
+
+def _sinc(x: float) -> float:
+    """``numpy.sinc`` of one number."""
+    y = math.pi * (x if x != 0.0 else 1.0e-20)
+    return math.sin(y) / y
+
+
+def unwrap(phi: FloatArray) -> FloatArray:
+    """``numpy.unwrap(phi)`` (1-D), without its overhead when no step reaches pi."""
+    dd = np.diff(phi)
+    if dd.size and not float(np.abs(dd).max()) < math.pi:
+        return np.unwrap(phi)
+    out = np.array(phi, dtype=np.float64, copy=True)
+    out[1:] += 0.0  # (as numpy.unwrap adds its zero corrections: -0.0 becomes 0.0)
+    return out
+
+
 def sagitta(kappa: float, length: FloatArray) -> FloatArray:
     """Largest distance between an arc of ``length`` and its chord (0 for lines)."""
     b = 0.25 * kappa * np.asarray(length, dtype=np.float64)
     # 2 sin^2(b)/|kappa| written without dividing by kappa
     return np.abs(length) * np.abs(b) * 0.5 * np.sinc(b / np.pi) ** 2
+
+
+def sagitta1(kappa: float, length: float) -> float:
+    """:func:`sagitta` of one arc, in scalar arithmetic (called per
+    candidate piece: numpy's overhead on one element dominates)."""
+    b = 0.25 * kappa * length
+    if b == 0.0:
+        return 0.0
+    y = math.pi * (b / math.pi)
+    return abs(length) * abs(b) * 0.5 * (math.sin(y) / y) ** 2
+
+
+def line_fit(
+    x: FloatArray, pivot: FloatArray | None = None
+) -> tuple[FloatArray, FloatArray, float]:
+    """Least-squares line through ``x`` (through ``pivot`` if given): a point on it,
+    the unit direction along ``x``'s order, the largest distance of ``x`` from it."""
+    c = x.mean(axis=0) if pivot is None else pivot
+    y = x - c
+    m = y.T @ y
+    # the principal axis of the 2x2 scatter matrix, in closed form
+    th = 0.5 * math.atan2(2.0 * m[0, 1], m[0, 0] - m[1, 1])
+    d = np.array([math.cos(th), math.sin(th)])
+    if float(d @ (x[-1] - x[0])) < 0.0:
+        d = -d
+    off = y[:, 1] * d[0] - y[:, 0] * d[1]
+    return c, d, float(np.abs(off).max()) if len(off) else 0.0
 
 
 def point_to_arc_distance(

@@ -22,6 +22,8 @@ fit's): pinned ends are also redone from the last few junctions (:func:`_landing
 
 from __future__ import annotations
 
+import bisect
+import itertools
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -29,7 +31,14 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from zwcore.arcgeom import arc_points, local_uv, points_to_segments_distance, sagitta
+from zwcore.arcgeom import (
+    arc_point,
+    line_fit,
+    local_uv,
+    points_to_segments_distance,
+    sagitta1,
+    unwrap,
+)
 from zwcore.arcpieces import Piece, ToleranceBand, merge_lines
 from zwcore.arcstart import shorter_ends
 
@@ -74,7 +83,7 @@ def is_flat(kappa: float, length: float, tol: float) -> bool:
     return (
         kappa != 0.0
         and length >= FLAT_MIN_LEN * tol
-        and float(sagitta(kappa, np.array([length]))[0]) < FLAT_SAGITTA * tol
+        and sagitta1(kappa, length) < FLAT_SAGITTA * tol
     )
 
 
@@ -87,23 +96,6 @@ class Anchor:
     i1: int
     q: FloatArray
     d: FloatArray
-
-
-def _line_fit(
-    x: FloatArray, pivot: FloatArray | None = None
-) -> tuple[FloatArray, FloatArray, float]:
-    """Least-squares line through ``x`` (through ``pivot`` if given): a point on it,
-    the unit direction along ``x``'s order, the largest distance of ``x`` from it."""
-    c = x.mean(axis=0) if pivot is None else pivot
-    y = x - c
-    m = y.T @ y
-    # the principal axis of the 2x2 scatter matrix, in closed form
-    th = 0.5 * math.atan2(2.0 * m[0, 1], m[0, 0] - m[1, 1])
-    d = np.array([math.cos(th), math.sin(th)])
-    if float(d @ (x[-1] - x[0])) < 0.0:
-        d = -d
-    off = y[:, 1] * d[0] - y[:, 0] * d[1]
-    return c, d, float(np.abs(off).max()) if len(off) else 0.0
 
 
 def straight_run(
@@ -121,7 +113,7 @@ def straight_run(
     band = STRAIGHT_BAND * tol
 
     def straight(i0: int, i1: int) -> bool:
-        return i1 - i0 < 2 or _line_fit(samples[i0 : i1 + 1])[2] <= band
+        return i1 - i0 < 2 or line_fit(samples[i0 : i1 + 1])[2] <= band
 
     # the whole span, else its end parts or its middle half
     q4 = (j - k) // 4
@@ -154,7 +146,7 @@ def straight_run(
 
     i1 = grow(k, j, b, 1)
     i0 = grow(i1, k, a, -1)
-    q, d, _ = _line_fit(samples[i0 : i1 + 1])
+    q, d, _ = line_fit(samples[i0 : i1 + 1])
     for pin, flag in ((a, pin_start and i0 == a), (b, pin_end and i1 == b)):
         if not flag:
             continue
@@ -162,7 +154,7 @@ def straight_run(
         def pinned(m: int, pin: int = pin) -> bool:
             lo, hi = (pin, m) if pin == a else (m, pin)
             return hi - lo < 2 or (
-                _line_fit(samples[lo : hi + 1], samples[pin])[2] <= PINNED_BAND * tol)
+                line_fit(samples[lo : hi + 1], samples[pin])[2] <= PINNED_BAND * tol)
 
         # the longest part of the run from the pinned end that a line through it keeps
         far = i1 if pin == a else i0
@@ -179,7 +171,7 @@ def straight_run(
             lo, hi = (pin, far) if pin == a else (far, pin)
             i0, i1 = lo, hi
             q = samples[pin].copy()
-            d = _line_fit(samples[lo : hi + 1], q)[1]
+            d = line_fit(samples[lo : hi + 1], q)[1]
             break
     return Anchor(i0, i1, q, d)
 
@@ -393,6 +385,11 @@ class StraightRuns:
         self.samples = band.samples
         self.cum = band.cum
         self.tol = band.tol
+        # anchors in order along the run (last samples increasing, first samples not
+        # decreasing): :meth:`is_over` looks only at those overlapping the piece
+        self._i1 = [an.i1 for an in anchors]
+        self._ordered = all(
+            a1.i1 > a0.i1 and a1.i0 >= a0.i0 for a0, a1 in itertools.pairwise(anchors))
 
     def on_line(self, p: FloatArray, t: FloatArray, an: Anchor) -> bool:
         """True when the junction ``(p, t)`` lies on the anchor's line, along it."""
@@ -417,7 +414,13 @@ class StraightRuns:
             return False
         if is_flat(kappa, length, self.tol):
             return True
-        for an in self.anchors:
+        # an anchor ending before k or starting after j has no share of k..j (and does
+        # not hold it): with ordered anchors only those from the first ending at or after
+        # k up to the last starting at or before j are looked at
+        first = bisect.bisect_left(self._i1, k) if self._ordered else 0
+        for an in self.anchors[first:]:
+            if self._ordered and an.i0 > j:
+                break
             over = self.cum[min(j, an.i1)] - self.cum[max(k, an.i0)]
             if over > 0.5 * (self.cum[an.i1] - self.cum[an.i0]):
                 return True
@@ -426,10 +429,6 @@ class StraightRuns:
                     or (k == an.i0 and np.array_equal(an.q, self.samples[k]))):
                 return True
         return False
-
-    def count_over(self, pieces: Sequence[Piece]) -> int:
-        """Number of ``pieces`` over straight runs (see :meth:`is_over`)."""
-        return sum(self.is_over(pc.k, pc.j, pc.kappa, pc.length) for pc in pieces)
 
     def candidates(self, p: FloatArray, t: FloatArray, k: int, b: int) -> list[AnchorPiece]:
         """Pieces from the junction ``(p, t)`` (sample ``k``) onto the next anchor's line.
@@ -468,7 +467,7 @@ class StraightRuns:
                     s_end = delta / kap
                     j = self._last_before(p, t, kap, k, min(nxt.i1, b - 1), s_end)
                     if j > k:
-                        end = arc_points(p, t, kap, np.array([s_end]))[0]
+                        end = arc_point(p, t, kap, s_end)
                         out.append((j, kap, end, d.copy(), s_end))
         if here is not None:
             # the fillet between this line and the next one
@@ -497,7 +496,8 @@ class StraightRuns:
         return out
 
     def landing_biarc(
-        self, p: FloatArray, t: FloatArray, k: int, e: float, b: int
+        self, p: FloatArray, t: FloatArray, k: int, e: float, b: int,
+        n_reach: int | None = None,
     ) -> list[Piece] | None:
         """Two verified arcs from ``(p, t)`` landing tangentially on the next anchor's line.
 
@@ -506,6 +506,8 @@ class StraightRuns:
         tangent it arrives with is off the fillet's). The arcs end on the line at the
         foot of one of a few samples of the anchor (:attr:`LANDING_OFFSETS`), along it;
         arcs of radius below the tolerance (knots, not landings) are refused.
+        ``n_reach``: the number of samples the longest piece from ``(p, t)`` covers,
+        when known (:meth:`~zwcore.arcpieces.ToleranceBand.longest_piece_bounds`).
         """
         band = self.band
         nxt = None
@@ -515,8 +517,9 @@ class StraightRuns:
                 break
         if nxt is None or k >= nxt.i0:
             return None
-        lo1, _ = band.longest_piece_bounds(p, t, k, b)
-        reach = self.cum[min(k + len(lo1), b)] - self.cum[k]
+        if n_reach is None:
+            n_reach = len(band.longest_piece_bounds(p, t, k, b)[0])
+        reach = self.cum[min(k + n_reach, b)] - self.cum[k]
         first = max(nxt.i0, k + 2)
         # the landing point stands for a sample; at the run's end only for the end sample
         # itself (a line pinned through it)
@@ -548,7 +551,7 @@ class StraightRuns:
             return k
         u, v = local_uv(p, t, self.samples[k + 1 : hi + 1])
         if kap != 0.0:
-            sig = np.unwrap(np.arctan2(kap * u, 1.0 - kap * v)) / kap
+            sig = unwrap(np.arctan2(kap * u, 1.0 - kap * v)) / kap
         else:
             sig = u
         over = np.flatnonzero(sig > s_end)

@@ -23,14 +23,15 @@ import numpy as np
 from numpy.typing import NDArray
 
 from zwcore.arcgeom import (
-    arc_length_position,
+    arc_point,
     arc_points,
     circle_gap,
     kappa_bounds,
     local_uv,
     points_to_segments_distance,
-    rotate,
+    rotate1,
     sagitta,
+    unwrap,
 )
 
 FloatArray = NDArray[np.float64]
@@ -158,37 +159,38 @@ class ToleranceBand:
         if c == 0:
             return reach, lreach
         k0 = int(ks.min())
-        todo = np.arange(c)
-        ltodo = np.ones(c, dtype=bool)
         stride = self.reach_stride
+        wt = self.work_tol
+        # each junction scans the samples of the grid k0+1, k0+1+stride, ... after its
+        # own sample, window after window, carrying its running bounds (no rescans)
+        pos = k0 + 1 + stride * ((ks - k0 - 1) // stride + 1)
+        lo_run = np.full(c, -np.inf)
+        up_run = np.full(c, np.inf)
+        ltodo = np.ones(c, dtype=bool)
+        todo = np.flatnonzero(pos <= b)
         w = 64
         while todo.size:
-            hi = min(b, int(ks[todo].max()) + w)
-            if hi <= k0:
-                break
-            idx = np.arange(k0 + 1, hi + 1, stride)
-            step = max(1, int(3e6 // max(len(idx), 1)))
-            still = []
-            for s0 in range(0, todo.size, step):
-                sub = todo[s0 : s0 + step]
-                win = self.samples[None, k0 + 1 : hi + 1 : stride, :]
-                u, v = local_uv(ps[sub, None, :], ts[sub, None, :], win)
-                mask = idx[None, :] <= ks[sub, None]
-                lo, up = kappa_bounds(u, v, self.work_tol)
-                lo = np.maximum.accumulate(np.where(mask, -np.inf, lo), axis=1)
-                up = np.minimum.accumulate(np.where(mask, np.inf, up), axis=1)
-                bad = lo > up
-                anyb = bad.any(axis=1)
-                reach[sub[anyb]] = idx[np.argmax(bad[anyb], axis=1)] - 1
-                lb = ((np.abs(v) > self.work_tol) | (u < -self.work_tol)) & ~mask
-                lany = lb.any(axis=1)
-                lsel = lany & ltodo[sub]
-                lreach[sub[lsel]] = idx[np.argmax(lb[lsel], axis=1)] - 1
-                ltodo[sub[lsel]] = False
-                still.append(sub[~anyb])
-            todo = np.concatenate(still)
-            if hi == b:
-                break
+            n = max(16, min(max(1, w // stride), int(3e6 // todo.size)))
+            cols = pos[todo, None] + stride * np.arange(n)[None, :]
+            valid = cols <= b
+            u, v = local_uv(ps[todo, None, :], ts[todo, None, :],
+                            self.samples[np.minimum(cols, b)])
+            lo, up = kappa_bounds(u, v, wt)
+            lo = np.maximum(lo_run[todo, None],
+                            np.maximum.accumulate(np.where(valid, lo, -np.inf), axis=1))
+            up = np.minimum(up_run[todo, None],
+                            np.minimum.accumulate(np.where(valid, up, np.inf), axis=1))
+            bad = lo > up
+            anyb = bad.any(axis=1)
+            reach[todo[anyb]] = cols[anyb, np.argmax(bad[anyb], axis=1)] - 1
+            lb = ((np.abs(v) > wt) | (u < -wt)) & valid
+            lsel = lb.any(axis=1) & ltodo[todo]
+            lreach[todo[lsel]] = cols[lsel, np.argmax(lb[lsel], axis=1)] - 1
+            ltodo[todo[lsel]] = False
+            lo_run[todo] = lo[:, -1]
+            up_run[todo] = up[:, -1]
+            pos[todo] += stride * n
+            todo = todo[~anyb & (pos[todo] <= b)]
             w *= 2
         # lines are only reported while the arc scan was still running; beyond, a line
         # never reaches further than the arcs (a line is one of the circles)
@@ -307,7 +309,7 @@ class ToleranceBand:
         if kappa != 0.0:
             phi = np.arctan2(kappa * u, 1.0 - kappa * v)
             phi[0] = 0.0
-            sig = np.unwrap(phi) / kappa
+            sig = unwrap(phi) / kappa
         else:
             sig = u.copy()
             sig[0] = 0.0
@@ -316,7 +318,7 @@ class ToleranceBand:
             sig_end = float(sig[-1])
         if not sig_end > 0.0 or abs(kappa * sig_end) > 2.0 * math.pi + 1e-9:
             return None
-        end = arc_points(p, t, kappa, np.array([sig_end]))[0]
+        end = arc_point(p, t, kappa, sig_end)
         q = np.hypot(u, v)
         de = np.hypot(pts[:, 0] - end[0], pts[:, 1] - end[1])
         before = sig < 0.0
@@ -385,7 +387,7 @@ class ToleranceBand:
     ) -> Piece:
         """The :class:`Piece` of a passed :meth:`verify` (its ``(length, end, e_end)``)."""
         length, end, e_end = verified
-        return Piece(p, t, kappa, length, k, j, end, rotate(t, kappa * length), e_end)
+        return Piece(p, t, kappa, length, k, j, end, rotate1(t, kappa * length), e_end)
 
     # -- pieces with a fixed end -------------------------------------------
 
@@ -402,10 +404,17 @@ class ToleranceBand:
             kap = 0.0
         if not self.radius_ok(kap):
             return None
-        # cheap interval test first
-        lo, up = self.curvature_intervals(p[None, :], t[None, :], k, b)
-        if not (lo[0, -1] - 1e-12 * abs(kap) <= kap <= up[0, -1] + 1e-12 * abs(kap)):
-            return None
+        # cheap interval test first: every sample's curvature interval holds kap; in
+        # growing windows, as most states are far from b and fail within the first
+        slack = 1e-12 * abs(kap)
+        i, w = k, 64
+        while i < b:
+            hi = min(b, i + w)
+            u, v = local_uv(p, t, self.samples[i + 1 : hi + 1])
+            lo, up = kappa_bounds(u, v, self.work_tol)
+            if not (float(lo.max()) - slack <= kap <= float(up.min()) + slack):
+                return None
+            i, w = hi, 4 * w
         res = self.verify(p, t, kap, k, b, e)
         if res is None:
             return None
@@ -421,14 +430,20 @@ class ToleranceBand:
         ``dist`` is the scale below which a curvature counts as a line. None when
         ``q`` is ``p``, the arc is degenerate or its radius is not allowed.
         """
-        u, v = local_uv(p, t, q[None, :])
-        q2 = float(u[0] ** 2 + v[0] ** 2)
+        # (scalar arithmetic: the figures of local_uv and arc_length_position)
+        dx = float(q[0] - p[0])
+        dy = float(q[1] - p[1])
+        tx = float(t[0])
+        ty = float(t[1])
+        u = dx * tx + dy * ty
+        v = dy * tx - dx * ty
+        q2 = u * u + v * v
         if q2 <= 0.0:
             return None
-        k = 2.0 * float(v[0]) / q2
+        k = 2.0 * v / q2
         if abs(k) < 1e-15 * max(1.0 / dist, 1.0):
             k = 0.0  # numerically straight: a line
-        length = float(arc_length_position(u, v, k)[0])
+        length = u if k == 0.0 else math.atan2(k * u, 1.0 - k * v) / k
         if not length > 0.0 or not self.radius_ok(k):
             return None
         return k, length
@@ -458,6 +473,15 @@ class ToleranceBand:
         vt0 = float(vv @ t0)
         vt1 = float(vv @ t1)
         t01 = float(t0 @ t1)
+        p0x, p0y, t0x, t0y = float(p0[0]), float(p0[1]), float(t0[0]), float(t0[1])
+        p1x, p1y, t1x, t1y = float(p1[0]), float(p1[1]), float(t1[0]), float(t1[1])
+        # the samples in the start frame, and the curvatures that keep samples k+1..i
+        # within (a hair more than) tol of the first arc's circle: a first arc outside
+        # them fails verification, so it is not verified (most tried splits end there)
+        uu, vv2 = local_uv(p0, t0, self.samples[k : b + 1])
+        lo_t, up_t = kappa_bounds(uu[1:], vv2[1:], self.tol * (1.0 + 1e-6))
+        lo_t = np.maximum.accumulate(lo_t)
+        up_t = np.minimum.accumulate(up_t)
         for f in splits:
             d1 = f * dist
             den = vt1 - d1 * (t01 - 1.0)
@@ -466,31 +490,35 @@ class ToleranceBand:
             d2 = (0.5 * dist2 - d1 * vt0) / den
             if not (d2 > 0.0 and math.isfinite(d2)):
                 continue
-            jn = (d2 * (p0 + d1 * t0) + d1 * (p1 - d2 * t1)) / (d1 + d2)
+            # (per coordinate: numpy's overhead on two elements dominates)
+            jn = np.array([
+                (d2 * (p0x + d1 * t0x) + d1 * (p1x - d2 * t1x)) / (d1 + d2),
+                (d2 * (p0y + d1 * t0y) + d1 * (p1y - d2 * t1y)) / (d1 + d2)])
             first = self.arc_through(p0, t0, jn, dist)
             if first is None:
                 continue
             k1, s1 = first
-            tj = rotate(t0, k1 * s1)
+            tj = rotate1(t0, k1 * s1)
             # None also when the junction fell on the end point: no second arc.
             second = self.arc_through(jn, tj, p1, dist)
             if second is None:
                 continue
             k2, s2 = second
-            te = rotate(tj, k2 * s2)
+            te = rotate1(tj, k2 * s2)
             if abs(te[0] * t1[1] - te[1] * t1[0]) > 1e-9 or te @ t1 < 0:
                 continue
             # split the samples: those whose foot point lies on the first arc
-            uu, vv2 = local_uv(p0, t0, self.samples[k : b + 1])
             if k1 != 0.0:
                 ph = np.arctan2(k1 * uu, 1.0 - k1 * vv2)
                 ph[0] = 0.0
-                sg = np.unwrap(ph) / k1
+                sg = unwrap(ph) / k1
             else:
                 sg = uu
             over = np.flatnonzero(sg > s1)
             m = k + (int(over[0]) - 1 if over.size else b - k - 1)
             m = min(max(m, k), b - 1)
+            if m > k and not lo_t[m - k - 1] <= k1 <= up_t[m - k - 1]:
+                continue
             r1 = self.verify(p0, t0, k1, k, m, e, sig_end=s1)
             if r1 is None:
                 continue
