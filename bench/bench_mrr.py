@@ -6,7 +6,7 @@ For each grid (1024 x 1024 and 4096 x 4096 float64, a random-walk surface)
 times, in the same run, best of N (each case runs 3 times back to back per
 round, the rounds round-robin so machine noise hits every case alike):
 
-- ``analyse(z, "haar")``: the lifted Haar MRR, all levels;
+- ``analyse(z, "haar")``: the lifted Haar MRR, all levels (also held to one thread);
 - ``analyse(z, "single_knot")``: the lifted single-knot MRR, all levels;
 - ``pywt.wavedec2(z, "haar")``: PyWavelets, all levels (the reference);
 - a plain numpy 2 x 2 max-pool pyramid (only the block maxima; a yardstick).
@@ -28,6 +28,7 @@ import pywt
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from zwcore import _pyramid
 from zwcore.wavelets import analyse
 
 TARGETS = {"lifted haar": 15.0, "lifted single-knot": 3.0}
@@ -64,11 +65,22 @@ def best_of(cases: dict[str, Callable[[], object]], rounds: int, block: int = 3,
     return best
 
 
+def one_thread_haar(z: np.ndarray) -> object:
+    """The lifted Haar MRR with the fast path held to one thread (what one core gives)."""
+    saved = _pyramid.worker_count
+    _pyramid.worker_count = lambda: 1
+    try:
+        return analyse(z, "haar")
+    finally:
+        _pyramid.worker_count = saved
+
+
 def grid_rows(n: int, repeats: int) -> list[tuple[str, str, float, float]]:
     """``(grid, case, ms, pywt_ms / ms)`` for one grid size."""
     z = surface(n)
     cases: dict[str, Callable[[], object]] = {
         "lifted haar": lambda: analyse(z, "haar"),
+        "lifted haar, one thread": lambda: one_thread_haar(z),
         "lifted single-knot": lambda: analyse(z, "single_knot"),
         "pywt.wavedec2 haar": lambda: pywt.wavedec2(z, "haar"),
         "numpy max-pool pyramid": lambda: max_pool_pyramid(z),
@@ -98,16 +110,8 @@ def main() -> None:
     small = args.rounds or (2 if args.quick else 8)
     large = args.rounds or (1 if args.quick else 3)
 
-    rows = grid_rows(1024, small) + grid_rows(4096, large)
-
-    # ------------------------------------------------------------------------
-    # HTTP timing (to be added by the lead): POST /v1/mrr on a 2048 x 2048
-    # float32 grid sent as z_b64 with include_models false, against
-    # pywt.wavedec2 on the same grid; append its rows to ``rows`` here in the
-    # same (grid, case, ms, pywt_ms / ms) form.
-    # ------------------------------------------------------------------------
-
-    print_table(rows)
+    # (POST /v1/mrr end to end is timed by bench_http.py)
+    print_table(grid_rows(1024, small) + grid_rows(4096, large))
 
 
 if __name__ == "__main__":
