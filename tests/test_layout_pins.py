@@ -1,0 +1,83 @@
+"""Results and task ids pinned across refactors (the layout change of issue 10).
+
+The digests below were computed on the code before ``zwcore`` moved into
+subpackages; a refactor that changes a result or a task id fails here. The core
+build (part of every task id, a digest of the core's sources) is held fixed, so
+the pins speak of the request canonicalisation, not of the source text.
+"""
+
+from __future__ import annotations
+
+import hashlib
+
+import numpy as np
+import orjson
+import pytest
+from fastapi.testclient import TestClient
+
+from tests.conftest import make_client
+
+
+def _part() -> np.ndarray:
+    y, x = np.mgrid[0:33, 0:29] * 0.5
+    return (8.0 * np.exp(-((x - 7.0) ** 2 + (y - 8.0) ** 2) / 20.0)
+            - 3.0 * np.exp(-((x - 4.0) ** 2 + (y - 10.0) ** 2) / 6.0) + 0.05 * np.sin(3 * x))
+
+
+def _grid() -> dict[str, object]:
+    return {"x0": 0.0, "y0": 0.0, "dx": 0.5, "dy": 0.5, "z": _part().round(6).tolist()}
+
+
+_t = np.linspace(0.0, 3.0, 61)
+REQUESTS: dict[str, tuple[str, dict[str, object]]] = {
+    "mrr": ("/v1/mrr", {"grid": _grid(), "wavelet": "single_knot", "include_models": True}),
+    "scanline": ("/v1/plans/scanline", {"grid": _grid(), "tolerance": 0.02,
+                                         "include_models": True}),
+    "contour": ("/v1/plans/contour", {"grid": _grid(), "include_models": True}),
+    "arcs": ("/v1/arcs", {"points": np.c_[10 * np.cos(_t), 6 * np.sin(_t)].round(6).tolist(),
+                          "tolerance": 0.02, "gcode": True}),
+}
+
+# name -> (task id, SHA-256 of the result body without task_id and timings)
+PINNED: dict[str, tuple[str, str]] = {
+    "mrr": ("6bd465f1c1c42819b7710b13e3112ad1ffaaef3e6ae9ac1c2c9dee05674d4dcf",
+            "761ab9f71cb8800e5c06fbea8ba045a68d497d8b82e77d3fecdf6405c48f992d"),
+    "scanline": ("0d373fe45ad19e3b0af762cc5bf3f023ae1ecd34c414f499db31a0f7bee50cc5",
+                 "370f8a4cf1928505d72c66eadb70ae19c0b9a0b5a32629c8f87a06ec9714ba96"),
+    "contour": ("af4786a3c0c89d765d85abbeb7289898a35f887b14e5abbe03ef564b2b881010",
+                "f790a92b32701ef29a3902d847750f4f75f4a6a57c6834812cb9d5a0fb379987"),
+    "arcs": ("e352a142814e782ba45aaf22dc50b306fdf5e59068ccff17eaff9a36bf5eb0de",
+             "cb0794255371af6d58bc9b639c605a8be6d448a011ad900f4abbba361cadfae9"),
+}
+
+
+def _digest(body: object) -> str:
+    def strip(v: object) -> object:
+        if isinstance(v, dict):
+            return {k: strip(x) for k, x in v.items()
+                    if k != "task_id" and "seconds" not in k and "elapsed" not in k}
+        if isinstance(v, list):
+            return [strip(x) for x in v]
+        return v
+
+    return hashlib.sha256(orjson.dumps(strip(body), option=orjson.OPT_SORT_KEYS)).hexdigest()
+
+
+def results(tmp_path, monkeypatch) -> dict[str, tuple[str, str]]:  # type: ignore[no-untyped-def]
+    from service import hashing
+
+    monkeypatch.setattr(hashing, "core_build", lambda: "pinned-build")
+    out = {}
+    c: TestClient
+    with make_client(tmp_path) as c:
+        for name, (path, body) in REQUESTS.items():
+            r = c.post(path, json=body)
+            assert r.status_code == 200, r.text
+            out[name] = (r.json()["task_id"], _digest(r.json()))
+    return out
+
+
+@pytest.mark.parametrize("name", sorted(REQUESTS))
+def test_results_and_task_ids_are_pinned(name: str, tmp_path, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    got = results(tmp_path, monkeypatch)[name]
+    assert got == PINNED[name]
