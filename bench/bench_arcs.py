@@ -30,7 +30,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from curves import ARCWELDER_REFERENCE, BENCH_CURVES, coarse_ellipse, coarse_spiral, ellipse
 
-from zwcore.arcs import fit_arcs
+from zwcore.arcs.fit import fit_arcs
 
 
 def _annulus_width(pts: np.ndarray, cc: np.ndarray) -> float:

@@ -21,9 +21,9 @@ import time
 
 import numpy as np
 
-from zwcore.contour import plan_contour
-from zwcore.tools import default_tools
-from zwcore.zmap import ZMap
+from zwcore.contour.planner import plan_contour
+from zwcore.grid.tools import default_tools
+from zwcore.grid.zmap import ZMap
 
 DATA = pathlib.Path(__file__).resolve().parents[2] / "shared" / "data"
 PHASES = ("mrr", "heights", "terraces", "checks")

@@ -28,8 +28,8 @@ import pywt
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from zwcore import _pyramid
-from zwcore.wavelets import analyse
+from zwcore.mrr import _pyramid
+from zwcore.mrr.wavelets import analyse
 
 TARGETS = {"lifted haar": 15.0, "lifted single-knot": 3.0}
 

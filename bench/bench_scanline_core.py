@@ -11,8 +11,8 @@ import time
 
 import numpy as np
 
-from zwcore.scanline import plan_scanline
-from zwcore.zmap import ZMap
+from zwcore.grid.zmap import ZMap
+from zwcore.scanline.planner import plan_scanline
 
 DATA = pathlib.Path(__file__).resolve().parents[2] / "shared" / "data"
 

@@ -19,7 +19,7 @@ from numpy.typing import NDArray
 from service.schemas.common import Grid
 from zwcore import ZMap
 from zwcore.errors import InvalidInputError, LimitExceededError
-from zwcore.zmap import Interpolation
+from zwcore.grid.zmap import Interpolation
 
 _DTYPES: dict[str, np.dtype[np.floating]] = {"float32": np.dtype("<f4"),
                                               "float64": np.dtype("<f8")}

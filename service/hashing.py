@@ -46,8 +46,9 @@ def canonical_bytes(a: np.ndarray, exact_float32: bool | None = None) -> tuple[s
 def core_build() -> str:
     """``<version>+<first 16 hex of SHA-256 over the core's modules>``."""
     h = hashlib.sha256()
-    for path in sorted(Path(zwcore.__file__).parent.glob("*.py")):
-        h.update(path.name.encode() + b"\0" + path.read_bytes() + b"\0")
+    root = Path(zwcore.__file__).parent
+    for path in sorted(root.rglob("*.py")):
+        h.update(path.relative_to(root).as_posix().encode() + b"\0" + path.read_bytes() + b"\0")
     return f"{zwcore.__version__}+{h.hexdigest()[:16]}"
 
 

@@ -12,9 +12,9 @@ from fastapi import Depends, FastAPI
 import zwcore
 from service import problems
 from service.compute import ComputePool
-from service.deps import require_api_key
 from service.middleware import JsonFormatter, ServiceMiddleware
 from service.routers import arcs, health, mrr, plans, tasks, tools
+from service.security import require_api_key
 from service.settings import Settings, get_settings
 from service.store import open_store
 

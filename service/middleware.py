@@ -12,8 +12,8 @@ import orjson
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from service import metrics
-from service.deps import api_key_problem
 from service.problems import PROBLEM_JSON, problem_response
+from service.security import api_key_problem
 
 log = logging.getLogger("zwplan.access")
 

@@ -130,32 +130,6 @@ def _problem_media_type_in_openapi(app: FastAPI) -> None:
     app.openapi = openapi  # type: ignore[method-assign]
 
 
-def _auth_first(request: Request) -> Response | None:
-    """The 401/403 a secured route owes a caller without a valid key, if it does.
-
-    FastAPI parses the JSON body before it runs the route's dependencies, so a
-    malformed body would otherwise get a 400 ahead of the API-key check.
-    """
-    from fastapi.security import HTTPAuthorizationCredentials
-    from fastapi.security.utils import get_authorization_scheme_param
-
-    from service.deps import require_api_key  # deps imports this module
-
-    # The contract: every /v1 call needs the key (main.py secures each /v1 router).
-    if not request.url.path.startswith("/v1/"):
-        return None
-    scheme, token = get_authorization_scheme_param(request.headers.get("authorization"))
-    credentials = (HTTPAuthorizationCredentials(scheme=scheme, credentials=token)
-                   if scheme and token else None)
-    try:
-        require_api_key(request.app.state.settings, credentials)
-    except Problem as exc:
-        return problem_response(exc.status, exc.title, exc.detail, kind=exc.kind,
-                                instance=request.url.path, errors=exc.errors,
-                                headers=exc.headers)
-    return None
-
-
 #: How each core error is reported, most specific class first.
 _CORE_ERRORS: dict[type[ZwError], tuple[int, str, str]] = {
     LimitExceededError: (413, "Request too large", "too-large"),
@@ -172,7 +146,7 @@ def install(app: FastAPI) -> None:
 
     @app.exception_handler(RequestValidationError)
     async def _on_validation(request: Request, exc: RequestValidationError) -> Response:
-        return _auth_first(request) or _validation_problem(request, exc)
+        return _validation_problem(request, exc)
 
     @app.exception_handler(ZwError)
     async def _on_core_error(request: Request, exc: ZwError) -> Response:

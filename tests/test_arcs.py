@@ -16,7 +16,7 @@ import pytest
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
-from zwcore.arcs import ArcChain, Segment, fit_arcs
+from zwcore.arcs.fit import ArcChain, Segment, fit_arcs
 from zwcore.errors import InvalidInputError
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))
@@ -657,7 +657,7 @@ def test_never_fails_on_random_polygons(raw, tol, closed):
 @pytest.fixture
 def fallback_everywhere(monkeypatch):
     """Make the beam give up at once, so every run is the fallback chain."""
-    from zwcore import arcfit
+    from zwcore.arcs import _search as arcfit
 
     orig_run = arcfit.Fitter.run
 
@@ -720,7 +720,7 @@ def test_never_fails_on_jagged_curves(case):
 def test_biarc_second_arc_gets_its_start_distance(monkeypatch):
     """The second arc of a biarc starts at the junction, which stands for sample m:
     its verification must get that sample's distance from the junction, not 0."""
-    from zwcore.arcpieces import ToleranceBand
+    from zwcore.arcs._pieces import ToleranceBand
 
     th = np.linspace(0, 1.5, 40)
     s = np.stack([20 * np.cos(th), 20 * np.sin(th)], 1)

@@ -13,20 +13,20 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from tests.conftest import height_grids
-from zwcore.contour import (
+from zwcore.contour.heights import QUANTUM, ceil_units
+from zwcore.contour.planner import (
     STRATEGIES,
     VOLUME_SPREAD_LIMIT,
     ContourPlan,
     level_for_tool,
     plan_contour,
 )
-from zwcore.contour_heights import QUANTUM, ceil_units
 from zwcore.errors import InvalidInputError
-from zwcore.sampling import cells_at_fine_nodes
-from zwcore.terraces import edit_coefficients
-from zwcore.tools import Tool, default_tools
-from zwcore.wavelets import analyse
-from zwcore.zmap import ZMap
+from zwcore.grid.sampling import cells_at_fine_nodes
+from zwcore.grid.tools import Tool, default_tools
+from zwcore.grid.zmap import ZMap
+from zwcore.mrr.terraces import edit_coefficients
+from zwcore.mrr.wavelets import analyse
 
 DATA = pathlib.Path(__file__).resolve().parents[2] / "shared" / "data"
 RUSHMORE = DATA / "mount_rush_zmap_0.1mm.npy"

@@ -9,7 +9,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
-from zwcore.contour_heights import (
+from zwcore.contour.heights import (
     QUANTUM,
     SlabVolumes,
     ceil_units,
@@ -19,7 +19,7 @@ from zwcore.contour_heights import (
     removed_between,
     volume_spread,
 )
-from zwcore.terraces import cell_weights, terrace
+from zwcore.mrr.terraces import cell_weights, terrace
 
 
 @st.composite

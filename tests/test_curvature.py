@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from zwcore.curvature import (
+from zwcore.grid.curvature import (
     concave_curvature,
     max_principal_curvature,
     min_concave_radius,

@@ -10,9 +10,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from zwcore.arcs import fit_arcs
+from zwcore.arcs.fit import fit_arcs
+from zwcore.arcs.gcode import to_gcode
 from zwcore.errors import InvalidInputError
-from zwcore.gcode import to_gcode
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))
 from curves import BENCH_CURVES

@@ -9,9 +9,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from zwcore.arcs import ArcChain, fit_arcs
+from zwcore.arcs.fit import ArcChain, fit_arcs
+from zwcore.arcs.offset import offset_chain
 from zwcore.errors import InvalidInputError
-from zwcore.offset import offset_chain
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))
 sys.path.insert(0, str(Path(__file__).resolve().parent))

@@ -13,10 +13,10 @@ from hypothesis import strategies as st
 
 from tests.conftest import height_grids
 from zwcore.errors import InvalidInputError, PlanningError
-from zwcore.sampling import bilinear_at_fine_nodes
-from zwcore.scanline import ScanlinePlan, plan_scanline, scallop_height
-from zwcore.tools import Tool, default_tools
-from zwcore.zmap import ZMap
+from zwcore.grid.sampling import bilinear_at_fine_nodes
+from zwcore.grid.tools import Tool, default_tools
+from zwcore.grid.zmap import ZMap
+from zwcore.scanline.planner import ScanlinePlan, plan_scanline, scallop_height
 
 DATA = pathlib.Path(__file__).resolve().parents[2] / "shared" / "data"
 BALLS = default_tools("ball")
@@ -290,7 +290,7 @@ def test_too_many_passes_is_a_planning_error() -> None:
 
 def test_model_memory_is_bounded(monkeypatch: pytest.MonkeyPatch) -> None:
     # Many full-resolution passes on a large grid are refused before memory runs out.
-    import zwcore.scanline as scanline
+    import zwcore.scanline.planner as scanline
 
     monkeypatch.setattr(scanline, "MAX_MODEL_NODES", 5 * 33 * 33)
     with pytest.raises(PlanningError) as err:
@@ -324,8 +324,8 @@ def test_blocked_evaluation_is_bilinear_at_fine_nodes_bit_for_bit(
     # The planner and the checks evaluate models in blocks of rows (so a large
     # grid makes no full-size temporaries); the values must be exactly those of
     # the whole-array evaluation, whatever the block size.
-    import zwcore.scanline as scanline
-    from zwcore.scanline_checks import axis_weights, eval_rows
+    import zwcore.scanline.planner as scanline
+    from zwcore.scanline._checks import axis_weights, eval_rows
 
     coarse = np.random.default_rng(sum(shape) + scale).normal(0.0, 10.0, shape)
     ref = bilinear_at_fine_nodes(coarse, scale, fine)
@@ -343,7 +343,7 @@ def test_blocked_evaluation_is_bilinear_at_fine_nodes_bit_for_bit(
 def test_figures_do_not_depend_on_the_block_size(monkeypatch: pytest.MonkeyPatch) -> None:
     # The checks run block-major over all passes; each figure is the same
     # reduction as a whole-array one (the volume up to the summation order).
-    import zwcore.scanline_checks as checks
+    import zwcore.scanline._checks as checks
 
     x = np.linspace(0.0, 40.0, 161)
     xx, yy = np.meshgrid(x, x)

@@ -16,9 +16,10 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from tests.conftest import height_grids
-from zwcore import _pyramid, sampling
 from zwcore.errors import InvalidInputError
-from zwcore.wavelets import (
+from zwcore.grid import sampling
+from zwcore.mrr import _pyramid
+from zwcore.mrr.wavelets import (
     WAVELETS,
     _reference_step,
     analyse,
@@ -153,7 +154,7 @@ def test_partial_depth(levels: int) -> None:
 
 
 # --------------------------------------------------------------------------
-# The fast path (zwcore._pyramid: strips, Haar level pipeline, two threads)
+# The fast path (zwcore.mrr._pyramid: strips, Haar level pipeline, two threads)
 # must reproduce the literal definition (wavelets._reference_step) bit for bit.
 # --------------------------------------------------------------------------
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from zwcore.errors import InvalidInputError
-from zwcore.zmap import ZMap, as_heights
+from zwcore.grid.zmap import ZMap, as_heights
 
 
 @pytest.mark.parametrize(("z", "message"), [

@@ -1,35 +1,32 @@
 """zwcore: the numeric core of zwplan.
 
 Arrays in, arrays and small dataclasses out; no idea that HTTP exists.
-Topical modules, re-exported here (as PyWavelets does):
+Subpackages by capability, their public names re-exported here (as
+scikit-image and PyWavelets do). Import layers, bottom up (a test holds them):
 
-- :mod:`zwcore.zmap`: the z-map type and its validation;
-- :mod:`zwcore.wavelets`: Haar and single-knot MRR with the overcut-free lift;
-- :mod:`zwcore.sampling`: level models evaluated on finer grids;
-- :mod:`zwcore.tools`: end mills and the default library;
-- :mod:`zwcore.curvature`: concave radius of curvature of a grid surface;
-- :mod:`zwcore.scanline`: the scan-line plan (ball end mills, stage models);
-- :mod:`zwcore.contour`: the contour plan (flat end mills, equal-load heights, terraces);
-- :mod:`zwcore.arcs`, :mod:`zwcore.offset`, :mod:`zwcore.gcode`: C1 arc chains,
-  their tool offsets and NC programs;
-- :mod:`zwcore.errors`: the error family.
+- :mod:`zwcore.errors`: the error family;
+- :mod:`zwcore.grid`: the z-map type, level models on finer grids, tools, curvature;
+- :mod:`zwcore.mrr`: wavelet analysis/synthesis, the fast pyramid, terraces;
+- :mod:`zwcore.scanline`, :mod:`zwcore.contour`: the two planners;
+- :mod:`zwcore.arcs`: C1 arc chains, their offsets and NC programs (beside
+  the grid stack: it needs only :mod:`zwcore.errors`).
 """
 
-from zwcore.arcs import ArcChain, Segment, fit_arcs
+from zwcore.arcs import ArcChain, Segment, fit_arcs, offset_chain, to_gcode
 from zwcore.contour import STRATEGIES, ContourChecks, ContourPlan, ContourStage, plan_contour
 from zwcore.errors import InvalidInputError, LimitExceededError, PlanningError, ZwError
-from zwcore.gcode import to_gcode
-from zwcore.offset import offset_chain
-from zwcore.sampling import at_fine_nodes, bilinear_at_fine_nodes, cells_at_fine_nodes
-from zwcore.scanline import (
-    ScanlineChecks,
-    ScanlinePlan,
-    ScanlineStage,
-    plan_scanline,
-    scallop_height,
+from zwcore.grid import (
+    DEFAULT_LIBRARY,
+    Tool,
+    ZMap,
+    as_heights,
+    at_fine_nodes,
+    bilinear_at_fine_nodes,
+    cells_at_fine_nodes,
+    default_tools,
+    tool_library,
 )
-from zwcore.tools import DEFAULT_LIBRARY, Tool, default_tools, tool_library
-from zwcore.wavelets import (
+from zwcore.mrr import (
     WAVELETS,
     Bands,
     Multiresolution,
@@ -38,7 +35,13 @@ from zwcore.wavelets import (
     level_count,
     synthesis_step,
 )
-from zwcore.zmap import ZMap, as_heights
+from zwcore.scanline import (
+    ScanlineChecks,
+    ScanlinePlan,
+    ScanlineStage,
+    plan_scanline,
+    scallop_height,
+)
 
 __version__ = "0.1.0"
 

@@ -13,10 +13,10 @@ from service.deps import PoolDep, SettingsDep, StoreDep
 from service.routers import responses
 from service.schemas.arcs import ArcsRequest, ArcsResult
 from service.tasks import serve_task
-from zwcore.arcs import ArcChain, Segment, fit_arcs
+from zwcore.arcs.fit import ArcChain, Segment, fit_arcs
+from zwcore.arcs.gcode import to_gcode
+from zwcore.arcs.offset import offset_chain
 from zwcore.errors import LimitExceededError
-from zwcore.gcode import to_gcode
-from zwcore.offset import offset_chain
 
 router = APIRouter(prefix="/v1", tags=["arcs"])
 

@@ -27,11 +27,11 @@ from service.schemas.plans import (
 )
 from service.tasks import serve_task
 from zwcore import Tool, ZMap, default_tools, tool_library
-from zwcore.contour import plan_contour
+from zwcore.contour.planner import plan_contour
 from zwcore.errors import InvalidInputError, LimitExceededError
-from zwcore.scanline import plan_scanline
-from zwcore.tools import ToolKind
-from zwcore.zmap import MAX_ABS_HEIGHT
+from zwcore.grid.tools import ToolKind
+from zwcore.grid.zmap import MAX_ABS_HEIGHT
+from zwcore.scanline.planner import plan_scanline
 
 router = APIRouter(prefix="/v1/plans", tags=["plans"])
 

@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from zwcore.zmap import Interpolation
+from zwcore.grid.zmap import Interpolation
 
 __all__ = ["at_fine_nodes", "bilinear_at_fine_nodes", "cells_at_fine_nodes"]
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 
-from zwcore.arcs import ArcChain
+from zwcore.arcs.fit import ArcChain
 from zwcore.errors import InvalidInputError
 
 __all__ = ["to_gcode"]

@@ -1,9 +1,9 @@
 """The per-run search of the C1 arc chain: a beam of junction states.
 
 The pieces themselves (curvature intervals from a junction, reach scans,
-two-sided verification, biarcs) are in :mod:`zwcore.arcpieces`, run starts without a
-given tangent and one-piece runs in :mod:`zwcore.arcstart`, and the straight runs a
-refit follows with lines in :mod:`zwcore.arclines`; this module decides which pieces
+two-sided verification, biarcs) are in :mod:`zwcore.arcs._pieces`, run starts without a
+given tangent and one-piece runs in :mod:`zwcore.arcs._start`, and the straight runs a
+refit follows with lines in :mod:`zwcore.arcs._lines`; this module decides which pieces
 make the chain.
 
 The seed's sequential least-squares fit fails because it hands each arc's end
@@ -20,7 +20,7 @@ with a tangent off the curve's) does not end the fit.
 When no state of a level can place a verified piece, a biarc bridge onto a
 nearby sample is tried; failing that the caller retries with a tighter working
 tolerance, and the last resort is a filleted-polyline stretch
-(:mod:`zwcore.arcfallback`, valid by construction).
+(:mod:`zwcore.arcs._fallback`, valid by construction).
 """
 
 from __future__ import annotations
@@ -31,15 +31,15 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from zwcore.arcfallback import fillet_stretch
-from zwcore.arcgeom import (
+from zwcore.arcs._fallback import fillet_stretch
+from zwcore.arcs._geometry import (
     arc_points,
     local_uv,
     rotate,
 )
-from zwcore.arclines import StraightRuns
-from zwcore.arcpieces import Piece, ToleranceBand
-from zwcore.arcstart import free_start, free_start_tangents, full_circle, one_piece_to_end
+from zwcore.arcs._lines import StraightRuns
+from zwcore.arcs._pieces import Piece, ToleranceBand
+from zwcore.arcs._start import free_start, free_start_tangents, full_circle, one_piece_to_end
 
 FloatArray = NDArray[np.float64]
 
@@ -135,7 +135,7 @@ class Fitter:
     #: junction states kept per level
     BEAM = 4
     #: a run that one piece (or a loop that one full circle) covers is that piece
-    #: (:mod:`zwcore.arcstart`); off: the beam fits it (tests of the fallback)
+    #: (:mod:`zwcore.arcs._start`); off: the beam fits it (tests of the fallback)
     one_piece_runs = True
     #: biarc bridges out of stuck states (off: the caller's fallback after a failed check)
     use_bridge = True

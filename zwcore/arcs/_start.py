@@ -1,6 +1,6 @@
 """Run starts without a given tangent, and runs that are one piece.
 
-A run of the C1 chain (:mod:`zwcore.arcfit`) that starts at the curve's first point or
+A run of the C1 chain (:mod:`zwcore.arcs._search`) that starts at the curve's first point or
 at a corner has no tangent handed to it: :func:`free_start` picks the one from which the
 first piece reaches furthest (a line when it reaches nearly as far). A run that one piece
 covers is that piece (:func:`one_piece_to_end`), and a closed curve that one circle fits
@@ -16,8 +16,8 @@ from collections.abc import Callable
 import numpy as np
 from numpy.typing import NDArray
 
-from zwcore.arcgeom import circle_gap, local_uv
-from zwcore.arcpieces import Piece, ToleranceBand
+from zwcore.arcs._geometry import circle_gap, local_uv
+from zwcore.arcs._pieces import Piece, ToleranceBand
 
 FloatArray = NDArray[np.float64]
 

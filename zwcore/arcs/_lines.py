@@ -1,6 +1,6 @@
 """Straight runs of the input, and how the C1 chain is made to follow them with lines.
 
-The beam (:mod:`zwcore.arcfit`) ranks pieces by how far the chain reaches; over a
+The beam (:mod:`zwcore.arcs._search`) ranks pieces by how far the chain reaches; over a
 straight run of the input it may lay an arc of huge radius where the tangent entering
 the run missed it. Such arcs are found in a fitted run (:func:`arcs_over_straight`:
 *flat* arcs, :func:`is_flat`, and arcs over a long :func:`straight_run`), and the run is
@@ -31,7 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from zwcore.arcgeom import (
+from zwcore.arcs._geometry import (
     arc_point,
     line_fit,
     local_uv,
@@ -39,8 +39,8 @@ from zwcore.arcgeom import (
     sagitta1,
     unwrap,
 )
-from zwcore.arcpieces import Piece, ToleranceBand, merge_lines
-from zwcore.arcstart import shorter_ends
+from zwcore.arcs._pieces import Piece, ToleranceBand, merge_lines
+from zwcore.arcs._start import shorter_ends
 
 FloatArray = NDArray[np.float64]
 

@@ -8,7 +8,7 @@ cover samples ``k+1..j`` form the running intersection of those intervals (one
 vectorised ``cummax``/``cummin`` gives the longest piece).
 
 :class:`ToleranceBand` answers the questions about one piece (or one biarc)
-that the search in :mod:`zwcore.arcfit` asks: how far pieces from given
+that the search in :mod:`zwcore.arcs._search` asks: how far pieces from given
 junctions reach, which curvatures are feasible, and whether a piece stays within
 the tolerance both ways (:meth:`~ToleranceBand.verify`: conservative analytic
 bounds, samples to arc, polyline segments to arc, arc portions to polyline).
@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from zwcore.arcgeom import (
+from zwcore.arcs._geometry import (
     arc_point,
     arc_points,
     circle_gap,

@@ -1,4 +1,4 @@
-"""Result types of the scan-line plan (see :mod:`zwcore.scanline`)."""
+"""Result types of the scan-line plan (see :mod:`zwcore.scanline.planner`)."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ from typing import Literal
 import numpy as np
 from numpy.typing import NDArray
 
-from zwcore.tools import Tool
+from zwcore.grid.tools import Tool
 
 __all__ = ["ScanlineChecks", "ScanlinePlan", "ScanlineStage"]
 

@@ -23,7 +23,7 @@ Pipeline:
 5. The stage model is produced from the part's lifted Haar representation from
    the stage level up: the level's approximation coefficients raised onto the
    contour grid, the finer details set to zero, synthesised to the input nodes
-   (:mod:`zwcore.terraces`); the checks compare it with the terrace rule applied
+   (:mod:`zwcore.mrr.terraces`); the checks compare it with the terrace rule applied
    on its own.
 
 Models use ``cell`` semantics: a level-``j`` value is a flat cell over a
@@ -43,7 +43,7 @@ from typing import Literal
 import numpy as np
 from numpy.typing import NDArray
 
-from zwcore.contour_heights import (
+from zwcore.contour.heights import (
     QUANTUM,
     SlabVolumes,
     ceil_units,
@@ -54,11 +54,11 @@ from zwcore.contour_heights import (
     volume_spread,
 )
 from zwcore.errors import InvalidInputError
-from zwcore.sampling import cells_at_fine_nodes
-from zwcore.terraces import cell_weights, edit_coefficients, terrace
-from zwcore.tools import Tool, default_tools, tool_library
-from zwcore.wavelets import analyse
-from zwcore.zmap import ZMap, stock_top_at_or_above
+from zwcore.grid.sampling import cells_at_fine_nodes
+from zwcore.grid.tools import Tool, default_tools, tool_library
+from zwcore.grid.zmap import ZMap, stock_top_at_or_above
+from zwcore.mrr.terraces import cell_weights, edit_coefficients, terrace
+from zwcore.mrr.wavelets import analyse
 
 __all__ = [
     "STRATEGIES",

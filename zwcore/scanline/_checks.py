@@ -26,9 +26,9 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from zwcore.scanline_passes import StripPlan
-from zwcore.scanline_types import ScanlineChecks, ScanlineStage
-from zwcore.tools import Tool
+from zwcore.grid.tools import Tool
+from zwcore.scanline._passes import StripPlan
+from zwcore.scanline.results import ScanlineChecks, ScanlineStage
 
 __all__ = ["PassSpec", "axis_weights", "eval_rows", "figures"]
 

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from zwcore.wavelets import Bands, Multiresolution, synthesis_step
+from zwcore.mrr.wavelets import Bands, Multiresolution, synthesis_step
 
 __all__ = ["EditedMRR", "cell_weights", "edit_coefficients", "terrace"]
 

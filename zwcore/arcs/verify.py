@@ -19,8 +19,13 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import NDArray
 
-from zwcore.arcgeom import arc_points, local_uv, point_to_arc_distance, points_to_segments_distance
-from zwcore.arcpieces import Piece
+from zwcore.arcs._geometry import (
+    arc_points,
+    local_uv,
+    point_to_arc_distance,
+    points_to_segments_distance,
+)
+from zwcore.arcs._pieces import Piece
 
 FloatArray = NDArray[np.float64]
 

@@ -7,16 +7,16 @@ Method (as built)
    +-3 tolerances of arc length, standing out of the chord, one per cluster);
    long polyline segments densified to ``6 tol`` so junctions can sit between
    sparse input points. Corners split the curve into runs fitted separately.
-2. Curvature-interval pieces (:mod:`zwcore.arcpieces`): a piece starts at a
+2. Curvature-interval pieces (:mod:`zwcore.arcs._pieces`): a piece starts at a
    junction ``(P, T)`` and is one number, its signed curvature (0 = line). For a
    fixed ``(P, T)`` each sample admits an interval of curvatures; the running
    intersection (``cummax``/``cummin``) gives every feasible piece at once.
-3. Beam look-ahead (:mod:`zwcore.arcfit`): the chain grows level by level as a
+3. Beam look-ahead (:mod:`zwcore.arcs._search`): the chain grows level by level as a
    beam of junction states; candidate pieces (several ends, several curvatures in
    the interval) are ranked by how far the *next* piece reaches from their end
    state, and the best few verified ones survive. This keeps junctions mid-band
    with tangents along the curve, the cause of the seed's sequential failures.
-3b. Straight runs (:mod:`zwcore.arclines`): where the fitted chain of a run lays an
+3b. Straight runs (:mod:`zwcore.arcs._lines`): where the fitted chain of a run lays an
    arc over a straight run of the input -- a *flat* arc (sagitta below a quarter
    tolerance over at least 20 tolerances), or an arc whose samples (or half of them) a
    line keeps within half a tolerance over at least 150 tolerances -- the tangent
@@ -35,7 +35,7 @@ Method (as built)
    with the true distance of its first sample).
 5. Fallback: if the beam is still stuck (after retries at tighter working
    tolerances), a short stretch is covered by the polyline with tangent fillet
-   arcs at its vertices (:mod:`zwcore.arcfallback`), joined C1 to the pieces on
+   arcs at its vertices (:mod:`zwcore.arcs._fallback`), joined C1 to the pieces on
    both sides; it is within the tolerance by construction, so the fit never
    fails and ``forced_corners`` stays empty (kept for API compatibility).
 6. Closure: a closed curve without corners is one full circle if that fits,
@@ -46,7 +46,7 @@ Method (as built)
    tangents (``LOOP_START_TURNS``) and the shortest valid chain is kept.
 7. Verification: every piece is checked two-sided with conservative analytic
    bounds while fitting; the finished chain is measured densely
-   (:mod:`zwcore.arcverify`), and a bridged chain that fails that measurement is
+   (:mod:`zwcore.arcs.verify`), and a bridged chain that fails that measurement is
    refitted without bridges.
 """
 
@@ -60,12 +60,12 @@ from typing import Literal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from zwcore.arcfit import Fitter, Stuck
-from zwcore.arcgeom import rotate
-from zwcore.arclines import Anchor, StraightRuns, refit_along_straight_runs
-from zwcore.arcpieces import Piece
-from zwcore.arcstart import free_start
-from zwcore.arcverify import densify, deviations
+from zwcore.arcs._geometry import rotate
+from zwcore.arcs._lines import Anchor, StraightRuns, refit_along_straight_runs
+from zwcore.arcs._pieces import Piece
+from zwcore.arcs._search import Fitter, Stuck
+from zwcore.arcs._start import free_start
+from zwcore.arcs.verify import densify, deviations
 from zwcore.errors import InvalidInputError
 
 FloatArray = NDArray[np.float64]
@@ -422,7 +422,7 @@ def fit_arcs(
 
         def fit_run(a: int, b: int, t_start: FloatArray | None) -> tuple[list[Piece], list[int]]:
             # arcs over straight runs (the tangent missed the run) are refitted with those
-            # runs as anchors the chain follows with lines (zwcore.arclines)
+            # runs as anchors the chain follows with lines (zwcore.arcs._lines)
             return refit_along_straight_runs(
                 lambda anchors: fit_beam(a, b, t_start, anchors), samples, a, b, tol,
                 pin_start=t_start is None and not loop, pin_end=not loop,

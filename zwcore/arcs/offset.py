@@ -42,7 +42,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from zwcore.arcs import ArcChain, Segment, chain_tangents
+from zwcore.arcs.fit import ArcChain, Segment, chain_tangents
 from zwcore.errors import InvalidInputError
 
 __all__ = ["OffsetResult", "offset_chain"]

@@ -1,6 +1,6 @@
 """Fallback of the arc fit that is valid by construction: a filleted polyline.
 
-When the beam of :mod:`zwcore.arcfit` cannot place a verified piece from any
+When the beam of :mod:`zwcore.arcs._search` cannot place a verified piece from any
 junction state, the stretch ahead is covered by the sample polyline itself with
 every interior vertex replaced by a tangent fillet arc (lines in between). For a
 vertex turning by ``theta`` with tangent length ``L`` the fillet and the two leg
@@ -24,8 +24,8 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
-from zwcore.arcgeom import arc_points
-from zwcore.arcpieces import Piece
+from zwcore.arcs._geometry import arc_points
+from zwcore.arcs._pieces import Piece
 
 FloatArray = NDArray[np.float64]
 

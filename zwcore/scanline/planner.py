@@ -6,7 +6,7 @@ Everything comes off one lifted single-knot MRR of the part:
    ``(dx, dy) * 2**(J-j)`` that contains every finer level and the part.
    Levels whose spacing is at least the widest ball's diameter are of no use
    (no ball follows lines that far apart) and are dropped.
-2. Nested targets (:mod:`zwcore.scanline_models`): the lift compounds at
+2. Nested targets (:mod:`zwcore.scanline._models`): the lift compounds at
    cliffs (on Mount Rushmore the coarse levels rise to 330 mm over a part top
    of 1.6 mm), so each level is clipped node by node to the target of the
    level before it (the first one to the stock top) and then minimally
@@ -17,7 +17,7 @@ Everything comes off one lifted single-knot MRR of the part:
    wherever that was already below the level before. Without the clip every
    coarse level of a walled part rose above the stock and was skipped, and
    the whole part was machined with the finishing ball.
-3. Tool choice per level from its target (:mod:`zwcore.curvature`): the
+3. Tool choice per level from its target (:mod:`zwcore.grid.curvature`): the
    largest library ball whose radius is at most the target's smallest concave
    radius. Levels are taken from the finest (the part, which fixes the
    finishing tool) towards the coarsest; a coarser level becomes a stage only
@@ -35,13 +35,13 @@ Everything comes off one lifted single-knot MRR of the part:
    ``M_k`` still lies above ``T_j`` the part was out of reach: another pass
    with the same tool at the same level follows, until the target is reached
    (``pass_index`` of ``pass_count``).
-5. Pick-feeds strip by strip (:mod:`zwcore.scanline_passes`): the scallop
+5. Pick-feeds strip by strip (:mod:`zwcore.scanline._passes`): the scallop
    rule with the slope *across* the scan lines in each strip between two grid
    lines; only strips that need it get extra lines. The finishing pass must
    meet ``tolerance``; any other pass may leave at most half of the next
    pass's flute length (its scallops are stock for that pass).
 
-The checks (:mod:`zwcore.scanline_checks`) evaluate every stage model once at
+The checks (:mod:`zwcore.scanline._checks`) evaluate every stage model once at
 every input node, with the operations of
 :func:`zwcore.sampling.bilinear_at_fine_nodes`.
 """
@@ -57,16 +57,16 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import ndimage
 
-from zwcore.curvature import min_concave_radius, steepest_slope
 from zwcore.errors import InvalidInputError, PlanningError
-from zwcore.sampling import bilinear_at_fine_nodes
-from zwcore.scanline_checks import PassSpec, axis_weights, eval_rows, figures
-from zwcore.scanline_models import Target, nested_targets
-from zwcore.scanline_passes import cross_slopes, plan_strips, scallop_height
-from zwcore.scanline_types import ScanlineChecks, ScanlinePlan, ScanlineStage
-from zwcore.tools import Tool, default_tools, tool_library
-from zwcore.wavelets import analyse
-from zwcore.zmap import ZMap, positive_number, stock_top_at_or_above
+from zwcore.grid.curvature import min_concave_radius, steepest_slope
+from zwcore.grid.sampling import bilinear_at_fine_nodes
+from zwcore.grid.tools import Tool, default_tools, tool_library
+from zwcore.grid.zmap import ZMap, positive_number, stock_top_at_or_above
+from zwcore.mrr.wavelets import analyse
+from zwcore.scanline._checks import PassSpec, axis_weights, eval_rows, figures
+from zwcore.scanline._models import Target, nested_targets
+from zwcore.scanline._passes import cross_slopes, plan_strips, scallop_height
+from zwcore.scanline.results import ScanlineChecks, ScanlinePlan, ScanlineStage
 
 __all__ = [
     "MAX_MODEL_NODES",
@@ -351,7 +351,7 @@ def plan_scanline(zmap: ZMap, tools: Sequence[Tool] | None = None, *, tolerance:
         the highest point plus the first tool's flute length.
     curvature_smoothing : float
         Gaussian smoothing in cells before estimating concave radii (0: none;
-        see :mod:`zwcore.curvature`, for noisy scans).
+        see :mod:`zwcore.grid.curvature`, for noisy scans).
 
     Returns
     -------

@@ -30,7 +30,7 @@ the node (the lowest value any containing model can take there).
 - Rounding: the margins shrink from level to level (``m_j = (J-j) * 4g``) and
   the clip lowers by ``g``, so the float evaluation of the nested models at the
   input nodes keeps the order exactly (checked node by node in
-  :mod:`zwcore.scanline_checks`).
+  :mod:`zwcore.scanline._checks`).
 
 Only cells with a clipped corner are visited at input resolution, so the cost
 follows the length of the clip boundary, not the grid.
@@ -43,7 +43,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from zwcore.sampling import bilinear_at_fine_nodes
+from zwcore.grid.sampling import bilinear_at_fine_nodes
 
 __all__ = ["Target", "nested_targets", "repair"]
 

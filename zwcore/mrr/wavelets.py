@@ -23,7 +23,7 @@ level and synthesis removes it, so nothing inside the input changes.
 
 Implementation: :func:`_reference_step` is the definition, written literally
 (pad, x step, y step). :func:`analyse` and :func:`analysis_step` run the fast
-kernels of :mod:`zwcore._pyramid` (row strips kept in cache, the Haar levels
+kernels of :mod:`zwcore.mrr._pyramid` (row strips kept in cache, the Haar levels
 pipelined strip by strip, two threads on large grids), which perform the same
 floating-point operations on the same operands and so give bit-identical
 results; the tests compare the two bit for bit.
@@ -38,9 +38,9 @@ from typing import Literal
 import numpy as np
 from numpy.typing import NDArray
 
-from zwcore import _pyramid
 from zwcore.errors import InvalidInputError
-from zwcore.zmap import MAX_ABS_HEIGHT, Interpolation, as_heights
+from zwcore.grid.zmap import MAX_ABS_HEIGHT, Interpolation, as_heights
+from zwcore.mrr import _pyramid
 
 __all__ = [
     "WAVELETS",
@@ -238,7 +238,7 @@ def analysis_step(z: F64, wavelet: Wavelet, *, lifted: bool = True) -> tuple[F64
 def _haar_steps(z: F64, steps: int, lifted: bool, track: bool = False,
                 ) -> tuple[list[tuple[F64, Bands]], tuple[float, float]]:
     """``steps`` Haar analysis steps from ``z`` down, finest first; bit-identical
-    to repeating :func:`_reference_step` (see :mod:`zwcore._pyramid`). With
+    to repeating :func:`_reference_step` (see :mod:`zwcore.mrr._pyramid`). With
     ``track``, also ``(z.min(), z.max())`` for input validation (NaN when
     ``steps`` is 0 or ``z`` holds a NaN)."""
     out: list[tuple[F64, Bands]] = []
@@ -271,7 +271,7 @@ def _hat_steps(z: F64, steps: int, lifted: bool, max_abs: float) -> list[tuple[F
 
 def _reference_step(z: F64, wavelet: Wavelet, *, lifted: bool = True) -> tuple[F64, Bands]:
     """One level of the non-standard 2-D analysis, literally as defined: pad, x step,
-    y step. The definition the fast path (:mod:`zwcore._pyramid`) must reproduce
+    y step. The definition the fast path (:mod:`zwcore.mrr._pyramid`) must reproduce
     bit for bit; parameters and results as :func:`analysis_step`.
     """
     ny, nx = z.shape

@@ -1,7 +1,7 @@
 """Fast kernels behind :func:`zwcore.wavelets.analyse` (private).
 
 Every function here computes *exactly* what the reference steps in
-:mod:`zwcore.wavelets` compute (``_haar_split``, ``_hat_split`` on an edge-padded
+:mod:`zwcore.mrr.wavelets` compute (``_haar_split``, ``_hat_split`` on an edge-padded
 grid): the same floating-point operations on the same operands in the same
 order, so the results are bit-identical (the tests check this). Only the
 schedule differs:

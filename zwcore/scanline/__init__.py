@@ -1,0 +1,13 @@
+"""The scan-line plan: ball end mills over single-knot stage models (seed 000, 6.1-6.2).
+
+- :mod:`zwcore.scanline.planner`: :func:`plan_scanline`;
+- :mod:`zwcore.scanline.results`: the plan, stage and checks dataclasses;
+- private: ``_models`` (nested stage targets), ``_passes`` (pick-feed strips and
+  scallops), ``_checks`` (per-stage figures and the invariants).
+"""
+
+from zwcore.scanline._passes import scallop_height
+from zwcore.scanline.planner import plan_scanline
+from zwcore.scanline.results import ScanlineChecks, ScanlinePlan, ScanlineStage
+
+__all__ = ["ScanlineChecks", "ScanlinePlan", "ScanlineStage", "plan_scanline", "scallop_height"]
