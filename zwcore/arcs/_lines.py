@@ -265,7 +265,7 @@ def refit_along_straight_runs(
         The chain passes through sample ``a`` / ``b`` with a free tangent there: a
         straight run reaching it gets the line through it (:func:`straight_run`).
     band : ToleranceBand, optional
-        The band to verify replacement ends in (:func:`~zwcore.arcstart.shorter_ends`).
+        The band to verify replacement ends in (:func:`~zwcore.arcs._start.shorter_ends`).
 
     Returns
     -------
@@ -275,7 +275,7 @@ def refit_along_straight_runs(
         where the input is straight is worth a segment), else the plain fit. The long
         lines are anchored on the run's least-squares lines, else on their own lines;
         for a pinned end the refit's and the plain fit's ends are also redone with fewer
-        pieces (:func:`~zwcore.arcstart.shorter_ends`, :func:`_landings`).
+        pieces (:func:`~zwcore.arcs._start.shorter_ends`, :func:`_landings`).
     """
     got = _merge_lines(fit([]))
     pins = {"pin_start": pin_start, "pin_end": pin_end}
@@ -344,7 +344,7 @@ def _landings(
 
 
 def _merge_lines(got: FitResult) -> FitResult:
-    """The fit with consecutive lines merged (:func:`~zwcore.arcpieces.merge_lines`),
+    """The fit with consecutive lines merged (:func:`~zwcore.arcs._pieces.merge_lines`),
     unless it has forced corners (their indices would shift)."""
     return got if got[1] else (merge_lines(got[0]), got[1])
 
@@ -507,7 +507,7 @@ class StraightRuns:
         foot of one of a few samples of the anchor (:attr:`LANDING_OFFSETS`), along it;
         arcs of radius below the tolerance (knots, not landings) are refused.
         ``n_reach``: the number of samples the longest piece from ``(p, t)`` covers,
-        when known (:meth:`~zwcore.arcpieces.ToleranceBand.longest_piece_bounds`).
+        when known (:meth:`~zwcore.arcs._pieces.ToleranceBand.longest_piece_bounds`).
         """
         band = self.band
         nxt = None

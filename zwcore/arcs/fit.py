@@ -27,7 +27,7 @@ Method (as built)
    the next one; chains with fewer arcs over anchors rank and finish first. Anchors at
    a run's ends pass through its end point. Long lines are anchored on the run's
    least-squares line, else on their own line; a pinned end is also redone from the
-   last few junctions (:func:`zwcore.arcstart.shorter_ends`). The best refit is kept
+   last few junctions (:func:`zwcore.arcs._start.shorter_ends`). The best refit is kept
    when it has fewer arcs over straight runs and at most one more segment per arc it
    removed.
 4. Bridges: a state from which nothing verified can be placed tries a biarc onto

@@ -39,7 +39,7 @@ def to_gcode(
     ----------
     chain : ArcChain
         The chain to write (e.g. from :func:`zwcore.arcs.fit_arcs` or
-        :func:`zwcore.offset.offset_chain`).
+        :func:`zwcore.arcs.offset.offset_chain`).
     feed : float
         Feed rate in mm/min (``F`` word), finite and > 0.
     decimals : int

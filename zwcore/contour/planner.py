@@ -19,7 +19,7 @@ Pipeline:
    exceeds the flute length. Where no slab within the flute removes the stage's
    slab volume, the slab is exactly the flute length and flagged; every other
    slab removes the same volume, the bottom one included
-   (:func:`zwcore.contour_heights.place_equal_volume` states the rule).
+   (:func:`zwcore.contour.heights.place_equal_volume` states the rule).
 5. The stage model is produced from the part's lifted Haar representation from
    the stage level up: the level's approximation coefficients raised onto the
    contour grid, the finer details set to zero, synthesised to the input nodes

@@ -1,4 +1,4 @@
-"""Fast kernels behind :func:`zwcore.wavelets.analyse` (private).
+"""Fast kernels behind :func:`zwcore.mrr.wavelets.analyse` (private).
 
 Every function here computes *exactly* what the reference steps in
 :mod:`zwcore.mrr.wavelets` compute (``_haar_split``, ``_hat_split`` on an edge-padded

@@ -379,7 +379,7 @@ class Multiresolution:
 
 
 def _plain_grid(z: object) -> bool:
-    """A grid :func:`zwcore.zmap.as_heights` would return unchanged if its values
+    """A grid :func:`zwcore.grid.zmap.as_heights` would return unchanged if its values
     pass: a C-contiguous 2-D float64 ndarray of at least 2 x 2."""
     return (type(z) is np.ndarray and z.dtype == np.float64 and z.ndim == 2
             and min(z.shape) >= 2 and bool(z.flags.c_contiguous))
@@ -392,7 +392,7 @@ def _within_limits(lo: float, hi: float) -> bool:
 
 
 def _checked_heights(z: object) -> tuple[F64, float, float]:
-    """:func:`zwcore.zmap.as_heights` and the grid's min and max. A plain grid is
+    """:func:`zwcore.grid.zmap.as_heights` and the grid's min and max. A plain grid is
     checked by its extremes alone, without as_heights' full-size temporaries;
     anything else, or a grid that fails, goes through as_heights, which raises
     the documented error."""

@@ -2,7 +2,7 @@
 
 Every stage model is evaluated once at the input nodes, in blocks of rows that
 stay in cache; the block evaluation performs the same floating-point
-operations as :func:`zwcore.sampling.bilinear_at_fine_nodes` (first along y,
+operations as :func:`zwcore.grid.sampling.bilinear_at_fine_nodes` (first along y,
 then along x), so the figures and checks are those of that function, bit for
 bit. The loop is block-major: for each block of rows every stage is evaluated
 in machining order next to the block of the stage before it, so no stage is

@@ -43,7 +43,7 @@ Everything comes off one lifted single-knot MRR of the part:
 
 The checks (:mod:`zwcore.scanline._checks`) evaluate every stage model once at
 every input node, with the operations of
-:func:`zwcore.sampling.bilinear_at_fine_nodes`.
+:func:`zwcore.grid.sampling.bilinear_at_fine_nodes`.
 """
 
 from __future__ import annotations
