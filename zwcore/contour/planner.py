@@ -53,12 +53,13 @@ from zwcore.contour.heights import (
     removed_between,
     volume_spread,
 )
+from zwcore.contour.results import VOLUME_SPREAD_LIMIT, ContourChecks, ContourPlan, ContourStage
 from zwcore.errors import InvalidInputError
 from zwcore.grid.sampling import cells_at_fine_nodes
 from zwcore.grid.tools import Tool, default_tools, tool_library
 from zwcore.grid.zmap import ZMap, stock_top_at_or_above
 from zwcore.mrr.terraces import cell_weights, edit_coefficients, terrace
-from zwcore.mrr.wavelets import analyse
+from zwcore.mrr.wavelets import Multiresolution, analyse
 
 __all__ = [
     "STRATEGIES",
@@ -77,150 +78,8 @@ Strategy = Literal["uniform_load", "even_step"]
 #: a constant step-down per stage, as most CAM systems offer.
 STRATEGIES: tuple[Strategy, ...] = ("uniform_load", "even_step")
 
-#: Largest accepted spread of equal-volume slabs (``max/min - 1``) for ``ok``.
-VOLUME_SPREAD_LIMIT = 0.10
-
 # Relative tolerance for "cell at least the diameter" (0.1 mm x 64 vs 6.4 mm).
 _SIZE_RTOL = 1e-12
-
-
-@dataclass(frozen=True, eq=False)
-class ContourStage:
-    """One stage of a contour plan.
-
-    Attributes
-    ----------
-    tool : Tool
-    level : int
-        MRR level the stage works at (0 = coarsest).
-    scale : int
-        Input nodes per model cell along an axis, ``2**(J - level)``.
-    cell_size : (float, float)
-        Cell size ``(x, y)`` in mm.
-    origin : (float, float)
-        Centre of model cell ``(0, 0)``: the stage grid's ``(x0, y0)``.
-    level_rule : str
-        Why this level, in words.
-    spacing_rule : {"even_flute", "equal_volume", "even_step"}
-        How the heights were placed: heavy roughing (fewest slabs within the
-        flute length), equal slab volumes, or a constant step-down.
-    nominal_step : float
-        Step-down that set the slab count, mm.
-    z_levels : tuple of float
-        Contour heights, descending; the first is the top of the stock the
-        stage starts from, each later one is a waterline pass.
-    spacings : tuple of float
-        ``z_levels[i] - z_levels[i + 1]``.
-    slab_volumes : tuple of float
-        Volume each slab really removes (between the previous and this model,
-        inside the slab), mm³.
-    volume_spread : float
-        ``max/min - 1`` of the slab volumes where the flute cap does not bind.
-    flute_cap_binds : tuple of bool
-        Per slab: the flute cap bound it, which exempts it from equal volume. A
-        flagged slab is exactly the flute length thick (to the height quantum)
-        and removes less than the stage's slab volume: no slab from its bottom
-        height, at most a flute long, could remove that volume. Heavy-roughing
-        slabs are evenly spaced (no volume target) and flagged only where that
-        spacing is the flute length itself.
-    removed_volume : float
-        Sum of the slab volumes, mm³.
-    max_stock_left, mean_stock_left : float
-        Stock over the part after the stage, over the input nodes, mm.
-    edited_coefficients : int
-        Coefficients of the part's representation from the stage level up that
-        the edit changed: approximation coefficients raised onto the contour
-        grid plus non-zero finer detail coefficients set to zero.
-    model : (my, mx) float64
-        Terrace heights, one flat cell per node at the stage level: the edited
-        approximation coefficients.
-    """
-
-    tool: Tool
-    level: int
-    scale: int
-    cell_size: tuple[float, float]
-    origin: tuple[float, float]
-    level_rule: str
-    spacing_rule: str
-    nominal_step: float
-    z_levels: tuple[float, ...]
-    spacings: tuple[float, ...]
-    slab_volumes: tuple[float, ...]
-    volume_spread: float
-    flute_cap_binds: tuple[bool, ...]
-    removed_volume: float
-    max_stock_left: float
-    mean_stock_left: float
-    edited_coefficients: int
-    model: F64
-
-
-@dataclass(frozen=True)
-class ContourChecks:
-    """The invariants of design section 4, verified on the plan.
-
-    Attributes
-    ----------
-    containment : bool
-        Every stage model contains the next and the last contains the part, at
-        every input node.
-    min_containment_margin : float
-        Smallest of those differences, mm (>= 0 when ``containment``).
-    spacings_within_flute : bool
-        No spacing exceeds its stage tool's flute length.
-    spacings_positive : bool
-    max_volume_spread : float
-        Largest ``volume_spread`` of the equal-volume stages.
-    volumes_add_up : bool
-        Each stage's slab volumes add up to the volume between its models,
-        summed independently over the input nodes.
-    terraces_from_coefficients : bool
-        Synthesis of every stage's edited representation, at every input node,
-        equals the terrace rule applied on its own (cell semantics), bit for bit.
-    """
-
-    containment: bool
-    min_containment_margin: float
-    spacings_within_flute: bool
-    spacings_positive: bool
-    max_volume_spread: float
-    volumes_add_up: bool
-    terraces_from_coefficients: bool
-
-    @property
-    def ok(self) -> bool:
-        return (self.containment and self.spacings_within_flute and self.spacings_positive
-                and self.max_volume_spread <= VOLUME_SPREAD_LIMIT and self.volumes_add_up
-                and self.terraces_from_coefficients)
-
-
-@dataclass(frozen=True, eq=False)
-class ContourPlan:
-    """A contour plan.
-
-    Attributes
-    ----------
-    stock_top : float
-        Top of the stock, mm (as requested, or the default).
-    stock_top_source : {"request", "default"}
-    strategy : str
-    stages : tuple of ContourStage
-        In machining order.
-    contour_spacings : tuple of float
-        Every spacing of every stage, in machining order.
-    checks : ContourChecks
-    notes : tuple of str
-        Rules applied and decisions taken, in words.
-    """
-
-    stock_top: float
-    stock_top_source: Literal["request", "default"]
-    strategy: str
-    stages: tuple[ContourStage, ...]
-    contour_spacings: tuple[float, ...]
-    checks: ContourChecks
-    notes: tuple[str, ...]
 
 
 def _strategy(name: str) -> Strategy:
@@ -376,55 +235,78 @@ def plan_contour(zmap: ZMap, tools: Sequence[Tool] | None = None, *,
     phase = {"mrr": time.perf_counter() - t0, "heights": 0.0, "terraces": 0.0, "checks": 0.0}
 
     stages: list[ContourStage] = []
-    prev_model: F64 | None = None
-    prev_level = 0
+    prev: tuple[F64, int] | None = None
     top_q = ceil_units(top) * QUANTUM
     acc = _Checks(zmap, top_q)
     for k, (tool, j, rule) in enumerate(chosen):
-        t1 = time.perf_counter()
-        level_model = mrr.approximations[j]
-        s = mrr.scale(j)
-        weight = cell_weights(level_model.shape, s, z.shape, zmap.cell_area)
-        if prev_model is None:
-            previous = np.full(level_model.shape, top_q)
-        else:
-            previous = cells_at_fine_nodes(prev_model, 1 << (j - prev_level), level_model.shape)
-        h = _heights(k, strat, tool, level_model, previous, weight)
-        z_levels = np.array(h.units, dtype=np.float64) * QUANTUM
-        t2 = time.perf_counter()
-        # The stage model: the part's representation from level j up, edited
-        # (approximation raised onto the contour grid, finer details zeroed)
-        # and synthesised to the input nodes.
-        edited = edit_coefficients(mrr, j, previous, z_levels)
-        model = edited.approximation
-        fine = edited.synthesize()
-        vols = removed_between(previous.ravel(), model.ravel(), weight.ravel(), z_levels)
-        t3 = time.perf_counter()
-        # The terrace rule applied on its own (cells, then every input node).
-        rule_fine = cells_at_fine_nodes(terrace(level_model, previous, z_levels), s, z.shape)
-        exact = bool(fine.shape == rule_fine.shape and np.array_equal(fine, rule_fine))
-        left = acc.stage(fine, float(vols.sum()), exact)
-        t4 = time.perf_counter()
-        stages.append(ContourStage(
-            tool=tool, level=j, scale=s, cell_size=(zmap.dx * s, zmap.dy * s),
-            origin=(zmap.x0 + 0.5 * (s - 1) * zmap.dx, zmap.y0 + 0.5 * (s - 1) * zmap.dy),
-            level_rule=rule, spacing_rule=h.rule, nominal_step=float(h.nominal),
-            z_levels=tuple(float(v) for v in z_levels),
-            spacings=tuple(float(v) for v in (z_levels[:-1] - z_levels[1:])),
-            slab_volumes=tuple(float(v) for v in vols),
-            volume_spread=volume_spread(vols, h.capped),
-            flute_cap_binds=tuple(bool(c) for c in h.capped), removed_volume=float(vols.sum()),
-            max_stock_left=left[0], mean_stock_left=left[1],
-            edited_coefficients=edited.edited, model=model))
-        phase["heights"] += t2 - t1
-        phase["terraces"] += t3 - t2
-        phase["checks"] += t4 - t3
-        prev_model, prev_level = model, j
+        stage = _stage(zmap, mrr, k, (tool, j, rule), strat, prev, top_q, acc, phase)
+        stages.append(stage)
+        prev = (stage.model, j)
 
     checks = acc.result(stages)
     if timings is not None:
         timings.update(phase)
-    if chosen and chosen[-1][1] < depth:
+    notes.extend(_closing_notes(stages, depth, strat))
+    return ContourPlan(
+        stock_top=top, stock_top_source=source, strategy=strat, stages=tuple(stages),
+        contour_spacings=tuple(sp for st in stages for sp in st.spacings), checks=checks,
+        notes=tuple(notes))
+
+
+def _stage(zmap: ZMap, mrr: Multiresolution, k: int, choice: tuple[Tool, int, str],
+           strat: Strategy, prev: tuple[F64, int] | None, top_q: float, acc: _Checks,
+           phase: dict[str, float]) -> ContourStage:
+    """Stage ``k``: heights, the edited model, slab volumes and its checks.
+
+    ``prev`` is the previous stage's model and level (``None``: the stock at
+    ``top_q``); ``phase`` accumulates the seconds per phase.
+    """
+    tool, j, rule = choice
+    z = zmap.z
+    t1 = time.perf_counter()
+    level_model = mrr.approximations[j]
+    s = mrr.scale(j)
+    weight = cell_weights(level_model.shape, s, z.shape, zmap.cell_area)
+    if prev is None:
+        previous = np.full(level_model.shape, top_q)
+    else:
+        previous = cells_at_fine_nodes(prev[0], 1 << (j - prev[1]), level_model.shape)
+    h = _heights(k, strat, tool, level_model, previous, weight)
+    z_levels = np.array(h.units, dtype=np.float64) * QUANTUM
+    t2 = time.perf_counter()
+    # The stage model: the part's representation from level j up, edited
+    # (approximation raised onto the contour grid, finer details zeroed)
+    # and synthesised to the input nodes.
+    edited = edit_coefficients(mrr, j, previous, z_levels)
+    model = edited.approximation
+    fine = edited.synthesize()
+    vols = removed_between(previous.ravel(), model.ravel(), weight.ravel(), z_levels)
+    t3 = time.perf_counter()
+    # The terrace rule applied on its own (cells, then every input node).
+    rule_fine = cells_at_fine_nodes(terrace(level_model, previous, z_levels), s, z.shape)
+    exact = bool(fine.shape == rule_fine.shape and np.array_equal(fine, rule_fine))
+    left = acc.stage(fine, float(vols.sum()), exact)
+    t4 = time.perf_counter()
+    phase["heights"] += t2 - t1
+    phase["terraces"] += t3 - t2
+    phase["checks"] += t4 - t3
+    return ContourStage(
+        tool=tool, level=j, scale=s, cell_size=(zmap.dx * s, zmap.dy * s),
+        origin=(zmap.x0 + 0.5 * (s - 1) * zmap.dx, zmap.y0 + 0.5 * (s - 1) * zmap.dy),
+        level_rule=rule, spacing_rule=h.rule, nominal_step=float(h.nominal),
+        z_levels=tuple(float(v) for v in z_levels),
+        spacings=tuple(float(v) for v in (z_levels[:-1] - z_levels[1:])),
+        slab_volumes=tuple(float(v) for v in vols),
+        volume_spread=volume_spread(vols, h.capped),
+        flute_cap_binds=tuple(bool(c) for c in h.capped), removed_volume=float(vols.sum()),
+        max_stock_left=left[0], mean_stock_left=left[1],
+        edited_coefficients=edited.edited, model=model)
+
+
+def _closing_notes(stages: Sequence[ContourStage], depth: int, strat: Strategy) -> list[str]:
+    """What the plan leaves and how it placed its heights, in words."""
+    notes = []
+    if stages and stages[-1].level < depth:
         last = stages[-1]
         notes.append(f"the smallest tool works at level {last.level} (cell "
                      f"{last.cell_size[0]:g} x {last.cell_size[1]:g} mm); up to "
@@ -436,10 +318,7 @@ def plan_contour(zmap: ZMap, tools: Sequence[Tool] | None = None, *,
                                                  if strat == "uniform_load" else "evenly"))
     notes.append(f"contour heights lie on a {QUANTUM:g} mm grid, rounded up (never into the "
                  f"part), so the edited Haar coefficients synthesise the terraces exactly")
-    return ContourPlan(
-        stock_top=top, stock_top_source=source, strategy=strat, stages=tuple(stages),
-        contour_spacings=tuple(sp for st in stages for sp in st.spacings), checks=checks,
-        notes=tuple(notes))
+    return notes
 
 
 class _Checks:

@@ -23,8 +23,9 @@ level and synthesis removes it, so nothing inside the input changes.
 
 Implementation: :func:`_reference_step` is the definition, written literally
 (pad, x step, y step). :func:`analyse` and :func:`analysis_step` run the fast
-kernels of :mod:`zwcore.mrr._pyramid` (row strips kept in cache, the Haar levels
-pipelined strip by strip, two threads on large grids), which perform the same
+kernels of :mod:`zwcore.mrr._pyramid` and :mod:`zwcore.mrr._hat` (row strips kept
+in cache, the Haar levels pipelined strip by strip, two threads on large grids),
+which perform the same
 floating-point operations on the same operands and so give bit-identical
 results; the tests compare the two bit for bit.
 """
@@ -40,7 +41,7 @@ from numpy.typing import NDArray
 
 from zwcore.errors import InvalidInputError
 from zwcore.grid.zmap import MAX_ABS_HEIGHT, Interpolation, as_heights
-from zwcore.mrr import _pyramid
+from zwcore.mrr import _hat, _pyramid
 
 __all__ = [
     "WAVELETS",
@@ -261,7 +262,7 @@ def _hat_steps(z: F64, steps: int, lifted: bool, max_abs: float) -> list[tuple[F
     cur = z
     for _ in range(steps):
         guard = _guard_for(max_abs) if lifted else 0.0
-        ll, lh, hl, hh, lo, hi = _pyramid.hat_step(cur, lifted, guard)
+        ll, lh, hl, hh, lo, hi = _hat.hat_step(cur, lifted, guard)
         padding = (_pad_for("single_knot", cur.shape[0]), _pad_for("single_knot", cur.shape[1]))
         out.append((ll, Bands(lh=lh, hl=hl, hh=hh, fine_shape=cur.shape, padding=padding,
                               guard=guard)))
@@ -398,7 +399,7 @@ def _checked_heights(z: object) -> tuple[F64, float, float]:
     the documented error."""
     if _plain_grid(z):
         assert isinstance(z, np.ndarray)
-        lo, hi = _pyramid.extremes(z)
+        lo, hi = _hat.extremes(z)
         if _within_limits(lo, hi):
             return z, lo, hi
     zz = as_heights(z)  # type: ignore[arg-type]

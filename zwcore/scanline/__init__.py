@@ -2,7 +2,8 @@
 
 - :mod:`zwcore.scanline.planner`: :func:`plan_scanline`;
 - :mod:`zwcore.scanline.results`: the plan, stage and checks dataclasses;
-- private: ``_models`` (nested stage targets), ``_passes`` (pick-feed strips and
+- private: ``_models`` (nested stage targets), ``_tool_choice`` (which level
+  becomes a stage, with which ball), ``_passes`` (pick-feed strips and
   scallops), ``_checks`` (per-stage figures and the invariants).
 """
 

@@ -101,35 +101,37 @@ def _trapezoid_weights(n: int) -> F64:
     return w
 
 
-def figures(part: F64, depth: int, dx: float, dy: float, passes: Sequence[PassSpec],
-            stock_top: float, tolerance: float) -> tuple[list[ScanlineStage], ScanlineChecks]:
-    """Stages with their figures, and the checks, from one evaluation per stage."""
+@dataclass
+class _Reductions:
+    """Per pass, over the input nodes: depth of cut extremes, volume, stock left extremes."""
+
+    cut_min: list[float]
+    cut_max: list[float]
+    volume: list[float]  # trapezoid sums, in cells (times the cell area: mm³)
+    left_max: list[float]
+    left_min: list[float]
+
+
+def _evaluate(part: F64, depth: int, passes: Sequence[PassSpec], stock_top: float,
+              ) -> _Reductions:
+    """Evaluate every pass once at the input nodes and reduce, block-major.
+
+    Every row block of every pass is evaluated once, in machining order, next
+    to the block of the pass before it (still in cache), instead of keeping a
+    full-resolution evaluation of each pass. Per pass, the blocks are reduced
+    in the same order as a pass-major loop would, so every figure is the same,
+    bit for bit.
+    """
     ny, nx = part.shape
     wy = _trapezoid_weights(ny)
     wx = _trapezoid_weights(nx)
-    cell = dx * dy
-    area = (ny - 1) * dy * (nx - 1) * dx
     rows = max(8, _BLOCK_NODES // max(nx, 1))
-    counts: dict[tuple[int, str], int] = {}
-    for p in passes:
-        key = (p.level, p.tool.id)
-        counts[key] = counts.get(key, 0) + 1
-    seen: dict[tuple[int, str], int] = {}
-
-    # Block-major: every row block of every pass is evaluated once, in
-    # machining order, next to the block of the pass before it (still in
-    # cache), instead of keeping a full-resolution evaluation of each pass.
-    # Per pass, the blocks are reduced in the same order as a pass-major loop
-    # would, so every figure is the same, bit for bit.
     n = len(passes)
     scales = [1 << (depth - p.level) for p in passes]
     axes = [(axis_weights(sc, ny, p.model.shape[0]), axis_weights(sc, nx, p.model.shape[1]))
             for sc, p in zip(scales, passes, strict=True)]
-    cut_mins = [math.inf] * n
-    cut_maxs = [-math.inf] * n
-    volumes = [0.0] * n
-    left_maxs = [-math.inf] * n
-    left_mins = [math.inf] * n
+    red = _Reductions([math.inf] * n, [-math.inf] * n, [0.0] * n, [-math.inf] * n,
+                      [math.inf] * n)
     for a in range(0, ny, rows):
         b = min(a + rows, ny)
         pa = part[a:b]
@@ -138,13 +140,47 @@ def figures(part: F64, depth: int, dx: float, dy: float, passes: Sequence[PassSp
         for i, p in enumerate(passes):
             cur = eval_rows(p.model, scales[i], a, b, axes[i][0], axes[i][1])
             cut = (stock_top - cur) if prev is None else (prev - cur)
-            cut_mins[i] = min(cut_mins[i], float(cut.min()))
-            cut_maxs[i] = max(cut_maxs[i], float(cut.max()))
-            volumes[i] += float(wa @ cut @ wx)
+            red.cut_min[i] = min(red.cut_min[i], float(cut.min()))
+            red.cut_max[i] = max(red.cut_max[i], float(cut.max()))
+            red.volume[i] += float(wa @ cut @ wx)
             left = cur - pa
-            left_maxs[i] = max(left_maxs[i], float(left.max()))
-            left_mins[i] = min(left_mins[i], float(left.min()))
+            red.left_max[i] = max(red.left_max[i], float(left.max()))
+            red.left_min[i] = min(red.left_min[i], float(left.min()))
             prev = cur
+    return red
+
+
+def _stage(p: PassSpec, index: tuple[int, int], cut_max: float, volume: float, area: float,
+           engagement: float, left_max: float) -> ScanlineStage:
+    """The stage record of one pass (``index``: pass index and count at its level)."""
+    sp = p.strips
+    return ScanlineStage(
+        tool=p.tool, level=p.level, spacing=(p.sx, p.sy), pick_feed=sp.pick_feed,
+        pick_feed_reduced=sp.reason is not None, pick_feed_reason=sp.reason,
+        scan_direction=sp.direction, scan_lines=max(sp.scan_lines, 2),
+        steepest_slope_deg=math.degrees(math.atan(p.steepest_slope)),
+        scallop_height=sp.scallop,
+        max_depth_of_cut=cut_max, mean_depth_of_cut=volume / area if area > 0 else 0.0,
+        max_engagement=engagement, rest_height=p.rest, removed_volume=volume,
+        max_stock_left=left_max,
+        pass_index=index[0], pass_count=index[1], concave_radius=p.concave_radius,
+        merged_levels=p.merged, cross_slope_deg=math.degrees(math.atan(sp.cross_slope)),
+        pick_feed_max=sp.pick_feed_max, reduced_strips=sp.reduced_strips,
+        clipped_nodes=p.clipped, raised_nodes=p.raised, model=p.model)
+
+
+def figures(part: F64, depth: int, dx: float, dy: float, passes: Sequence[PassSpec],
+            stock_top: float, tolerance: float) -> tuple[list[ScanlineStage], ScanlineChecks]:
+    """Stages with their figures, and the checks, from one evaluation per stage."""
+    ny, nx = part.shape
+    cell = dx * dy
+    area = (ny - 1) * dy * (nx - 1) * dx
+    counts: dict[tuple[int, str], int] = {}
+    for p in passes:
+        key = (p.level, p.tool.id)
+        counts[key] = counts.get(key, 0) + 1
+    seen: dict[tuple[int, str], int] = {}
+    red = _evaluate(part, depth, passes, stock_top)
 
     leaves = 0.0
     margin = math.inf
@@ -152,29 +188,15 @@ def figures(part: F64, depth: int, dx: float, dy: float, passes: Sequence[PassSp
     fit = True
     stages: list[ScanlineStage] = []
     for i, p in enumerate(passes):
-        cut_min, cut_max, volume = cut_mins[i], cut_maxs[i], volumes[i]
-        left_max, left_min = left_maxs[i], left_mins[i]
-        volume *= cell
-        margin = min(margin, cut_min, left_min)
-        engagement = cut_max + leaves
+        volume = red.volume[i] * cell
+        margin = min(margin, red.cut_min[i], red.left_min[i])
+        engagement = red.cut_max[i] + leaves
         over = max(over, engagement - p.tool.flute_length)
         fit = fit and (p.tool.radius <= p.concave_radius or p.rest > 0.0)
         key = (p.level, p.tool.id)
         seen[key] = seen.get(key, 0) + 1
-        sp = p.strips
-        stages.append(ScanlineStage(
-            tool=p.tool, level=p.level, spacing=(p.sx, p.sy), pick_feed=sp.pick_feed,
-            pick_feed_reduced=sp.reason is not None, pick_feed_reason=sp.reason,
-            scan_direction=sp.direction, scan_lines=max(sp.scan_lines, 2),
-            steepest_slope_deg=math.degrees(math.atan(p.steepest_slope)),
-            scallop_height=sp.scallop,
-            max_depth_of_cut=cut_max, mean_depth_of_cut=volume / area if area > 0 else 0.0,
-            max_engagement=engagement, rest_height=p.rest, removed_volume=volume,
-            max_stock_left=left_max,
-            pass_index=seen[key], pass_count=counts[key], concave_radius=p.concave_radius,
-            merged_levels=p.merged, cross_slope_deg=math.degrees(math.atan(sp.cross_slope)),
-            pick_feed_max=sp.pick_feed_max, reduced_strips=sp.reduced_strips,
-            clipped_nodes=p.clipped, raised_nodes=p.raised, model=p.model))
+        stages.append(_stage(p, (seen[key], counts[key]), red.cut_max[i], volume, area,
+                             engagement, red.left_max[i]))
         leaves = p.leaves
     radii = [s.tool.radius for s in stages]
     last = stages[-1].model

@@ -110,22 +110,43 @@ def repair(low: F64, ceiling: F64, check: NDArray[np.bool_], part: F64, scale: i
     raised : int
         Number of nodes raised.
     """
-    my, mx = low.shape
-    ny, nx = part.shape
     if not check.any():
         return low, 0
-    # Cells with a flagged corner (a one-row or one-column level has
-    # degenerate cells: both "corners" on the same row or column).
+    lam = _cell_blends(low, ceiling, check, part, scale, margin)
+    if not lam.any():
+        return low, 0
+    return _blend_nodes(low, ceiling, lam)
+
+
+def _flagged_cells(check: NDArray[np.bool_], scale: int,
+                   fine_shape: tuple[int, int]) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
+    """Rows and columns of the cells with a flagged corner that cover input nodes."""
+    my, mx = check.shape
+    ny, nx = fine_shape
+    # A one-row or one-column level has degenerate cells: both "corners" on
+    # the same row or column.
     cy, cx = max(my - 1, 1), max(mx - 1, 1)
     hi_r = np.minimum(np.arange(cy) + 1, my - 1)
     hi_c = np.minimum(np.arange(cx) + 1, mx - 1)
     flag = (check[:cy][:, :cx] | check[hi_r][:, :cx] | check[:cy][:, hi_c]
             | check[hi_r][:, hi_c])
-    # Only cells that cover input nodes.
     flag &= (np.arange(cy) * scale <= ny - 1)[:, None]
     flag &= (np.arange(cx) * scale <= nx - 1)[None, :]
-    cells_r, cells_c = np.nonzero(flag)
-    lam = np.zeros((cy, cx))
+    rows, cols = np.nonzero(flag)
+    return rows, cols
+
+
+def _cell_blends(low: F64, ceiling: F64, check: NDArray[np.bool_], part: F64, scale: int,
+                 margin: float) -> F64:
+    """``(cy, cx)``: per cell, the smallest blend towards the ceiling that contains the part.
+
+    Each flagged cell is evaluated at all the input nodes it covers, in
+    batches of cells (bounded temporaries).
+    """
+    my, mx = low.shape
+    ny, nx = part.shape
+    cells_r, cells_c = _flagged_cells(check, scale, part.shape)
+    lam = np.zeros((max(my - 1, 1), max(mx - 1, 1)))
     span = (1 if my == 1 else scale + 1) * (1 if mx == 1 else scale + 1)
     per = max(1, _BATCH_NODES // span)
     for a in range(0, cells_r.size, per):
@@ -158,8 +179,13 @@ def repair(low: F64, ceiling: F64, check: NDArray[np.bool_], part: F64, scale: i
         ratio[need & (room <= 0.0)] = 1.0
         cell_lam = ratio.reshape(ratio.shape[0], -1).max(axis=1)
         lam[r, c] = np.maximum(lam[r, c], cell_lam)
-    if not lam.any():
-        return low, 0
+    return lam
+
+
+def _blend_nodes(low: F64, ceiling: F64, lam: F64) -> tuple[F64, int]:
+    """Blend every node towards the ceiling by the largest ``lam`` of its cells."""
+    my, mx = low.shape
+    cy, cx = lam.shape
     # A little over the exact blend covers the rounding of the evaluation.
     lam = np.minimum(lam * (1.0 + 1e-9) + np.where(lam > 0.0, 1e-12, 0.0), 1.0)
     # Every node takes the largest blend of the (up to four) cells it is a

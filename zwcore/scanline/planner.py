@@ -17,17 +17,17 @@ Everything comes off one lifted single-knot MRR of the part:
    wherever that was already below the level before. Without the clip every
    coarse level of a walled part rose above the stock and was skipped, and
    the whole part was machined with the finishing ball.
-3. Tool choice per level from its target (:mod:`zwcore.grid.curvature`): the
-   largest library ball whose radius is at most the target's smallest concave
-   radius. Levels are taken from the finest (the part, which fixes the
-   finishing tool) towards the coarsest; a coarser level becomes a stage only
-   when it admits a strictly larger ball than the stage after it, so radii
-   never grow in machining order; a level that admits the same ball merges
-   into the finer stage. A roughing level may also take a ball larger than
-   its concave radius when the material that ball cannot reach there (a grey
-   closing of the target by the ball, on the level's nodes) is at most a
-   quarter of the next stage's flute length: steep walls make every coarse
-   model sharp at its own grid scale.
+3. Tool choice per level from its target (:mod:`zwcore.scanline._tool_choice`,
+   with :mod:`zwcore.grid.curvature`): the largest library ball whose radius
+   is at most the target's smallest concave radius. Levels are taken from the
+   finest (the part, which fixes the finishing tool) towards the coarsest; a
+   coarser level becomes a stage only when it admits a strictly larger ball
+   than the stage after it, so radii never grow in machining order; a level
+   that admits the same ball merges into the finer stage. A roughing level may
+   also take a ball larger than its concave radius when the material that ball
+   cannot reach there (a grey closing of the target by the ball, on the
+   level's nodes) is at most a quarter of the next stage's flute length: steep
+   walls make every coarse model sharp at its own grid scale.
 4. Flute-length lift (Fig. 6) on the stage's own nodes:
    ``M_k = max(T_j, M_{k-1} + h_{k-1} + e_{k-1} - L_k + g)``, where
    ``h_{k-1}`` and ``e_{k-1}`` are the previous pass's scallop and rest
@@ -51,21 +51,20 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import ndimage
 
 from zwcore.errors import InvalidInputError, PlanningError
-from zwcore.grid.curvature import min_concave_radius, steepest_slope
+from zwcore.grid.curvature import steepest_slope
 from zwcore.grid.sampling import bilinear_at_fine_nodes
 from zwcore.grid.tools import Tool, default_tools, tool_library
 from zwcore.grid.zmap import ZMap, positive_number, stock_top_at_or_above
-from zwcore.mrr.wavelets import analyse
+from zwcore.mrr.wavelets import Multiresolution, analyse
 from zwcore.scanline._checks import PassSpec, axis_weights, eval_rows, figures
-from zwcore.scanline._models import Target, nested_targets
+from zwcore.scanline._models import nested_targets
 from zwcore.scanline._passes import cross_slopes, plan_strips, scallop_height
+from zwcore.scanline._tool_choice import Stage, ball_rest, choose, levels
 from zwcore.scanline.results import ScanlineChecks, ScanlinePlan, ScanlineStage
 
 __all__ = [
@@ -93,42 +92,13 @@ MAX_MODEL_NODES = 1 << 28
 #: next pass's flute length (the rest of it is for the model difference).
 SCALLOP_FLUTE_SHARE = 0.5
 
-#: Rest material a roughing ball may leave in its model's sharper valleys, as a
-#: share of the next stage's flute length.
-REST_FLUTE_SHARE = 0.25
-
-#: The rest of an oversized ball is computed only where it spans at most this
-#: many nodes of its level each way (beyond, the concave-radius rule decides).
-REST_MAX_CELLS = 4
-
 #: Nodes per block of rows for the full-resolution work on pass models.
 _BLOCK_NODES = 1 << 15
-
-
-@dataclass
-class _Level:
-    index: int
-    model: F64
-    sx: float
-    sy: float
-    extent: tuple[int, int]  # nodes inside the input's extent
-    cells: tuple[int, int]  # cells touching the input's extent
-    concave_radius: float
-    fit: Tool | None
-    clipped: int
-    raised: int
 
 
 def _validate(tolerance: float, stock_top: float | None, top: float) -> tuple[float, float | None]:
     tol = positive_number(tolerance, "tolerance")
     return tol, None if stock_top is None else stock_top_at_or_above(stock_top, top)
-
-
-def _largest_fitting(library: Sequence[Tool], radius: float) -> Tool | None:
-    for tool in library:  # largest first
-        if tool.radius <= radius:
-            return tool
-    return None
 
 
 def _guard(*values: float) -> float:
@@ -143,90 +113,6 @@ def _default_stock(top: float, tool: Tool) -> float:
     # empty extra pass).
     st = top + tool.flute_length
     return st - 2.0 * _guard(st, top, tool.flute_length)
-
-
-def _levels(zmap: ZMap, depth: int, targets: list[Target], smoothing: float,
-            library: Sequence[Tool], cache: dict[int, float]) -> list[_Level]:
-    ny, nx = zmap.shape
-    out = []
-    for tg in targets:
-        j = tg.level
-        s = 1 << (depth - j)
-        sx, sy = zmap.dx * s, zmap.dy * s
-        extent = ((ny - 1) // s + 1, (nx - 1) // s + 1)
-        cells = (-(-(ny - 1) // s), -(-(nx - 1) // s))
-        rho = cache.get(j) if j == depth else None  # the part does not depend on the stock
-        if rho is None:
-            rho = min_concave_radius(tg.model, sx, sy, smoothing=smoothing, extent=extent)
-            if j == depth:
-                cache[j] = rho
-        out.append(_Level(j, tg.model, sx, sy, extent, cells, rho,
-                          _largest_fitting(library, rho), tg.clipped, tg.raised))
-    return out
-
-
-def _ball_rest(lev: _Level, radius: float) -> float:
-    """Largest height of material a ball of ``radius`` leaves in the level model's valleys.
-
-    Drop-cutter on the level's own nodes: the tool tip rests at
-    ``max_y (A(x+y) - b(y))`` over the ball's footprint ``y``, with ``b`` the
-    ball's lower hemisphere above its tip, and cuts down to
-    ``min_y (tip(x-y) + b(y))``: a grey closing of ``A`` by ``-b``. The rest
-    is that minus ``A``, over the nodes inside the input.
-    """
-    mx = math.floor(radius / lev.sx)
-    my = math.floor(radius / lev.sy)
-    oy, ox = np.mgrid[-my:my + 1, -mx:mx + 1]
-    r2 = (ox * lev.sx) ** 2 + (oy * lev.sy) ** 2
-    inside = r2 <= radius * radius
-    hemi = radius - np.sqrt(np.where(inside, radius * radius - r2, 0.0))
-    closed = ndimage.grey_closing(lev.model, footprint=inside, structure=-hemi, mode="nearest")
-    rest = (closed - lev.model)[: lev.extent[0], : lev.extent[1]]
-    return max(float(rest.max()), 0.0)
-
-
-def _choose(levels: list[_Level], library: Sequence[Tool],
-            notes: list[str]) -> list[tuple[_Level, Tool, list[int], float]]:
-    """Stages (level, tool, merged levels, rest) from coarse to fine; radii non-increasing."""
-    finest = levels[-1]
-    finish = finest.fit
-    if finish is None:
-        finish = library[-1]
-        notes.append(
-            f"no tool fits the smallest concave radius of the part "
-            f"({finest.concave_radius:.4g} mm); finishing with the smallest ball "
-            f"{finish.id} (R {finish.radius:g} mm) leaves material in the sharpest corners")
-    chosen: list[tuple[_Level, Tool, list[int], float]] = [(finest, finish, [], 0.0)]
-    current = finish
-    for lev in reversed(levels[:-1]):
-        spacing = min(lev.sx, lev.sy)
-        # An intermediate stage may use a ball larger than its model's concave
-        # radius when what the ball cannot reach (its rest, grey closing on the
-        # level's nodes) fits in a quarter of the next stage's flute length;
-        # that rest counts against it like scallops do. Only tried where the
-        # ball spans a few nodes (cheap, and the node sampling is fair).
-        pick: tuple[Tool, float] | None = None
-        for tool in library:
-            if tool.radius <= current.radius:
-                break
-            allowance = REST_FLUTE_SHARE * min(current.flute_length, tool.flute_length)
-            if spacing >= tool.diameter:
-                continue  # the ball cannot follow this level's scan lines
-            if tool.radius <= lev.concave_radius:
-                pick = (tool, 0.0)
-                break
-            if tool.radius <= REST_MAX_CELLS * spacing:
-                rest = _ball_rest(lev, tool.radius)
-                if rest <= allowance:
-                    pick = (tool, rest)
-                    break
-        if pick is not None:
-            chosen.append((lev, pick[0], [], pick[1]))
-            current = pick[0]
-        elif lev.fit is not None and lev.fit.id == current.id:
-            chosen[-1][2].append(lev.index)
-    chosen.reverse()
-    return chosen
 
 
 def _upsampled(coarse: F64, scale: int, shape: tuple[int, int]) -> F64:
@@ -268,7 +154,7 @@ def _lift(on: F64, target: F64, shift: float) -> tuple[F64, bool]:
     return model, reached
 
 
-def _passes(zmap: ZMap, chosen: list[tuple[_Level, Tool, list[int], float]],
+def _passes(zmap: ZMap, chosen: list[Stage],
             stock_top: float, tolerance: float, g: float) -> list[PassSpec]:
     ny, nx = zmap.shape
     extent_mm = ((ny - 1) * zmap.dy, (nx - 1) * zmap.dx)
@@ -364,14 +250,7 @@ def plan_scanline(zmap: ZMap, tools: Sequence[Tool] | None = None, *, tolerance:
     PlanningError
         The flute lengths would need more than :data:`MAX_STAGES` passes.
     """
-    clock = [time.perf_counter()]
-    timings: list[tuple[str, float]] = []
-
-    def lap(name: str) -> None:
-        now = time.perf_counter()
-        timings.append((name, now - clock[0]))
-        clock[0] = now
-
+    laps = _Laps()
     part = zmap.z
     top = float(part.max())
     tol, requested = _validate(tolerance, stock_top, top)
@@ -379,13 +258,51 @@ def plan_scanline(zmap: ZMap, tools: Sequence[Tool] | None = None, *, tolerance:
     if not math.isfinite(curvature_smoothing) or curvature_smoothing < 0.0:
         raise InvalidInputError("curvature_smoothing",
                                 f"must be finite and >= 0, got {curvature_smoothing!r}")
-    lap("validate")
+    laps("validate")
 
     mrr = analyse(part, "single_knot")
-    approx = list(mrr.approximations)
-    depth = mrr.depth
-    lap("mrr")
+    laps("mrr")
 
+    first, ceiling, g = _first_level_and_guard(zmap, mrr, library, requested)
+    notes: list[str] = []
+    st, chosen = _stages(zmap, mrr, first, ceiling, g, requested, library,
+                         float(curvature_smoothing), notes, laps)
+    passes = _passes(zmap, chosen, st, tol, g)
+    laps("flute_lift")
+
+    stages, checks = figures(part, mrr.depth, zmap.dx, zmap.dy, passes, st, tol)
+    laps("figures_and_checks")
+
+    return ScanlinePlan(
+        stock_top=st, stock_top_source="request" if requested is not None else "default",
+        tolerance=tol, depth=mrr.depth, stages=tuple(stages),
+        tool_sequence=_tool_sequence(stages), checks=checks, notes=tuple(notes),
+        timings=tuple(laps.timings))
+
+
+class _Laps:
+    """Seconds per phase, in the order the phases end (a phase may recur)."""
+
+    def __init__(self) -> None:
+        self.timings: list[tuple[str, float]] = []
+        self._last = time.perf_counter()
+
+    def __call__(self, name: str) -> None:
+        now = time.perf_counter()
+        self.timings.append((name, now - self._last))
+        self._last = now
+
+
+def _first_level_and_guard(zmap: ZMap, mrr: Multiresolution, library: Sequence[Tool],
+                           requested: float | None) -> tuple[int, float, float]:
+    """The coarsest useful level, the stock ceiling and the rounding guard ``g``.
+
+    Levels whose spacing is at least the widest ball's diameter are of no use.
+    """
+    part = zmap.z
+    top = float(part.max())
+    approx = mrr.approximations
+    depth = mrr.depth
     widest = library[0].diameter
     first = depth
     for j in range(depth + 1):
@@ -405,21 +322,35 @@ def plan_scanline(zmap: ZMap, tools: Sequence[Tool] | None = None, *, tolerance:
     # planned (the flute lift alone reaches the part).
     if ceiling - top < 8.0 * (depth - first + 2) * 4.0 * g:
         first = depth
+    return first, ceiling, g
 
-    notes: list[str] = []
+
+def _stages(zmap: ZMap, mrr: Multiresolution, first: int, ceiling: float, g: float,
+            requested: float | None, library: Sequence[Tool], smoothing: float,
+            notes: list[str], laps: _Laps) -> tuple[float, list[Stage]]:
+    """The stock top and the chosen stages (coarse to fine), with ``notes`` filled.
+
+    With a default stock the top follows the first stage's ball (its flute
+    length), which may change the targets and so the tools: up to three
+    rounds, then the tools are kept and the targets rebuilt under the stock.
+    """
+    approx = list(mrr.approximations)
+    part = zmap.z
+    top = float(part.max())
+    depth = mrr.depth
     cache: dict[int, float] = {}
     st = ceiling
     built = math.nan
-    chosen: list[tuple[_Level, Tool, list[int], float]] = []
+    chosen: list[Stage] = []
     for _ in range(3):
         targets = nested_targets(approx, part, first, st, g)
         built = st
-        lap("targets")
-        levels = _levels(zmap, depth, targets, float(curvature_smoothing), library, cache)
-        lap("curvature")
-        notes = []
-        chosen = _choose(levels, library, notes)
-        lap("select")
+        laps("targets")
+        levs = levels(zmap, depth, targets, smoothing, library, cache)
+        laps("curvature")
+        notes.clear()
+        chosen = choose(levs, library, notes)
+        laps("select")
         if requested is not None:
             break
         st = _default_stock(top, chosen[0][1])
@@ -429,24 +360,19 @@ def plan_scanline(zmap: ZMap, tools: Sequence[Tool] | None = None, *, tolerance:
         # The first tool kept changing with the stock: keep the tools, rebuild
         # the targets under the stock they imply.
         targets = nested_targets(approx, part, first, st, g)
-        levels = _levels(zmap, depth, targets, float(curvature_smoothing), library, cache)
-        by_index = {lev.index: lev for lev in levels}
+        levs = levels(zmap, depth, targets, smoothing, library, cache)
+        by_index = {lev.index: lev for lev in levs}
         chosen = [(by_index[lev.index], tool, merged,
-                   _ball_rest(by_index[lev.index], tool.radius) if rest > 0.0 else rest)
+                   ball_rest(by_index[lev.index], tool.radius) if rest > 0.0 else rest)
                   for lev, tool, merged, rest in chosen]
-        lap("targets")
-    passes = _passes(zmap, chosen, st, tol, g)
-    lap("flute_lift")
+        laps("targets")
+    return st, chosen
 
-    stages, checks = figures(part, depth, zmap.dx, zmap.dy, passes, st, tol)
-    lap("figures_and_checks")
 
+def _tool_sequence(stages: Sequence[ScanlineStage]) -> tuple[str, ...]:
+    """Tool ids in machining order, one per tool change."""
     sequence: list[str] = []
     for s_ in stages:
         if not sequence or sequence[-1] != s_.tool.id:
             sequence.append(s_.tool.id)
-    return ScanlinePlan(
-        stock_top=st, stock_top_source="request" if requested is not None else "default",
-        tolerance=tol, depth=depth, stages=tuple(stages),
-        tool_sequence=tuple(sequence), checks=checks, notes=tuple(notes),
-        timings=tuple(timings))
+    return tuple(sequence)
