@@ -166,7 +166,9 @@ def _stage(p: PassSpec, index: tuple[int, int], cut_max: float, volume: float, a
         pass_index=index[0], pass_count=index[1], concave_radius=p.concave_radius,
         merged_levels=p.merged, cross_slope_deg=math.degrees(math.atan(sp.cross_slope)),
         pick_feed_max=sp.pick_feed_max, reduced_strips=sp.reduced_strips,
-        clipped_nodes=p.clipped, raised_nodes=p.raised, model=p.model)
+        clipped_nodes=p.clipped, raised_nodes=p.raised, path_length=sp.path_length,
+        path_length_whole_strips=sp.path_length_whole_strips, extra_segments=sp.extra_segments,
+        lines=sp.lines, model=p.model)
 
 
 def figures(part: F64, depth: int, dx: float, dy: float, passes: Sequence[PassSpec],

@@ -1,4 +1,4 @@
-"""Scallops and pick-feeds of scan-line passes, strip by strip.
+"""Scallops and pick-feeds of scan-line passes: strips, and extra lines where needed.
 
 The design's scallop rule, ``h = R - sqrt(R^2 - e^2)`` with
 ``e = p / (2 cos theta)``, is the cusp between two ball paths a pick-feed
@@ -11,14 +11,26 @@ steepest slope in any direction (the seed's choice) overestimates it wherever
 the surface climbs along the lines: a wall crossed by the scan lines is
 climbed along them and leaves flat-surface scallops.
 
-Pick-feeds are chosen strip by strip: a strip is the band between two
-adjacent grid lines of the level (the nominal scan lines). On a bilinear
-cell the slope across the lines is linear along them, so its largest
-magnitude over the strip is the largest grid-edge difference across it
-(exact). A strip whose scallop at the level spacing would exceed the budget
-gets extra lines, evenly spaced, just enough to meet it; the rest of the
-part keeps the level spacing, so one wall no longer makes every pass crawl.
-The scan direction is the one with the shorter total path.
+Pick-feeds are chosen strip by strip, then cell by cell. A strip is the band
+between two adjacent grid lines of the level (the nominal scan lines, which
+run the whole length); its cells are the level's cells along it. On a
+bilinear cell the slope across the lines is linear along them, so its largest
+magnitude over the cell is the larger of the cell's two grid-edge differences
+across the strip (exact), and over the strip the largest of those.
+
+A strip whose scallop at the level spacing would exceed the budget on its
+steepest cell is divided evenly into ``k`` lanes (the fewest that meet the
+budget there): the candidate extra lines sit at ``m p``, ``p = w / k``,
+``m = 1 .. k-1``. A cell whose own slope allows gaps up to ``a`` needs only the
+lines at the multiples of ``g = floor(a / p)`` (the fewest lines with no gap
+over ``g p <= a``: the greedy choice from the strip's lower edge). An extra
+line therefore runs only over the cells that need it, extended by one tool
+radius at each end (lead-in and lead-out, which also covers the ball's
+contact point lying up to ``R`` ahead of or behind its centre along the
+line); overlapping stretches merge. Every cell keeps at most ``g p`` between
+adjacent lines, so the scallop bound holds cell by cell; the predicted
+scallop is the largest over the cells. The scan direction is the one with the
+shorter path.
 """
 
 from __future__ import annotations
@@ -30,12 +42,12 @@ from typing import Literal
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["StripPlan", "cross_slopes", "pick_feed_for", "plan_strips", "scallop_height"]
+from zwcore.scanline.results import ScanLines
+
+__all__ = ["StripPlan", "cell_cross_slopes", "pick_feed_for", "plan_strips",
+           "scallop_height"]
 
 F64 = NDArray[np.float64]
-
-#: Nodes per block of rows in :func:`cross_slopes`.
-_BLOCK_NODES = 1 << 15
 
 
 def scallop_height(pick_feed: float, slope: float, radius: float) -> float:
@@ -74,9 +86,9 @@ def pick_feed_for(scallop: float, slope: float, radius: float) -> float:
     return 2.0 * e / math.sqrt(1.0 + slope * slope) * (1.0 - 1e-9)
 
 
-def cross_slopes(model: F64, sx: float, sy: float,
-                 cells: tuple[int, int]) -> tuple[F64, F64]:
-    """Largest slope across the lines in every strip, for both scan directions.
+def cell_cross_slopes(model: F64, sx: float, sy: float,
+                      cells: tuple[int, int]) -> tuple[F64, F64]:
+    """Largest slope across the lines in every cell, for both scan directions.
 
     Parameters
     ----------
@@ -88,37 +100,44 @@ def cross_slopes(model: F64, sx: float, sy: float,
 
     Returns
     -------
-    along_x : (cy,) float64
-        Lines along x: ``max |dz/dy|`` in each row strip (nodes ``0..cx``).
-    along_y : (cx,) float64
-        Lines along y: ``max |dz/dx|`` in each column strip (nodes ``0..cy``).
+    along_x : (cy, max(cx, 1)) float64
+        Lines along x, strip ``r`` (rows ``r, r+1``), cell ``c``: ``max |dz/dy|``
+        over the cell, the larger of its edge differences at columns ``c`` and
+        ``c+1``.
+    along_y : (cx, max(cy, 1)) float64
+        Lines along y, strip ``c`` (columns ``c, c+1``), cell ``r``:
+        ``max |dz/dx|`` over the cell.
+
+    A model one node wide along the lines has one degenerate cell per strip
+    (its single edge).
     """
     cy, cx = cells
     sub = model[: cy + 1, : cx + 1]
     ny, nx = sub.shape
-    do_x = cy > 0 and ny > 1
-    do_y = cx > 0 and nx > 1
-    # In blocks of rows (one row of overlap for the differences across
-    # them), so a full-resolution model makes no full-size temporaries; the
-    # maxima are those of the whole-array expressions, bit for bit.
-    rows = max(2, _BLOCK_NODES // max(nx, 1))
-    parts_x: list[F64] = []
-    max_y: F64 | None = None
-    for a in range(0, max(ny - 1, 1), rows):
-        blk = sub[a:min(a + rows, ny - 1) + 1]
-        if do_x:
-            parts_x.append(np.abs(np.diff(blk, axis=0)).max(axis=1))
-        if do_y:
-            m = np.abs(np.diff(blk, axis=1)).max(axis=0)
-            max_y = m if max_y is None else np.maximum(max_y, m)
-    along_x = np.concatenate(parts_x) * (1.0 / sy) if do_x else np.zeros(cy)
-    along_y = max_y * (1.0 / sx) if do_y and max_y is not None else np.zeros(cx)
+    along_x = _edge_max(np.abs(np.diff(sub, axis=0)), cy) * (1.0 / sy) if cy > 0 and ny > 1 \
+        else np.zeros((cy, max(cx, 1)))
+    along_y = _edge_max(np.abs(np.diff(sub, axis=1)).T, cx) * (1.0 / sx) if cx > 0 and nx > 1 \
+        else np.zeros((cx, max(cy, 1)))
     return along_x, along_y
+
+
+def _edge_max(edges: F64, strips: int) -> F64:
+    """``(strips, cells)``: per cell, the larger of its two edges (nodes ``c``, ``c+1``)."""
+    e = edges[:strips]
+    n = e.shape[1]
+    if n < 2:
+        return np.array(e[:, :1], dtype=np.float64)
+    return np.maximum(e[:, :-1], e[:, 1:])
 
 
 @dataclass(frozen=True)
 class StripPlan:
-    """Scan lines of one pass."""
+    """Scan lines of one pass.
+
+    ``scan_lines`` counts distinct lines (each offset once, however many
+    segments it has); ``path_length_whole_strips`` is the length the same lines
+    would have if every extra line ran its strip's whole length.
+    """
 
     direction: Literal["x", "y"]
     pick_feed: float
@@ -128,67 +147,173 @@ class StripPlan:
     cross_slope: float
     reduced_strips: int
     reason: str | None
+    lines: ScanLines
+    path_length: float
+    path_length_whole_strips: float
+    extra_segments: int
 
 
-def _one_direction(direction: Literal["x", "y"], slopes: F64, spacing: float, length: float,
-                   radius: float, budget: float, what: str) -> StripPlan:
-    n = slopes.size
-    if n == 0 or length <= 0.0:
-        return StripPlan(direction, spacing, spacing, 1, 0.0, 0.0, 0, None)
-    widths = np.full(n, spacing)
-    widths[-1] = max(length - (n - 1) * spacing, 0.0) or spacing
-    e2 = 0.25 * widths * widths * (1.0 + slopes * slopes)
+def _scallops(gap: F64, slope: F64, radius: float) -> F64:
+    """:func:`scallop_height` elementwise (``inf`` where the ball cannot reach)."""
+    e2 = 0.25 * gap * gap * (1.0 + slope * slope)
     r = radius
     with np.errstate(invalid="ignore"):
-        h = np.where(e2 <= r * r, e2 / (r + np.sqrt(np.maximum(r * r - e2, 0.0))), np.inf)
+        out: F64 = np.where(e2 <= r * r, e2 / (r + np.sqrt(np.maximum(r * r - e2, 0.0))), np.inf)
+    return out
+
+
+def _allowed(budget: float, radius: float, slope: F64) -> F64:
+    """:func:`pick_feed_for` elementwise (a hair under the exact gap)."""
+    b = min(budget, radius)
+    if b <= 0.0:  # nothing left for scallops: as fine as rounding allows
+        b = 1e-12 * radius
+    e = math.sqrt(b * (2.0 * radius - b))
+    out: F64 = 2.0 * e / np.sqrt(1.0 + slope * slope) * (1.0 - 1e-9)
+    return out
+
+
+def _lanes(widths: F64, slopes: F64, radius: float, budget: float,
+           ) -> tuple[NDArray[np.bool_], NDArray[np.int64], F64, F64]:
+    """Strips over budget, lanes per strip, lane width and the scallop at the level spacing."""
+    h = _scallops(widths, slopes, radius)
     over = h > budget
-    counts = np.ones(n, dtype=np.int64)
+    counts = np.ones(widths.size, dtype=np.int64)
     picks = widths.copy()
-    scallops = h
     if over.any():
-        b = min(budget, radius)
-        if b <= 0.0:  # nothing left for scallops: as fine as rounding allows
-            b = 1e-12 * radius
-        e = math.sqrt(b * (2.0 * radius - b))
-        allowed = 2.0 * e / np.sqrt(1.0 + slopes[over] ** 2) * (1.0 - 1e-9)
+        allowed = _allowed(budget, radius, slopes[over])
         k = np.ceil(widths[over] / allowed - 1e-12).astype(np.int64)
         k = np.maximum(k, 1)
         # The even split is at most ``allowed``; re-check against rounding.
         p = widths[over] / k
         bad = p > allowed
         k[bad] += 1
-        p = widths[over] / k
         counts[over] = k
-        picks[over] = p
-        scallops = h.copy()
-        scallops[over] = [scallop_height(float(pp), float(ss), radius)
-                          for pp, ss in zip(p, slopes[over], strict=True)]
-    steep = float(slopes.max())
-    reduced = int(np.count_nonzero(over))
-    if reduced:
+        picks[over] = widths[over] / k
+    return over, counts, picks, h
+
+
+def _cell_steps(cell_slopes: F64, picks: F64, counts: NDArray[np.int64], radius: float,
+                budget: float) -> NDArray[np.int64]:
+    """``(m, cells)``: per cell of the reduced strips, the lanes ``g`` between needed lines.
+
+    ``g`` is the most lanes whose width stays within the gap the cell's own
+    slope allows (at least 1: the lane width meets the strip's steepest cell),
+    at most the strip's lane count (no extra line needed).
+    """
+    allowed = _allowed(budget, radius, cell_slopes)
+    p = picks[:, None]
+    g = np.floor(allowed / p).astype(np.int64)
+    g = np.minimum(g, counts[:, None])
+    g -= (g * p > allowed).astype(np.int64)  # rounding of the floor
+    return np.maximum(g, 1)
+
+
+def _extra_lines(strips: NDArray[np.intp], counts: NDArray[np.int64], steps: NDArray[np.int64],
+                 along: tuple[float, float], radius: float,
+                 ) -> tuple[NDArray[np.intp], NDArray[np.int64], F64, F64]:
+    """Segments of the extra lines: strip, line index ``m``, start and stop along the line.
+
+    ``steps`` holds the reduced strips' ``g`` per cell (rows in the order of
+    ``strips``); ``along`` is the cell length and the line length, mm. Line
+    ``m`` of a strip is needed over the cells whose ``g`` divides ``m``; the
+    work is proportional to those (line, cell) pairs, not to lines x cells.
+    """
+    sa, length = along
+    k = counts[:, None]
+    per = np.where(steps < k, (k - 1) // steps, 0)  # needed lines per cell
+    row, cell = np.nonzero(per)
+    if row.size == 0:
+        none = np.zeros(0)
+        return strips[:0], np.zeros(0, dtype=np.int64), none, none
+    n = per[row, cell]
+    # Pairs (row, cell, m) with m = g, 2g, .. < k, grouped by line then cell.
+    pr = np.repeat(row, n)
+    pc = np.repeat(cell, n)
+    first = np.cumsum(n) - n
+    pm = (np.arange(pr.size) - np.repeat(first, n) + 1) * np.repeat(steps[row, cell], n)
+    lines_per, cells = int(counts.max()), steps.shape[1]
+    key = np.sort((pr * lines_per + pm) * cells + pc)
+    pr, rest = np.divmod(key, lines_per * cells)
+    pm, pc = np.divmod(rest, cells)
+    # Runs of adjacent cells on one line, then the lead-in/out and merging.
+    run = np.ones(pr.size, dtype=bool)
+    run[1:] = (pr[1:] != pr[:-1]) | (pm[1:] != pm[:-1]) | (pc[1:] != pc[:-1] + 1)
+    heads = np.flatnonzero(run)
+    tails = np.append(heads[1:], pr.size) - 1
+    rr, rm = pr[heads], pm[heads]
+    lo = np.maximum(pc[heads] * sa - radius, 0.0)
+    hi = np.minimum(np.minimum((pc[tails] + 1) * sa, length) + radius, length)
+    new = np.ones(rr.size, dtype=bool)
+    new[1:] = (rr[1:] != rr[:-1]) | (rm[1:] != rm[:-1]) | (lo[1:] > hi[:-1])
+    keep = np.flatnonzero(new)
+    return strips[rr[keep]], rm[keep], lo[keep], np.maximum.reduceat(hi, keep)
+
+
+def _lines(direction: Literal["x", "y"], widths: F64, spacing: float, length: float,
+           extra: tuple[NDArray[np.intp], NDArray[np.int64], F64, F64], picks: F64) -> ScanLines:
+    """All segments of a pass: the nominal lines whole, then the extra ones, sorted."""
+    n = widths.size
+    nominal = np.arange(n + 1) * spacing
+    nominal[-1] = (n - 1) * spacing + widths[-1]
+    strip, m, lo, hi = extra
+    offset = np.concatenate((nominal, strip * spacing + m * picks[strip]))
+    start = np.concatenate((np.zeros(n + 1), lo))
+    stop = np.concatenate((np.full(n + 1, length), hi))
+    order = np.lexsort((start, offset))
+    return ScanLines(direction, offset[order], start[order], stop[order])
+
+
+def _one_direction(direction: Literal["x", "y"], cell_slopes: F64, spacings: tuple[float, float],
+                   extent: tuple[float, float], radius: float, budget: float,
+                   what: str) -> StripPlan:
+    """Lines along one axis. ``spacings`` and ``extent``: (across, along) the lines, mm."""
+    spacing, sa = spacings
+    length, along = extent
+    n = cell_slopes.shape[0]
+    if n == 0 or length <= 0.0:
+        one = ScanLines(direction, np.zeros(1), np.zeros(1), np.full(1, along))
+        return StripPlan(direction, spacing, spacing, 1, 0.0, 0.0, 0, None, one, along, along, 0)
+    slopes = cell_slopes.max(axis=1)
+    widths = np.full(n, spacing)
+    widths[-1] = max(length - (n - 1) * spacing, 0.0) or spacing
+    over, counts, picks, h = _lanes(widths, slopes, radius, budget)
+    reduced = np.flatnonzero(over)
+    steps = _cell_steps(cell_slopes[reduced], picks[reduced], counts[reduced], radius, budget)
+    gaps = steps * picks[reduced, None]
+    # A strip without extra lines has its largest scallop on its steepest cell
+    # (the scallop grows with the slope): ``h`` has it already.
+    scallop = max(float(np.max(h[~over], initial=0.0)),
+                  float(np.max(_scallops(gaps, cell_slopes[reduced], radius), initial=0.0)))
+    gap_max = max(float(np.max(widths[~over], initial=0.0)), float(np.max(gaps, initial=0.0)))
+    extra = _extra_lines(reduced, counts[reduced], steps, (sa, along), radius)
+    lines = _lines(direction, widths, spacing, along, extra, picks)
+    n_reduced = int(reduced.size)
+    if n_reduced:
         worst = int(np.argmax(np.where(over, slopes, -1.0)))
         theta = math.degrees(math.atan(float(slopes[worst])))
         shown = ("more than the ball radius" if math.isinf(float(h[worst]))
                  else f"{float(h[worst]):.4g} mm")
-        reason = (f"in {reduced} of {n} strips the scallop at the level spacing {spacing:g} mm "
-                  f"would exceed {what} (steepest slope across the lines {theta:.1f} deg: "
-                  f"{shown}); those strips get extra lines")
+        reason = (f"in {n_reduced} of {n} strips the scallop at the level spacing {spacing:g} "
+                  f"mm would exceed {what} (steepest slope across the lines {theta:.1f} deg: "
+                  f"{shown}); those strips get extra lines over the stretches that need them")
         pick = float(picks[over].min())
     else:
         reason = None
         pick = spacing
-    return StripPlan(direction, pick, max(float(picks.max()), pick), 1 + int(counts.sum()),
-                     float(np.max(scallops)), steep, reduced, reason)
+    scan_lines = 1 + int(counts.sum())
+    return StripPlan(direction, pick, max(gap_max, pick), scan_lines, scallop,
+                     float(slopes.max()), n_reduced, reason, lines, lines.length,
+                     scan_lines * along, int(extra[0].size))
 
 
 def plan_strips(along_x: F64, along_y: F64, sx: float, sy: float, extent_mm: tuple[float, float],
                 radius: float, budget: float, what: str) -> StripPlan:
-    """Scan lines strip by strip in the direction that needs fewer of them.
+    """Scan lines, extra lines where the cells need them, in the direction with the shorter path.
 
     Parameters
     ----------
     along_x, along_y : float64
-        :func:`cross_slopes` of the pass's model (or bounds of them).
+        :func:`cell_cross_slopes` of the pass's model (or bounds of them).
     sx, sy : float
         Level spacing.
     extent_mm : (height, width)
@@ -200,12 +325,9 @@ def plan_strips(along_x: F64, along_y: F64, sx: float, sy: float, extent_mm: tup
         What the budget is, for the reason text.
     """
     ly, lx = extent_mm
-    px = _one_direction("x", along_x, sy, ly, radius, budget, what)
-    py = _one_direction("y", along_y, sx, lx, radius, budget, what)
-    # The shorter total path wins; on a tie the lines run along the larger
-    # spacing.
-    tx = px.scan_lines * max(lx, 1e-300)
-    ty = py.scan_lines * max(ly, 1e-300)
-    if tx != ty:
-        return px if tx < ty else py
+    px = _one_direction("x", along_x, (sy, sx), (ly, lx), radius, budget, what)
+    py = _one_direction("y", along_y, (sx, sy), (lx, ly), radius, budget, what)
+    # The shorter path wins; on a tie the lines run along the larger spacing.
+    if px.path_length != py.path_length:
+        return px if px.path_length < py.path_length else py
     return px if sy <= sx else py

@@ -35,9 +35,11 @@ Everything comes off one lifted single-knot MRR of the part:
    ``M_k`` still lies above ``T_j`` the part was out of reach: another pass
    with the same tool at the same level follows, until the target is reached
    (``pass_index`` of ``pass_count``).
-5. Pick-feeds strip by strip (:mod:`zwcore.scanline._passes`): the scallop
-   rule with the slope *across* the scan lines in each strip between two grid
-   lines; only strips that need it get extra lines. The finishing pass must
+5. Pick-feeds strip by strip, extra lines cell by cell
+   (:mod:`zwcore.scanline._passes`): the scallop rule with the slope *across*
+   the scan lines; a strip between two grid lines that needs it gets extra
+   lines, and each extra line runs only over the cells that need it (plus a
+   lead-in and lead-out of one tool radius). The finishing pass must
    meet ``tolerance``; any other pass may leave at most half of the next
    pass's flute length (its scallops are stock for that pass).
 
@@ -63,7 +65,7 @@ from zwcore.grid.zmap import ZMap, positive_number, stock_top_at_or_above
 from zwcore.mrr.wavelets import Multiresolution, analyse
 from zwcore.scanline._checks import PassSpec, axis_weights, eval_rows, figures
 from zwcore.scanline._models import nested_targets
-from zwcore.scanline._passes import cross_slopes, plan_strips, scallop_height
+from zwcore.scanline._passes import StripPlan, cell_cross_slopes, plan_strips, scallop_height
 from zwcore.scanline._tool_choice import Stage, ball_rest, choose, levels
 from zwcore.scanline.results import ScanlineChecks, ScanlinePlan, ScanlineStage
 
@@ -172,19 +174,20 @@ def _passes(zmap: ZMap, chosen: list[Stage],
         next_flute = chosen[n + 1][1].flute_length if n + 1 < len(chosen) else None
         # Every pass of this stage is max(T, S + c) with S the incoming model
         # (or an earlier pass, itself such a max): the difference across any
-        # cell edge is at most the larger of the two, so one bound per strip
+        # cell edge is at most the larger of the two, so one bound per cell
         # serves every pass (an upper bound: the scallop is never
         # underestimated). The last pass is the target itself and gets its own
         # slopes.
-        ax_t, ay_t = cross_slopes(target, lev.sx, lev.sy, lev.cells)
+        ax_t, ay_t = cell_cross_slopes(target, lev.sx, lev.sy, lev.cells)
         if prev is None:
             ax_b, ay_b = ax_t, ay_t
         else:
-            ax_o, ay_o = cross_slopes(on, lev.sx, lev.sy, lev.cells)
+            ax_o, ay_o = cell_cross_slopes(on, lev.sx, lev.sy, lev.cells)
             ax_b, ay_b = np.maximum(ax_t, ax_o), np.maximum(ay_t, ay_o)
         slope_t = steepest_slope(target, lev.sx, lev.sy, extent=lev.cells)
         slope_b = slope_t if prev is None else max(
             slope_t, steepest_slope(on, lev.sx, lev.sy, extent=lev.cells))
+        lines: dict[tuple[bool, float, str], StripPlan] = {}
         while True:
             model, reached = _lift(on, target, leaves - flute + g)
             finishing = reached and next_flute is None
@@ -195,8 +198,12 @@ def _passes(zmap: ZMap, chosen: list[Stage],
                 following = flute if not reached or next_flute is None else next_flute
                 budget = SCALLOP_FLUTE_SHARE * min(flute, following) - rest
                 what = f"half the next pass's flute length ({budget:g} mm)"
-            ax, ay = (ax_t, ay_t) if reached else (ax_b, ay_b)
-            strips = plan_strips(ax, ay, lev.sx, lev.sy, extent_mm, tool.radius, budget, what)
+            key = (reached, budget, what)
+            if key not in lines:  # the passes that do not reach the target share theirs
+                ax, ay = (ax_t, ay_t) if reached else (ax_b, ay_b)
+                lines[key] = plan_strips(ax, ay, lev.sx, lev.sy, extent_mm, tool.radius,
+                                         budget, what)
+            strips = lines[key]
             out.append(PassSpec(lev.index, lev.sx, lev.sy, tool, model, strips,
                                 slope_t if reached else slope_b, rest, tuple(merged),
                                 lev.concave_radius, lev.clipped, lev.raised))

@@ -10,9 +10,34 @@ from numpy.typing import NDArray
 
 from zwcore.grid.tools import Tool
 
-__all__ = ["ScanlineChecks", "ScanlinePlan", "ScanlineStage"]
+__all__ = ["ScanLines", "ScanlineChecks", "ScanlinePlan", "ScanlineStage"]
 
 F64 = NDArray[np.float64]
+
+
+@dataclass(frozen=True, eq=False)
+class ScanLines:
+    """The scan lines of one pass, as straight segments.
+
+    Positions are in mm from the grid's first node (``x0``, ``y0``). For lines
+    along x, ``offset`` is the line's y and ``start``/``stop`` its x range;
+    along y the other way round. Sorted by offset, then start.
+
+    Attributes
+    ----------
+    direction : {"x", "y"}
+    offset, start, stop : (n,) float64
+    """
+
+    direction: Literal["x", "y"]
+    offset: F64
+    start: F64
+    stop: F64
+
+    @property
+    def length(self) -> float:
+        """Total length of the segments, mm."""
+        return float(np.sum(self.stop - self.start))
 
 
 @dataclass(frozen=True, eq=False)
@@ -37,12 +62,14 @@ class ScanlineStage:
         Direction the scan lines run in: the one with the shorter total path (walls
         are climbed along the lines rather than stepped across).
     scan_lines : int
-        Number of scan lines across the part (strip by strip pick-feeds).
+        Number of scan lines across the part (strip by strip pick-feeds; an
+        extra line counts once however many segments it has).
     steepest_slope_deg : float
         Steepest slope of the stage model (any direction).
     scallop_height : float
-        Largest predicted scallop over the strips, each at its pick-feed on its
-        steepest slope across the lines (a bound for the design's
+        Largest predicted scallop over the cells, each at the largest distance
+        between the lines present over it, on its steepest slope across the
+        lines (a bound for the design's
         ``R - sqrt(R^2 - (p / (2 cos theta))^2)``), in mm.
     max_depth_of_cut, mean_depth_of_cut : float
         ``M_{k-1} - M_k`` over the input nodes (mean: removed volume over the
@@ -77,8 +104,8 @@ class ScanlineStage:
         between two lines depend on the surface's section across them. At most
         ``steepest_slope_deg``.
     pick_feed_max : float
-        Largest distance between adjacent scan lines (the level's spacing
-        across the lines, unless every strip is reduced), mm.
+        Largest distance between adjacent scan lines present over a cell (the
+        level's spacing across the lines, unless every cell is reduced), mm.
     reduced_strips : int
         Strips between adjacent grid lines of the level whose pick-feed had to
         be reduced (the pick-feed is chosen strip by strip from the slope
@@ -88,6 +115,19 @@ class ScanlineStage:
         (or the stock) and was clipped to it.
     raised_nodes : int
         Level nodes the containment repair raised after the clip.
+    path_length : float
+        Length of the pass's scan lines, mm: the nominal lines (the level's
+        grid lines across the part) whole, the extra lines only over the
+        stretches whose cells need them, each with a lead-in and lead-out of
+        one tool radius. Moves between lines are not counted.
+    path_length_whole_strips : float
+        What ``path_length`` would be if every extra line ran the whole length
+        of its strip (the rule before extra lines were laid by region), mm.
+    extra_segments : int
+        Segments of extra lines (an extra line may need several stretches).
+    lines : ScanLines
+        The segments themselves (nominal and extra), for tool paths and
+        checks.
     model : (my, mx) float64
         Node values of the stage model; node ``(c, d)`` at
         ``(x0 + d*sx, y0 + c*sy)`` with ``(sx, sy) = spacing``. Bilinear.
@@ -118,6 +158,10 @@ class ScanlineStage:
     reduced_strips: int
     clipped_nodes: int
     raised_nodes: int
+    path_length: float
+    path_length_whole_strips: float
+    extra_segments: int
+    lines: ScanLines = field(repr=False)
     model: F64 = field(repr=False)
 
     @property
