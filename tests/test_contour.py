@@ -92,6 +92,8 @@ def _assert_invariants(plan: ContourPlan, zm: ZMap) -> None:
         # Containment: every stage inside the previous one, the part inside all.
         assert (prev - fine).min() >= 0.0
         assert (fine - z).min() >= 0.0
+        # No empty stage: every stage has a slab and lowers some input node.
+        assert s.spacings and float((prev - fine).max()) > 0.0, f"{s.tool.id} removes nothing"
         # Spacings: positive, within the flute, consistent with the heights.
         assert all(sp > 0 for sp in s.spacings)
         assert all(sp <= s.tool.flute_length for sp in s.spacings)
@@ -277,7 +279,11 @@ def test_stepped_pyramid_on_the_contour_grid_comes_back_with_its_steps() -> None
     # grid holds the plateaus also gives them back exactly.
     rough = Tool("D64", "flat", 64.0, 30.0)
     plan2 = plan_contour(ZMap(z), [rough, tool], stock_top=15.0, strategy="even_step")
-    fine = plan2.stages[1]
+    # The rough tool's single cell is the part's top, the stock: it removes
+    # nothing and is no stage.
+    assert [s.tool.id for s in plan2.stages] == ["D1"]
+    assert any(n.startswith("D64 not used") for n in plan2.notes)
+    fine = plan2.stages[0]
     assert fine.z_levels == tuple(float(h) for h in range(15, -1, -1))
     np.testing.assert_array_equal(fine.model, z)
     assert plan2.checks.ok
@@ -302,6 +308,31 @@ def test_hemisphere_heights_crowd_towards_the_top() -> None:
     assert plan.checks.ok
 
 
+@pytest.mark.parametrize("strategy", STRATEGIES)
+def test_r8_bowl_lists_no_empty_stage(strategy: str) -> None:
+    # A hemispherical pocket of radius 8 mm in a flat plate on a 0.25 mm grid:
+    # the coarse Haar levels are flat at the plate (block maxima), so the tool
+    # after heavy roughing has nothing left on its level. It is dropped and
+    # named in the notes, not listed with no heights and 0 volume.
+    x = np.arange(-20.0, 20.0 + 1e-9, 0.25)
+    xx, yy = np.meshgrid(x, x)
+    r2 = xx**2 + yy**2
+    z = np.where(r2 < 64.0, -np.sqrt(np.clip(64.0 - r2, 0.0, None)), 0.0)
+    zm = ZMap(z, dx=0.25, dy=0.25)
+    plan = plan_contour(zm, strategy=strategy)
+    _assert_invariants(plan, zm)
+    assert plan.checks.ok
+    used = {s.tool.id for s in plan.stages}
+    dropped = [n for n in plan.notes if "would remove nothing" in n]
+    assert dropped and all(n.split()[0] not in used for n in dropped)
+    # Each listed stage removes material: its model lies below the previous one
+    # somewhere (recomputed at the input nodes, not from the plan's volumes).
+    prev = np.full(z.shape, ceil_units(plan.stock_top) * QUANTUM)
+    for fine in _node_models(plan, z.shape):
+        assert float(((prev - fine) * zm.cell_area).sum()) > 0.0
+        prev = fine
+
+
 def test_pocket_deeper_than_the_flute_gets_several_slabs() -> None:
     z = np.full((32, 32), 10.0)
     z[8:24, 8:24] = -20.0  # a 30 mm deep pocket
@@ -314,7 +345,9 @@ def test_pocket_deeper_than_the_flute_gets_several_slabs() -> None:
     # A later stage in a pocket with a constant area: equal volumes mean equal spacing.
     face = Tool("face", "flat", 40.0, 12.0)
     plan2 = plan_contour(ZMap(z), [face, tool], stock_top=10.0)
-    s2 = plan2.stages[1]
+    # The face mill's one cell is the plate's top, the stock: no stage.
+    assert [s.tool.id for s in plan2.stages] == ["D2"]
+    s2 = plan2.stages[0]
     assert len(s2.spacings) >= 4 and max(s2.spacings) <= 8.0
     assert s2.volume_spread <= 0.01
     assert plan2.checks.ok

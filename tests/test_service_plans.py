@@ -46,6 +46,34 @@ def test_scanline_plan_models_never_cut_into_the_part(client: TestClient) -> Non
     assert plan.stages[-1].scallop_height <= 0.02 + 1e-12
 
 
+def test_scanline_path_length_counts_the_lines(client: TestClient) -> None:
+    # A flat plate: no extra lines, so each stage's path is its grid lines run
+    # whole, in the shorter direction: 17 lines of 4 mm (along y) against 9 of
+    # 8 mm (along x). A steep boss then adds lines only near itself.
+    plate = np.zeros((9, 17))
+    ball = [{"id": "B1", "diameter": 1.0, "flute_length": 5.0}]
+    r = client.post("/v1/plans/scanline", json={"grid": rows_grid(plate), "tools": ball,
+                                                "tolerance": 0.1, "stock_top": 1.0})
+    assert r.status_code == 200, r.text
+    last = r.json()["stages"][-1]
+    assert last["scan_direction"] == "y" and last["scan_lines"] == 17
+    assert last["path_length"] == pytest.approx(17 * 4.0)
+    assert last["path_length_whole_strips"] == last["path_length"]
+    assert last["extra_segments"] == 0
+    boss = np.zeros((65, 65))
+    boss[28:37, 28:37] = 4.0  # 4 mm square, its walls one cell wide
+    r = client.post("/v1/plans/scanline", json={"grid": rows_grid(boss), "tools": ball,
+                                                "tolerance": 0.1, "stock_top": 5.0})
+    assert r.status_code == 200, r.text
+    plan = ScanlinePlanResult.model_validate(r.json())
+    last = plan.stages[-1]
+    assert last.pick_feed_reduced and last.extra_segments > 0
+    nominal = 65 * 32.0  # the grid lines, 32 mm each
+    assert nominal < last.path_length < last.path_length_whole_strips
+    # The extra lines cross the 4 mm boss plus a radius either side, not 32 mm.
+    assert last.path_length - nominal < 0.25 * (last.path_length_whole_strips - nominal)
+
+
 def test_contour_plan_terraces_contain_the_part(client: TestClient) -> None:
     part = pocket_part(32)
     tools = [{"id": "F8", "diameter": 8, "flute_length": 6},

@@ -27,12 +27,14 @@ class ScanlineStageOut(BaseModel):
     level: int
     spacing: tuple[float, float] = Field(description="[dx, dy] of the stage's level, mm")
     pick_feed: float = Field(description="smallest distance between scan lines, mm")
-    pick_feed_max: float = Field(description="largest distance between adjacent lines, mm")
+    pick_feed_max: float = Field(
+        description="largest distance between adjacent lines over any cell, mm")
     pick_feed_reduced: bool
     pick_feed_reason: str | None = None
     reduced_strips: int = Field(description="strips between grid lines that got extra lines")
     scan_direction: Literal["x", "y"] = Field(description="scan lines run along this axis")
-    scan_lines: int = Field(description="number of scan lines at the pick-feed")
+    scan_lines: int = Field(
+        description="number of scan lines (an extra line counts once, whatever its segments)")
     steepest_slope_deg: float = Field(description="steepest slope of the stage model")
     cross_slope_deg: float = Field(
         description="steepest slope across the scan lines: the θ of the scallop rule")
@@ -53,6 +55,14 @@ class ScanlineStageOut(BaseModel):
     clipped_nodes: int = Field(
         description="level nodes clipped down to the previous stage (lift overshoot at walls)")
     raised_nodes: int = Field(description="level nodes raised again to restore containment")
+    path_length: float = Field(
+        description="length of the stage's scan lines, mm: the grid lines whole, extra lines "
+        "only over the stretches whose slope needs them (plus one tool radius each side); "
+        "moves between lines not counted")
+    path_length_whole_strips: float = Field(
+        description="path_length if every extra line ran its strip's whole length (the rule "
+        "before extra lines were laid by region), mm")
+    extra_segments: int = Field(description="segments of extra lines between the grid lines")
     model: GridOut | None = None
 
 

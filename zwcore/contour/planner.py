@@ -19,7 +19,10 @@ Pipeline:
    exceeds the flute length. Where no slab within the flute removes the stage's
    slab volume, the slab is exactly the flute length and flagged; every other
    slab removes the same volume, the bottom one included
-   (:func:`zwcore.contour.heights.place_equal_volume` states the rule).
+   (:func:`zwcore.contour.heights.place_equal_volume` states the rule). A
+   stage with no slab (the stages before it already reached its level model)
+   removes nothing and is dropped, with a note; the others are as if it were
+   there (its model would be the previous one).
 5. The stage model is produced from the part's lifted Haar representation from
    the stage level up: the level's approximation coefficients raised onto the
    contour grid, the finer details set to zero, synthesised to the input nodes
@@ -239,7 +242,13 @@ def plan_contour(zmap: ZMap, tools: Sequence[Tool] | None = None, *,
     top_q = ceil_units(top) * QUANTUM
     acc = _Checks(zmap, top_q)
     for k, (tool, j, rule) in enumerate(chosen):
+        # A stage that would remove nothing is dropped without changing the
+        # others: the next one starts from the same model and keeps its rule.
         stage = _stage(zmap, mrr, k, (tool, j, rule), strat, prev, top_q, acc, phase)
+        if stage is None:
+            notes.append(f"{tool.id} not used: at level {j} it would remove nothing (the "
+                         f"stages before it already reached that level's model)")
+            continue
         stages.append(stage)
         prev = (stage.model, j)
 
@@ -255,11 +264,13 @@ def plan_contour(zmap: ZMap, tools: Sequence[Tool] | None = None, *,
 
 def _stage(zmap: ZMap, mrr: Multiresolution, k: int, choice: tuple[Tool, int, str],
            strat: Strategy, prev: tuple[F64, int] | None, top_q: float, acc: _Checks,
-           phase: dict[str, float]) -> ContourStage:
+           phase: dict[str, float]) -> ContourStage | None:
     """Stage ``k``: heights, the edited model, slab volumes and its checks.
 
     ``prev`` is the previous stage's model and level (``None``: the stock at
-    ``top_q``); ``phase`` accumulates the seconds per phase.
+    ``top_q``); ``phase`` accumulates the seconds per phase. ``None`` when the
+    stage has no slab or its slabs remove no volume: it would remove nothing,
+    and is no stage.
     """
     tool, j, rule = choice
     z = zmap.z
@@ -274,6 +285,9 @@ def _stage(zmap: ZMap, mrr: Multiresolution, k: int, choice: tuple[Tool, int, st
     h = _heights(k, strat, tool, level_model, previous, weight)
     z_levels = np.array(h.units, dtype=np.float64) * QUANTUM
     t2 = time.perf_counter()
+    phase["heights"] += t2 - t1
+    if len(h.units) < 2:
+        return None
     # The stage model: the part's representation from level j up, edited
     # (approximation raised onto the contour grid, finer details zeroed)
     # and synthesised to the input nodes.
@@ -282,13 +296,14 @@ def _stage(zmap: ZMap, mrr: Multiresolution, k: int, choice: tuple[Tool, int, st
     fine = edited.synthesize()
     vols = removed_between(previous.ravel(), model.ravel(), weight.ravel(), z_levels)
     t3 = time.perf_counter()
+    phase["terraces"] += t3 - t2
+    if not float(vols.sum()) > 0.0:  # it lowers only cells outside the grid
+        return None
     # The terrace rule applied on its own (cells, then every input node).
     rule_fine = cells_at_fine_nodes(terrace(level_model, previous, z_levels), s, z.shape)
     exact = bool(fine.shape == rule_fine.shape and np.array_equal(fine, rule_fine))
     left = acc.stage(fine, float(vols.sum()), exact)
     t4 = time.perf_counter()
-    phase["heights"] += t2 - t1
-    phase["terraces"] += t3 - t2
     phase["checks"] += t4 - t3
     return ContourStage(
         tool=tool, level=j, scale=s, cell_size=(zmap.dx * s, zmap.dy * s),
