@@ -44,8 +44,7 @@ from numpy.typing import NDArray
 
 from zwcore.scanline.results import ScanLines
 
-__all__ = ["StripPlan", "cell_cross_slopes", "pick_feed_for", "plan_strips",
-           "scallop_height"]
+__all__ = ["StripPlan", "cell_cross_slopes", "plan_strips", "scallop_height"]
 
 F64 = NDArray[np.float64]
 
@@ -73,17 +72,6 @@ def scallop_height(pick_feed: float, slope: float, radius: float) -> float:
         return math.inf
     # Written without the cancellation of R - sqrt(R^2 - e^2) for small e.
     return e * e / (radius + math.sqrt(max(radius * radius - e * e, 0.0)))
-
-
-def pick_feed_for(scallop: float, slope: float, radius: float) -> float:
-    """Largest pick-feed whose scallop on ``slope`` is at most ``scallop``."""
-    b = min(scallop, radius)
-    if b <= 0.0:
-        b = 1e-12 * radius
-    e = math.sqrt(b * (2.0 * radius - b))
-    # A hair under the exact value so the recomputed scallop is <= the target
-    # despite rounding.
-    return 2.0 * e / math.sqrt(1.0 + slope * slope) * (1.0 - 1e-9)
 
 
 def cell_cross_slopes(model: F64, sx: float, sy: float,
@@ -163,7 +151,11 @@ def _scallops(gap: F64, slope: F64, radius: float) -> F64:
 
 
 def _allowed(budget: float, radius: float, slope: F64) -> F64:
-    """:func:`pick_feed_for` elementwise (a hair under the exact gap)."""
+    """Largest pick-feed whose scallop on ``slope`` is at most ``budget``, elementwise.
+
+    A hair under the exact value, so the recomputed scallop is at most the
+    budget despite rounding.
+    """
     b = min(budget, radius)
     if b <= 0.0:  # nothing left for scallops: as fine as rounding allows
         b = 1e-12 * radius
