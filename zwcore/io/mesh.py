@@ -179,10 +179,10 @@ def _planes(tri: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.f
     the xy-plane (the normal's z by the winding)."""
     p0, p1, p2 = tri[:, 0], tri[:, 1], tri[:, 2]
     n = np.cross(p1 - p0, p2 - p0)
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(divide="ignore", invalid="ignore"):  # vertical ones are dropped
         a = -n[:, 0] / n[:, 2]
         b = -n[:, 1] / n[:, 2]
-    c = p0[:, 2] - a * p0[:, 0] - b * p0[:, 1]
+        c = p0[:, 2] - a * p0[:, 0] - b * p0[:, 1]
     return a, b, c, n[:, 2]
 
 
