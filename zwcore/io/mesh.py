@@ -24,7 +24,7 @@ from numpy.typing import NDArray
 from zwcore.errors import InvalidInputError, LimitExceededError
 from zwcore.grid.zmap import MAX_ABS_HEIGHT
 
-__all__ = ["MeshZMap", "ZMapGrid", "read_stl", "rasterise", "zmap_grid"]
+__all__ = ["MeshZMap", "ZMapGrid", "rasterise", "read_stl", "zmap_grid"]
 
 #: Node positions within this fraction of a cell of a triangle edge count as
 #: inside it, so a node on an edge shared by two triangles, or on the part's
@@ -186,7 +186,7 @@ def _planes(tri: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.f
     return a, b, c, n[:, 2]
 
 
-def _row_spans(tri: NDArray[np.float64], rows_y: NDArray[np.float64], slack_y: float,
+def _row_spans(tri: NDArray[np.float64], rows_y: NDArray[np.floating], slack_y: float,
                slack_x: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """x-interval of each triangle (one per pair) on the horizontal line ``y``.
 
@@ -292,7 +292,7 @@ def rasterise(triangles: NDArray[np.float64], grid: ZMapGrid, background: float 
     covered = np.isfinite(top)
     z = np.where(covered, top, bg).reshape(grid.ny, grid.nx)
     return MeshZMap(z, covered.reshape(z.shape), _undercut(mesh, grid, top, bottom),
-                    bg, int(len(tri)))
+                    bg, len(tri))
 
 
 class _Footprints:
@@ -333,7 +333,9 @@ def _undercut(mesh: _Footprints, grid: ZMapGrid, top: NDArray[np.float64],
     Orientation-free (STL windings are often inconsistent): a closed part meets the
     line at its top and its bottom, an open relief at one height; a third height is
     a surface hidden under another (an overhang, a cavity, a fold). A second pass
-    scans only the triangles over nodes with two heights or more.
+    scans only the triangles over nodes with two heights or more. Faces inside the
+    material count too: two bodies that touch without being merged (a boss standing
+    on a block as two shells) report the contact face, a conservative warning.
     """
     zr = float(np.ptp(mesh.tri[:, :, 2])) if len(mesh.tri) else 0.0
     tol = 1e-6 * max(zr, 1.0)
