@@ -239,3 +239,14 @@ def test_npy_over_the_cell_limit_and_mismatched_fields(tmp_path) -> None:  # typ
         assert_problem(r, 422, "grid", "file part")
         assert_problem(c.post("/v1/mrr", content=ok, headers={"content-type": "image/png"}),
                        415, "content-type", "unsupported")
+
+
+def test_binary_bodies_are_not_counted_as_json_values(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    # int8 44 is the byte of a comma: a JSON value count would have refused this grid
+    z = np.full((40, 40), 44, dtype=np.int8)
+    with make_client(tmp_path, max_json_values=100) as c:
+        r = c.post("/v1/mrr?dx=1&dy=1", content=npy(z), headers={"content-type": NPY})
+        assert r.status_code == 200, r.text
+        r = c.post("/v1/mrr", content=b"[" + b"1," * 200 + b"1]",
+                   headers={"content-type": "application/json"})
+        assert r.status_code == 413
