@@ -141,7 +141,7 @@ def render_grids(node: Any, encoding: str) -> Any:
 _NPY_KINDS = {"f": "floating point", "i": "integer", "u": "unsigned integer"}
 
 
-def decode_npy(data: bytes, max_cells: int, field: str = "grid") -> NDArray[np.float64]:
+def decode_npy(data: bytes, max_cells: int, field: str = "grid") -> NDArray[Any]:
     """Heights from the bytes of one ``.npy`` file (never a pickle: ``allow_pickle=False``).
 
     The header is read first, so a shape over the limit is refused before its data
@@ -149,7 +149,7 @@ def decode_npy(data: bytes, max_cells: int, field: str = "grid") -> NDArray[np.f
 
     Returns
     -------
-    z : (ny, nx) float64
+    z : (ny, nx) array of the file's numeric dtype
 
     Raises
     ------
@@ -189,10 +189,10 @@ def decode_npy(data: bytes, max_cells: int, field: str = "grid") -> NDArray[np.f
         z = np.load(io.BytesIO(data), allow_pickle=False)
     except (ValueError, EOFError, OSError) as exc:
         raise InvalidInputError(field, f"unreadable .npy data ({exc})") from None
-    return np.asarray(z, dtype=np.float64)
+    return np.asarray(z)
 
 
-def zmap_from_heights(z: NDArray[np.float64], grid: Grid, field: str = "grid") -> ZMap:
+def zmap_from_heights(z: NDArray[Any], grid: Grid, field: str = "grid") -> ZMap:
     """A z-map of uploaded heights placed by a request grid's ``x0, y0, dx, dy``."""
     if grid.z is not None or grid.z_b64 is not None or grid.shape is not None:
         raise InvalidInputError(field, "the heights came as .npy: give only x0, y0, dx, dy")

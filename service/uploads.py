@@ -17,6 +17,7 @@ from collections.abc import Callable, Coroutine
 from typing import Any
 
 import anyio
+import numpy as np
 import orjson
 from fastapi import Request, Response
 from fastapi.routing import APIRoute
@@ -162,8 +163,9 @@ async def request_zmap(request: Request, grid: Grid | None, grid_task: str | Non
     upload = getattr(request.state, _UPLOAD, None)
     if upload is not None:
         z, part = upload
-        zmap = zmap_from_heights(z, grid, part)
-        return zmap, "float64"
+        zmap = await anyio.to_thread.run_sync(zmap_from_heights, z, grid, part)
+        # float32 heights are hashed without a check and come back as float32 base64
+        return zmap, "float32" if z.dtype == np.float32 else "float64"
     return (await anyio.to_thread.run_sync(decode_grid, grid, settings.max_grid_cells),
             grid_encoding(grid))
 
