@@ -42,8 +42,8 @@ def steps_stl() -> bytes:
 
 
 def expected_steps(dx: float, dy: float) -> np.ndarray:
-    xs = dx * np.arange(int(round(10 / dx)) + 1)
-    ys = dy * np.arange(int(round(8 / dy)) + 1)
+    xs = dx * np.arange(round(10 / dx) + 1)
+    ys = dy * np.arange(round(8 / dy) + 1)
     boss = (xs[None, :] >= 2) & (xs[None, :] <= 5) & (ys[:, None] >= 2) & (ys[:, None] <= 4)
     return np.where(boss, 5.0, 2.0)
 
@@ -250,3 +250,19 @@ def test_binary_bodies_are_not_counted_as_json_values(tmp_path) -> None:  # type
         r = c.post("/v1/mrr", content=b"[" + b"1," * 200 + b"1]",
                    headers={"content-type": "application/json"})
         assert r.status_code == 413
+
+
+def test_zmap_grid_encoding_and_model_etags(client: TestClient) -> None:
+    r = client.post("/v1/zmaps?dx=2&grid_encoding=rows", content=steps_stl(),
+                    headers={"content-type": "model/stl"})
+    assert r.status_code == 200 and r.json()["grid"]["z"][0][0] == 2.0
+    assert_problem(client.post("/v1/zmaps?dx=2&colour=red", content=steps_stl(),
+                               headers={"content-type": "model/stl"}), 422, "query.colour",
+                   "Extra")
+    url = f"/v1/tasks/{r.json()['task_id']}/models/0"
+    as_npy = client.get(url, headers={"accept": NPY})
+    as_json = client.get(url)
+    assert as_npy.headers["etag"] != as_json.headers["etag"]
+    again = client.get(url, headers={"accept": NPY, "if-none-match": as_npy.headers["etag"]})
+    assert again.status_code == 304
+    np.testing.assert_array_equal(load_npy(as_npy.content), grid_array(as_json.json()))

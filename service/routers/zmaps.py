@@ -112,11 +112,7 @@ def _prepare(data: bytes, p: ZMapParams, max_cells: int) -> tuple[np.ndarray, ZM
             **{k: {"type": "string", "description": f.description or ""}
                for k, f in ZMapParams.model_fields.items()}}}}}}})
 async def create_zmap(request: Request, settings: SettingsDep, store: StoreDep, pool: PoolDep,
-                      params: Annotated[ZMapParams, Query()],
-                      grid_encoding: Annotated[
-                          Literal["rows", "float32", "float64"],
-                          Query(description="encoding of the returned grid")] = "float64",
-                      ) -> Response:
+                      params: Annotated[ZMapParams, Query()]) -> Response:
     """Each node holds the highest surface point straight above it (a z-buffer of the
     triangles); nodes outside the part get ``background``. Node (0, 0) sits at the
     mesh's lower-left corner unless ``x0``/``y0`` say otherwise. The result is a task:
@@ -129,7 +125,8 @@ async def create_zmap(request: Request, settings: SettingsDep, store: StoreDep, 
             "background": p.background}
     return await serve_task(
         request, store, pool, operation="zmap", params=spec, arrays={"triangles": tri},
-        compute=lambda: zmap_result(tri, grid, p.background, max_pairs), encoding=grid_encoding)
+        compute=lambda: zmap_result(tri, grid, p.background, max_pairs),
+        encoding=p.grid_encoding)
 
 
 def _model_at(result: dict[str, Any], index: int) -> dict[str, Any] | None:
@@ -174,10 +171,13 @@ async def get_task_model(
         raise Problem(404, "Not found", f"task {task_id} holds no grid {index} (out of range, "
                       "or computed without include_models)", kind="unknown-model",
                       errors=[{"field": "index", "reason": "no such grid in this task"}])
-    etag = f'"{task_id}-{index}"'
-    if not_modified(request, f"{task_id}-{index}", stored=True):
+    as_npy = bool(accept and NPY in accept.lower())
+    # one tag per representation: the .npy and the JSON of a grid are different bytes
+    tag = f"{task_id}-{index}-" + (f"npy-{dtype}" if as_npy else grid_encoding or dtype)
+    etag = f'"{tag}"'
+    if not_modified(request, tag, stored=True):
         return Response(status_code=304, headers={"ETag": etag})
-    if accept and NPY in accept.lower():
+    if as_npy:
         z, geo = stored_grid(grid)
         out = await anyio.to_thread.run_sync(npy_bytes, z, dtype)
         headers = {"ETag": etag, "X-Grid-X0": repr(geo["x0"]), "X-Grid-Y0": repr(geo["y0"]),

@@ -28,6 +28,8 @@ class ZMapParams(BaseModel):
     background: float | None = Field(
         None, ge=-1e6, le=1e6, allow_inf_nan=False,
         description="height of nodes outside the part, mm; default the mesh's lowest point")
+    grid_encoding: Literal["rows", "float32", "float64"] = Field(
+        "float64", description="encoding of the returned grid: rows, or base64 of this dtype")
 
 
 class MeshBounds(BaseModel):
