@@ -8,7 +8,11 @@ import pickle
 import numpy as np
 import pytest
 from fastapi.testclient import TestClient
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from hypothesis.extra import numpy as hnp
 
+from service.grids import decode_npy
 from service.schemas.zmaps import ZMapResult
 from tests.conftest import make_client
 from tests.test_mesh_zmap import DATA, box, stl_bytes
@@ -266,3 +270,16 @@ def test_zmap_grid_encoding_and_model_etags(client: TestClient) -> None:
     again = client.get(url, headers={"accept": NPY, "if-none-match": as_npy.headers["etag"]})
     assert again.status_code == 304
     np.testing.assert_array_equal(load_npy(as_npy.content), grid_array(as_json.json()))
+
+
+@settings(max_examples=40, deadline=None)
+@given(hnp.arrays(st.sampled_from([np.dtype("<f4"), np.dtype(">f8"), np.dtype("<i2"),
+                                   np.dtype("u1")]),
+                  hnp.array_shapes(min_dims=2, max_dims=2, min_side=2, max_side=6),
+                  elements={"allow_nan": False, "allow_infinity": False}),
+       st.booleans())
+def test_decode_npy_gives_back_what_numpy_saved(z: np.ndarray, fortran: bool) -> None:
+    a = np.asfortranarray(z) if fortran else z
+    got = decode_npy(npy(a), max_cells=100)
+    np.testing.assert_array_equal(got.astype(np.float64), z.astype(np.float64))
+    assert got.shape == z.shape
