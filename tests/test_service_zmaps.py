@@ -283,3 +283,13 @@ def test_decode_npy_gives_back_what_numpy_saved(z: np.ndarray, fortran: bool) ->
     got = decode_npy(npy(a), max_cells=100)
     np.testing.assert_array_equal(got.astype(np.float64), z.astype(np.float64))
     assert got.shape == z.shape
+
+
+def test_zmap_straight_to_npy(client: TestClient) -> None:
+    r = client.post("/v1/zmaps?dx=0.5", content=steps_stl(),
+                    headers={"content-type": "model/stl", "accept": NPY})
+    assert r.status_code == 200 and r.headers["content-type"] == NPY
+    np.testing.assert_array_equal(load_npy(r.content), expected_steps(0.5, 0.5))
+    assert float(r.headers["x-grid-dx"]) == 0.5 and r.headers["x-cache"] == "miss"
+    plan = client.post("/v1/mrr", json={"grid_task": r.headers["x-task-id"]})
+    assert plan.status_code == 200

@@ -103,7 +103,11 @@ def _prepare(data: bytes, p: ZMapParams, max_cells: int) -> tuple[np.ndarray, ZM
 
 @router.post(
     "/zmaps", response_model=ZMapResult, operation_id="create_zmap",
-    summary="STL to z-map: the part seen from +z", responses=responses(413, 415),
+    summary="STL to z-map: the part seen from +z",
+    responses={**responses(413, 415), 200: {
+        "description": "the z-map task; with Accept: application/x-npy the grid alone as "
+        ".npy (float64), geometry in X-Grid-* headers, task id in X-Task-Id",
+        "content": {NPY: {"schema": {"type": "string", "format": "binary"}}}}},
     openapi_extra={"requestBody": {"required": True, "content": {
         "model/stl": {"schema": {"type": "string", "format": "binary",
                                  "description": "binary or ASCII STL, mm"}},
@@ -123,10 +127,29 @@ async def create_zmap(request: Request, settings: SettingsDep, store: StoreDep, 
     max_pairs = PAIRS_PER_CELL * settings.max_grid_cells
     spec = {"grid": [grid.x0, grid.y0, grid.dx, grid.dy, grid.nx, grid.ny],
             "background": p.background}
-    return await serve_task(
+    as_npy = NPY in request.headers.get("accept", "").lower()
+    response = await serve_task(
         request, store, pool, operation="zmap", params=spec, arrays={"triangles": tri},
         compute=lambda: zmap_result(tri, grid, p.background, max_pairs),
-        encoding=p.grid_encoding)
+        encoding="float64" if as_npy else p.grid_encoding)
+    if not as_npy or response.status_code != 200:
+        return response
+    result = orjson.loads(bytes(response.body))
+    return _npy_response(result["grid"], "float64", result["task_id"],
+                         {"X-Task-Id": result["task_id"],
+                          "X-Cache": response.headers.get("x-cache", "")})
+
+
+def _npy_response(grid: dict[str, Any], dtype: str, name: str,
+                  headers: dict[str, str]) -> Response:
+    """A stored grid as an ``.npy`` file, its geometry in ``X-Grid-*`` headers."""
+    z, geo = stored_grid(grid)
+    out = npy_bytes(z, dtype)
+    headers = {**headers, "X-Grid-X0": repr(geo["x0"]), "X-Grid-Y0": repr(geo["y0"]),
+               "X-Grid-Dx": repr(geo["dx"]), "X-Grid-Dy": repr(geo["dy"]),
+               "X-Grid-Interpolation": geo["interpolation"],
+               "Content-Disposition": f'attachment; filename="{name[:12]}.npy"'}
+    return Response(out, media_type=NPY, headers=headers)
 
 
 def _model_at(result: dict[str, Any], index: int) -> dict[str, Any] | None:
@@ -178,13 +201,8 @@ async def get_task_model(
     if not_modified(request, tag, stored=True):
         return Response(status_code=304, headers={"ETag": etag})
     if as_npy:
-        z, geo = stored_grid(grid)
-        out = await anyio.to_thread.run_sync(npy_bytes, z, dtype)
-        headers = {"ETag": etag, "X-Grid-X0": repr(geo["x0"]), "X-Grid-Y0": repr(geo["y0"]),
-                   "X-Grid-Dx": repr(geo["dx"]), "X-Grid-Dy": repr(geo["dy"]),
-                   "X-Grid-Interpolation": geo["interpolation"],
-                   "Content-Disposition": f'attachment; filename="{task_id[:12]}-{index}.npy"'}
-        return Response(out, media_type=NPY, headers=headers)
+        return await anyio.to_thread.run_sync(_npy_response, grid, dtype, f"{task_id}-{index}",
+                                              {"ETag": etag})
     rendered = render_grids(grid, grid_encoding or dtype)
     return Response(orjson.dumps(rendered), media_type="application/json",
                     headers={"ETag": etag})
