@@ -1,0 +1,163 @@
+"""Structuring functions of ball and flat end mills on a node grid.
+
+The tool's lower surface above its tip is ``h(d) = R - sqrt(R² - d²)`` for a ball
+and ``0`` for a flat end mill, ``d <= R`` the distance from its axis. Offsets are
+node offsets ``(a, b)``: ``a`` rows (``a*dy`` along y), ``b`` columns (``b*dx``).
+Every profile is mirror-symmetric in ``a`` and ``b`` (what :mod:`._morph` needs).
+
+Drop-cutter profiles (``s``, added to the surface heights, -inf off the element)
+bound the tool over the surface's continuous meaning:
+
+- ``cell``: a node's flat square meets the tool first at its nearest point, so
+  ``s = -h(d_min(square))``: exact.
+- ``bilinear``: on a cell ``Q`` the surface is bilinear; for any affine ``T <= h``
+  on ``Q ∩ disc`` (a tangent plane of the convex ``h``, or the constant
+  ``h(d_min(Q))``), ``z(p) - h(p) <= z(p) - T(p)``, which is bilinear and so peaks at
+  a corner. Lowering ``h`` at each node to the least ``T_Q`` of its cells therefore
+  gives a node dilation that is never below the continuous drop-cutter height. Per
+  cell the plane is picked (among the tangent planes at its centre, its corners and
+  its nearest point, and the constant) to stay closest to ``h`` at its corners.
+
+Envelope profiles (``e``, +inf off the element) put the tool tip at each node:
+``bilinear`` evaluates at the nodes (``e = h(d)``), ``cell`` takes the farthest
+point of a node's square (``e = h(d_max)``), the highest the tool leaves there.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.typing import NDArray
+
+from zwcore.grid.tools import Tool
+from zwcore.grid.zmap import Interpolation
+
+F64 = NDArray[np.float64]
+
+#: Relative slack on the reach test, so rounding never drops a point the tool touches.
+_REACH = 1.0 + 1e-12
+
+
+def _h(tool: Tool, d: F64) -> F64:
+    """Height of the tool's lower surface above its tip at distance ``d`` (clipped to R)."""
+    r = tool.radius
+    if tool.kind == "flat":
+        return np.zeros_like(d)
+    dd = np.minimum(d, r)
+    return r - np.sqrt(np.maximum(r * r - dd * dd, 0.0))
+
+
+def _offsets(n_rows: int, n_cols: int, dx: float, dy: float) -> tuple[F64, F64]:
+    """Coordinates (y, x) in mm of node offsets ``-n..n``, shape (2n_rows+1, 2n_cols+1)."""
+    a = np.arange(-n_rows, n_rows + 1, dtype=np.float64) * dy
+    b = np.arange(-n_cols, n_cols + 1, dtype=np.float64) * dx
+    return a[:, None] + 0.0 * b[None, :], b[None, :] + 0.0 * a[:, None]
+
+
+def _symmetric(p: F64, pick: str) -> F64:
+    """Mirror-symmetrise ``p`` (max or min over its four reflections). ``h`` is symmetric,
+    so a reflected bound is a bound: the max of drop profiles stays >= -h."""
+    f = np.maximum if pick == "max" else np.minimum
+    q = f(p, p[::-1])
+    return f(q, q[:, ::-1])
+
+
+def footprint(tool: Tool, dx: float, dy: float) -> tuple[int, int]:
+    """Half-sizes ``(A, B)`` in nodes of the drop-cutter element (one cell beyond R)."""
+    return math.ceil(tool.radius / dy) + 1, math.ceil(tool.radius / dx) + 1
+
+
+def drop_profile(tool: Tool, dx: float, dy: float, interpolation: Interpolation) -> F64:
+    """Structuring function ``s`` of the drop cutter: ``CL = max(z[c + o] + s[o])``.
+
+    Returns
+    -------
+    (2A + 1, 2B + 1) float64
+        -inf off the element; see :func:`footprint` for ``A, B``.
+    """
+    A, B = footprint(tool, dx, dy)
+    y, x = _offsets(A, B, dx, dy)
+    r = tool.radius
+    if interpolation == "cell":
+        # nearest point of the node's dx x dy square
+        dmin = np.hypot(np.maximum(np.abs(x) - dx / 2, 0.0), np.maximum(np.abs(y) - dy / 2, 0.0))
+        s = np.where(dmin <= r * _REACH, -_h(tool, dmin), -np.inf)
+        return _symmetric(s, "max")
+    h_low = _bilinear_lowered(tool, dx, dy, A, B)
+    return _symmetric(np.where(np.isfinite(h_low), -h_low, -np.inf), "max")
+
+
+def _tangent(tool: Tool, p: tuple[F64, F64], cy: F64, cx: F64) -> F64:
+    """Tangent plane of ``h`` at points ``p`` = (py, px), evaluated at corners (cy, cx);
+    +nan where ``p`` is not strictly inside the disc (no finite plane)."""
+    py, px = p
+    r = tool.radius
+    q2 = r * r - px * px - py * py
+    ok = q2 > (1e-9 * r) ** 2
+    root = np.sqrt(np.where(ok, q2, 1.0))
+    hp = r - root
+    t = hp[..., None] + (px[..., None] * (cx - px[..., None])
+                         + py[..., None] * (cy - py[..., None])) / root[..., None]
+    return np.where(ok[..., None], t, np.nan)
+
+
+def _bilinear_lowered(tool: Tool, dx: float, dy: float, A: int, B: int) -> F64:
+    """Per node offset, the least affine minorant of ``h`` over its cells (inf: no cell
+    reaches the disc)."""
+    r = tool.radius
+    qa = np.arange(-A, A, dtype=np.float64)[:, None] * dy + 0.0 * np.arange(2 * B)[None, :]
+    qb = np.arange(-B, B, dtype=np.float64)[None, :] * dx + 0.0 * np.arange(2 * A)[:, None]
+    # cell corners, last axis: (0,0) (0,1) (1,0) (1,1) in (row, column)
+    cy = np.stack([qa, qa, qa + dy, qa + dy], axis=-1)
+    cx = np.stack([qb, qb + dx, qb, qb + dx], axis=-1)
+    ny_ = np.clip(0.0, qa, qa + dy)
+    nx_ = np.clip(0.0, qb, qb + dx)
+    dmin = np.hypot(ny_, nx_)
+    reach = dmin <= r * _REACH
+    hc = _h(tool, np.hypot(cy, cx))
+    if tool.kind == "flat":
+        best = np.zeros_like(cy)
+    else:
+        cands = [np.broadcast_to(_h(tool, dmin)[..., None], cy.shape)]
+        points = [(qa + dy / 2, qb + dx / 2), (ny_, nx_)] + [(cy[..., j], cx[..., j])
+                                                           for j in range(4)]
+        cands += [_tangent(tool, p, cy, cx) for p in points]
+        stack = np.stack(cands)  # (n_candidates, 2A, 2B, 4)
+        score = np.min(np.minimum(stack - hc, 0.0), axis=-1)
+        score = np.where(np.isnan(score), -np.inf, score)
+        pick = np.argmax(score, axis=0)
+        best = np.take_along_axis(stack, pick[None, ..., None], axis=0)[0]
+        best = np.where(np.isnan(best), _h(tool, dmin)[..., None], best)
+    best = np.where(reach[..., None], best, np.inf)
+    low = np.full((2 * A + 1, 2 * B + 1), np.inf)
+    for j, (da, db) in enumerate(((0, 0), (0, 1), (1, 0), (1, 1))):
+        view = low[da:da + 2 * A, db:db + 2 * B]
+        np.minimum(view, best[..., j], out=view)
+    return low
+
+
+def envelope_profile(tool: Tool, dx: float, dy: float, interpolation: Interpolation) -> F64:
+    """Additive profile ``e`` of the envelope: ``M[p] = min(CL[p - o] + e[o])``.
+
+    Returns
+    -------
+    (2A + 1, 2B + 1) float64
+        +inf off the element (``A = floor(R/dy)``, ``B = floor(R/dx)``).
+    """
+    r = tool.radius
+    A, B = math.floor(r / dy), math.floor(r / dx)
+    y, x = _offsets(A, B, dx, dy)
+    if interpolation == "cell":
+        d = np.hypot(np.abs(x) + dx / 2, np.abs(y) + dy / 2)
+    else:
+        d = np.hypot(x, y)
+    e = np.where(d <= r, _h(tool, d), np.inf)
+    return _symmetric(e, "max")
+
+
+def flat_reach_profile(radius: float, dx: float, dy: float, interpolation: Interpolation
+                       ) -> F64:
+    """Flat disc of ``radius`` for the highest surface point within it (0 on, -inf off):
+    a flat end mill's drop-cutter element, used for the stock a tool's cylinder meets."""
+    return drop_profile(Tool("_reach", "flat", 2.0 * radius, 1.0), dx, dy, interpolation)
