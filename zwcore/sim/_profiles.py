@@ -68,8 +68,14 @@ def footprint(tool: Tool, dx: float, dy: float) -> tuple[int, int]:
     return math.ceil(tool.radius / dy) + 1, math.ceil(tool.radius / dx) + 1
 
 
-def drop_profile(tool: Tool, dx: float, dy: float, interpolation: Interpolation) -> F64:
+def drop_profile(tool: Tool, dx: float, dy: float, interpolation: Interpolation,
+                 planes: str = "balanced") -> F64:
     """Structuring function ``s`` of the drop cutter: ``CL = max(z[c + o] + s[o])``.
+
+    ``planes`` picks each bilinear cell's affine minorant: ``"balanced"`` (closest to
+    ``h`` at its worst corner: tight on slopes) or ``"nearest"`` (the tangent plane at the
+    cell's point nearest the axis: exact where the ball touches a flat at a node). Both
+    are safe; a caller may take the lesser of the two CL surfaces.
 
     Returns
     -------
@@ -84,7 +90,7 @@ def drop_profile(tool: Tool, dx: float, dy: float, interpolation: Interpolation)
         dmin = np.hypot(np.maximum(np.abs(x) - dx / 2, 0.0), np.maximum(np.abs(y) - dy / 2, 0.0))
         s = np.where(dmin <= r * _REACH, -_h(tool, dmin), -np.inf)
         return _symmetric(s, "max")
-    h_low = _bilinear_lowered(tool, dx, dy, A, B)
+    h_low = _bilinear_lowered(tool, dx, dy, A, B, planes)
     return _symmetric(np.where(np.isfinite(h_low), -h_low, -np.inf), "max")
 
 
@@ -102,7 +108,7 @@ def _tangent(tool: Tool, p: tuple[F64, F64], cy: F64, cx: F64) -> F64:
     return np.where(ok[..., None], t, np.nan)
 
 
-def _bilinear_lowered(tool: Tool, dx: float, dy: float, A: int, B: int) -> F64:
+def _bilinear_lowered(tool: Tool, dx: float, dy: float, A: int, B: int, planes: str) -> F64:
     """Per node offset, the least affine minorant of ``h`` over its cells (inf: no cell
     reaches the disc)."""
     r = tool.radius
@@ -120,8 +126,9 @@ def _bilinear_lowered(tool: Tool, dx: float, dy: float, A: int, B: int) -> F64:
         best = np.zeros_like(cy)
     else:
         cands = [np.broadcast_to(_h(tool, dmin)[..., None], cy.shape)]
-        points = [(qa + dy / 2, qb + dx / 2), (ny_, nx_)] + [(cy[..., j], cx[..., j])
-                                                           for j in range(4)]
+        points = [(ny_, nx_)]
+        if planes == "balanced":
+            points += [(qa + dy / 2, qb + dx / 2)] + [(cy[..., j], cx[..., j]) for j in range(4)]
         cands += [_tangent(tool, p, cy, cx) for p in points]
         stack = np.stack(cands)  # (n_candidates, 2A, 2B, 4)
         score = np.min(np.minimum(stack - hc, 0.0), axis=-1)
