@@ -120,7 +120,7 @@ def test_ball_on_a_plane_sits_at_the_closed_form_height(slope: float) -> None:
 
 
 def hemisphere(radius: float = 8.0, dx: float = 0.25, half: float = 10.0) -> ZMap:
-    n = int(round(2 * half / dx)) + 1
+    n = round(2 * half / dx) + 1
     y, x = (np.mgrid[0:n, 0:n] - (n - 1) / 2) * dx
     r2 = x * x + y * y
     z = np.where(r2 < radius**2, -np.sqrt(np.maximum(radius**2 - r2, 0.0)), 0.0)
