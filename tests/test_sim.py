@@ -221,3 +221,31 @@ def test_given_cl_below_the_surface_reports_the_gouge() -> None:
     part = ZMap(z, dx=0.5, dy=0.5)
     out = simulate_pass(part, Tool("f", "flat", 2.0, 4.0), 1.0, cl=np.full((9, 9), -0.3))
     assert out.gouge == pytest.approx(0.3, abs=1e-4)
+
+
+def test_cl_against_opencamlib_on_a_surface_both_represent_exactly() -> None:
+    """A valley profile z = f(x), piecewise linear between nodes: its bilinear cells are
+    planar, so opencamlib's drop cutter on the triangulated grid is an independent oracle."""
+    ocl = pytest.importorskip("opencamlib")
+    dx, r = 0.1, 1.5
+    x = np.arange(81) * dx
+    f = np.where(x < 3, 3 - x, np.where(x < 4.5, 0.0, 1.5 * (x - 4.5))) + 0.2 * np.sin(3 * x)
+    z = np.tile(f, (41, 1))
+    surf = ocl.STLSurf()
+    for i, k in np.ndindex(40, 80):
+        p = [ocl.Point(float((k + b) * dx), float((i + a) * dx), float(z[i + a, k + b]))
+             for a, b in ((0, 0), (0, 1), (1, 1), (1, 0))]
+        surf.addTriangle(ocl.Triangle(p[0], p[1], p[2]))
+        surf.addTriangle(ocl.Triangle(p[0], p[2], p[3]))
+    bdc = ocl.BatchDropCutter()
+    bdc.setSTL(surf)
+    bdc.setCutter(ocl.BallCutter(2 * r, 10.0))
+    nodes = [(20, k) for k in range(15, 66, 2)]  # mid rows: the ball stays over the surface
+    for i, k in nodes:
+        bdc.appendPoint(ocl.CLPoint(k * dx, i * dx, -100.0))
+    bdc.run()
+    oracle = np.array([p.z for p in bdc.getCLPoints()])
+    cl = drop_cutter(ZMap(z, dx=dx, dy=dx), Tool("b", "ball", 2 * r, 10))
+    ours = np.array([cl[i, k] for i, k in nodes])
+    assert (ours - oracle).min() >= -1e-6
+    assert (ours - oracle).max() <= 0.03  # the bound's gap at a 56° wall, dx = R / 15
