@@ -91,7 +91,8 @@ def main() -> None:
         hit = ocl_cl > -999
         diff = (cl - ocl_cl)[hit]
         print(f"CL minus opencamlib's (STL vs z-map surfaces differ): "
-              f"median {np.median(diff):+.4f}, p1 {np.percentile(diff, 1):+.4f}, p99 {np.percentile(diff, 99):+.4f} mm")
+              f"median {np.median(diff):+.4f}, p1 {np.percentile(diff, 1):+.4f}, "
+              f"p99 {np.percentile(diff, 99):+.4f} mm")
     t = best_of(lambda: closing(part, ball), 1)
     print(f"closing (CL + envelope) Ø6: {t:.3f} s")
     print("\nscaling: drop_cutter seconds (ball, dx 0.1 mm, smooth random relief)")
