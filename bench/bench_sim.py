@@ -48,9 +48,10 @@ def ocl_rate(tri: np.ndarray, z: np.ndarray, diameter: float, step: int
     surf = ocl.STLSurf()
     for t in tri:
         surf.addTriangle(ocl.Triangle(*(ocl.Point(*v) for v in t)))
+    cutter = ocl.BallCutter(diameter, 4 * diameter)  # bdc keeps a pointer: keep it alive
     bdc = ocl.BatchDropCutter()
     bdc.setSTL(surf)
-    bdc.setCutter(ocl.BallCutter(diameter, 4 * diameter))
+    bdc.setCutter(cutter)
     ii, kk = np.mgrid[0:z.shape[0]:step, 0:z.shape[1]:step]
     for i, k in zip(ii.ravel(), kk.ravel(), strict=True):
         bdc.appendPoint(ocl.CLPoint(X0 + k * DX, Y0 + i * DX, -1000.0))

@@ -237,9 +237,10 @@ def test_cl_against_opencamlib_on_a_surface_both_represent_exactly() -> None:
              for a, b in ((0, 0), (0, 1), (1, 1), (1, 0))]
         surf.addTriangle(ocl.Triangle(p[0], p[1], p[2]))
         surf.addTriangle(ocl.Triangle(p[0], p[2], p[3]))
+    cutter = ocl.BallCutter(2 * r, 10.0)  # the batch keeps a pointer: keep it alive
     bdc = ocl.BatchDropCutter()
     bdc.setSTL(surf)
-    bdc.setCutter(ocl.BallCutter(2 * r, 10.0))
+    bdc.setCutter(cutter)
     nodes = [(20, k) for k in range(15, 66, 2)]  # mid rows: the ball stays over the surface
     for i, k in nodes:
         bdc.appendPoint(ocl.CLPoint(k * dx, i * dx, -100.0))

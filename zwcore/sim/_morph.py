@@ -37,36 +37,53 @@ def _round_up_f32(x: F64) -> NDArray[np.float32]:
 
 def _dilate_rows(zp: NDArray[np.floating], s: NDArray[np.floating], ny: int, nx: int
                  ) -> NDArray[np.floating]:
-    """The symmetric dilation of a padded grid (``A`` rows, ``B`` columns of -inf each side)."""
-    A, B = (s.shape[0] - 1) // 2, (s.shape[1] - 1) // 2
+    """The symmetric dilation of a padded grid (``A`` rows, ``B`` columns of -inf each side)
+    by each of ``V`` structuring functions ``s`` (V, 2A+1, 2B+1), least of the ``V`` results.
+
+    An offset where all ``V`` functions agree is added once into a shared accumulator;
+    only the offsets where they differ cost one add and max per function.
+    """
+    nv = s.shape[0]
+    A, B = (s.shape[1] - 1) // 2, (s.shape[2] - 1) // 2
     dtype = zp.dtype
-    out = np.full((ny, nx), -np.inf, dtype=dtype)
+    acc = np.full((nv + 1, ny, nx), -np.inf, dtype=dtype)  # [0]: offsets all share
     rows = max(8, _STRIP_BYTES // (dtype.itemsize * max(nx, 1)))
-    live = [(b, np.flatnonzero(np.isfinite(s[A:, B + b]))) for b in range(B + 1)]
+    quarter = s[:, A:, B:]
+    alive = np.isfinite(quarter).any(axis=0)
+    same = (quarter == quarter[:1]).all(axis=0) | ~np.isfinite(quarter).any(axis=0)
+    plan = [(b, [(a, bool(same[a, b])) for a in np.flatnonzero(alive[:, b])])
+            for b in range(B + 1)]
     for r0 in range(0, ny, rows):
         r1 = min(ny, r0 + rows)
         h = r1 - r0
         band = zp[r0:r1 + 2 * A]
         X = np.empty((h + 2 * A, nx), dtype=dtype)
         Y = np.empty((h, nx), dtype=dtype)
-        acc = out[r0:r1]
-        for b, alive in live:
-            if alive.size == 0:
+        T = np.empty((h, nx), dtype=dtype)
+        for b, offsets in plan:
+            if not offsets:
                 continue
             np.maximum(band[:, B + b:B + b + nx], band[:, B - b:B - b + nx], out=X)
-            for a in alive:
+            for a, shared in offsets:
                 np.maximum(X[A + a:A + a + h], X[A - a:A - a + h], out=Y)
-                Y += s[A + a, B + b]
-                np.maximum(acc, Y, out=acc)
-    return out
+                for v in range(1 if shared else nv):
+                    value = quarter[v, a, b]
+                    if not np.isfinite(value):
+                        continue
+                    np.add(Y, value, out=T)
+                    target = acc[0 if shared else v + 1, r0:r1]
+                    np.maximum(target, T, out=target)
+    return np.min(np.maximum(acc[0], acc[1:]), axis=0)
 
 
 def _dilate_bounded(z: F64, s: F64) -> tuple[F64, float]:
-    """The dilation and its rounding bound ``delta``: exact <= out <= exact + 2 delta."""
-    if not (np.array_equal(s, s[::-1]) and np.array_equal(s, s[:, ::-1])):
+    """The dilation (least over a stack of functions) and its rounding bound ``delta``:
+    exact <= out <= exact + 2 delta."""
+    s = s[None] if s.ndim == 2 else s
+    if not (np.array_equal(s, s[:, ::-1]) and np.array_equal(s, s[:, :, ::-1])):
         raise ValueError("structuring function must be mirror-symmetric in both axes")
     ny, nx = z.shape
-    A, B = (s.shape[0] - 1) // 2, (s.shape[1] - 1) // 2
+    A, B = (s.shape[1] - 1) // 2, (s.shape[2] - 1) // 2
     shift = float(z.max())
     span = float(shift - z.min()) + float(np.abs(s[np.isfinite(s)]).max(initial=0.0))
     # float32: inputs rounded up (1 ulp) and one rounded add (half an ulp) of values
@@ -96,9 +113,11 @@ def dilate(z: F64, s: F64) -> F64:
     ----------
     z : (ny, nx) float64
         Finite heights; nodes beyond the grid count as -inf (no surface there).
-    s : (2A + 1, 2B + 1) float64
+    s : (2A + 1, 2B + 1) or (V, 2A + 1, 2B + 1) float64
         ``s[A + a, B + b]`` is added to ``z[i + a, k + b]``; -inf outside the element.
-        Must be symmetric under ``a -> -a`` and ``b -> -b``.
+        Must be symmetric under ``a -> -a`` and ``b -> -b``. A stack of ``V``
+        functions (each an upper bound of the same thing) gives the least of their
+        dilations, cheaper than ``V`` runs where they share values.
 
     Returns
     -------

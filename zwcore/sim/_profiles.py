@@ -25,6 +25,7 @@ point of a node's square (``e = h(d_max)``), the highest the tool leaves there.
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -34,6 +35,9 @@ from zwcore.grid.tools import Tool
 from zwcore.grid.zmap import Interpolation
 
 F64 = NDArray[np.float64]
+
+#: Tangent points per axis tried in a cell that crosses the ball's rim ("rim" planes).
+_RIM_POINTS = 8
 
 #: Relative slack on the reach test, so rounding never drops a point the tool touches.
 _REACH = 1.0 + 1e-12
@@ -68,18 +72,34 @@ def footprint(tool: Tool, dx: float, dy: float) -> tuple[int, int]:
     return math.ceil(tool.radius / dy) + 1, math.ceil(tool.radius / dx) + 1
 
 
-def drop_profile(tool: Tool, dx: float, dy: float, interpolation: Interpolation,
-                 planes: str = "balanced") -> F64:
-    """Structuring function ``s`` of the drop cutter: ``CL = max(z[c + o] + s[o])``.
+def drop_profile(tool: Tool, dx: float, dy: float, interpolation: Interpolation) -> F64:
+    """Cached :func:`_drop_profile` (a planner simulates the same tools again and again)."""
+    return _drop_profile_cached(tool.kind, float(tool.diameter), float(dx), float(dy),
+                                interpolation)
 
-    ``planes`` picks each bilinear cell's affine minorant: ``"balanced"`` (closest to
-    ``h`` at its worst corner: tight on slopes) or ``"nearest"`` (the tangent plane at the
-    cell's point nearest the axis: exact where the ball touches a flat at a node). Both
-    are safe; a caller may take the lesser of the two CL surfaces.
+
+@functools.lru_cache(maxsize=32)
+def _drop_profile_cached(kind: str, diameter: float, dx: float, dy: float,
+                         interpolation: Interpolation) -> F64:
+    out = _drop_profile(Tool("_", kind, diameter, 1.0), dx, dy, interpolation)  # type: ignore[arg-type]
+    out.flags.writeable = False
+    return out
+
+
+def _drop_profile(tool: Tool, dx: float, dy: float, interpolation: Interpolation) -> F64:
+    """Structuring functions of the drop cutter: ``CL = min over v of max over o of
+    z[c + o] + s[v, o]``.
+
+    For ``bilinear`` balls, three sets of safe planes, each tight where the others are
+    not (measured on Mount Rushmore, a dome, a valley and the R 8 pocket): per cell
+    the tangent plane closest to ``h`` at its worst corner among those at its centre,
+    corners and nearest point (``balanced``); the tangent plane at its nearest point
+    (exact for a ball on a flat at a node); ``balanced`` plus an 8 x 8 grid of tangent
+    points in cells crossing the rim (walls met by the ball's steep side).
 
     Returns
     -------
-    (2A + 1, 2B + 1) float64
+    (V, 2A + 1, 2B + 1) float64
         -inf off the element; see :func:`footprint` for ``A, B``.
     """
     A, B = footprint(tool, dx, dy)
@@ -89,9 +109,13 @@ def drop_profile(tool: Tool, dx: float, dy: float, interpolation: Interpolation,
         # nearest point of the node's dx x dy square
         dmin = np.hypot(np.maximum(np.abs(x) - dx / 2, 0.0), np.maximum(np.abs(y) - dy / 2, 0.0))
         s = np.where(dmin <= r * _REACH, -_h(tool, dmin), -np.inf)
-        return _symmetric(s, "max")
-    h_low = _bilinear_lowered(tool, dx, dy, A, B, planes)
-    return _symmetric(np.where(np.isfinite(h_low), -h_low, -np.inf), "max")
+        return _symmetric(s, "max")[None]
+    sets = ("balanced", "nearest", "rim") if tool.kind == "ball" else ("balanced",)
+    out = []
+    for planes in sets:
+        h_low = _bilinear_lowered(tool, dx, dy, A, B, planes)
+        out.append(_symmetric(np.where(np.isfinite(h_low), -h_low, -np.inf), "max"))
+    return np.stack(out)
 
 
 def _tangent(tool: Tool, p: tuple[F64, F64], cy: F64, cx: F64) -> F64:
@@ -108,34 +132,74 @@ def _tangent(tool: Tool, p: tuple[F64, F64], cy: F64, cx: F64) -> F64:
     return np.where(ok[..., None], t, np.nan)
 
 
-def _bilinear_lowered(tool: Tool, dx: float, dy: float, A: int, B: int, planes: str) -> F64:
-    """Per node offset, the least affine minorant of ``h`` over its cells (inf: no cell
-    reaches the disc)."""
-    r = tool.radius
+def _cell_geometry(dx: float, dy: float, A: int, B: int) -> dict[str, F64]:
+    """Cells with lower corner at offsets ``(-A..A-1, -B..B-1)``: their corners (last axis
+    (0,0) (0,1) (1,0) (1,1) in (row, column)), lower-corner coordinates and the point
+    of each cell nearest the axis."""
     qa = np.arange(-A, A, dtype=np.float64)[:, None] * dy + 0.0 * np.arange(2 * B)[None, :]
     qb = np.arange(-B, B, dtype=np.float64)[None, :] * dx + 0.0 * np.arange(2 * A)[:, None]
-    # cell corners, last axis: (0,0) (0,1) (1,0) (1,1) in (row, column)
-    cy = np.stack([qa, qa, qa + dy, qa + dy], axis=-1)
-    cx = np.stack([qb, qb + dx, qb, qb + dx], axis=-1)
-    ny_ = np.clip(0.0, qa, qa + dy)
-    nx_ = np.clip(0.0, qb, qb + dx)
-    dmin = np.hypot(ny_, nx_)
-    reach = dmin <= r * _REACH
-    hc = _h(tool, np.hypot(cy, cx))
-    if tool.kind == "flat":
-        best = np.zeros_like(cy)
-    else:
-        cands = [np.broadcast_to(_h(tool, dmin)[..., None], cy.shape)]
-        points = [(ny_, nx_)]
-        if planes == "balanced":
-            points += [(qa + dy / 2, qb + dx / 2)] + [(cy[..., j], cx[..., j]) for j in range(4)]
+    return {"qa": qa, "qb": qb,
+            "cy": np.stack([qa, qa, qa + dy, qa + dy], axis=-1),
+            "cx": np.stack([qb, qb + dx, qb, qb + dx], axis=-1),
+            "ny": np.clip(0.0, qa, qa + dy), "nx": np.clip(0.0, qb, qb + dx)}
+
+
+def _candidate_planes(tool: Tool, g: dict[str, F64], dx: float, dy: float, planes: str
+                      ) -> NDArray[np.float64]:
+    """Affine minorants of ``h`` per cell, evaluated at its corners: (n, 2A, 2B, 4), nan
+    where a tangent point lies outside the disc: the constant ``h(d_min)`` and the
+    tangent plane at the nearest point (``nearest``), plus those at the centre and
+    corners (``balanced``, ``rim``)."""
+    qa, qb, cy, cx = g["qa"], g["qb"], g["cy"], g["cx"]
+    dmin = np.hypot(g["ny"], g["nx"])
+    cands = [np.broadcast_to(_h(tool, dmin)[..., None], cy.shape),
+             _tangent(tool, (g["ny"], g["nx"]), cy, cx)]
+    if planes != "nearest":
+        points = [(qa + dy / 2, qb + dx / 2)] + [(cy[..., j], cx[..., j]) for j in range(4)]
         cands += [_tangent(tool, p, cy, cx) for p in points]
-        stack = np.stack(cands)  # (n_candidates, 2A, 2B, 4)
-        score = np.min(np.minimum(stack - hc, 0.0), axis=-1)
-        score = np.where(np.isnan(score), -np.inf, score)
-        pick = np.argmax(score, axis=0)
+    return np.stack(cands)
+
+
+def _worst_corner(planes: F64, hc: F64) -> F64:
+    """How far a plane lies below ``h`` at its worst corner (<= 0; -inf: no plane)."""
+    score = np.min(np.minimum(planes - hc, 0.0), axis=-1)
+    return np.where(np.isnan(score), -np.inf, score)
+
+
+def _refine_rim(tool: Tool, g: dict[str, F64], dx: float, dy: float, best: F64, hc: F64
+                ) -> None:
+    """In cells crossing the rim, try tangent planes on a grid of points (in place)."""
+    rim = np.hypot(g["cy"], g["cx"]).max(axis=-1) > tool.radius
+    cy, cx, hcr = g["cy"][rim], g["cx"][rim], hc[rim]
+    qa, qb = g["qa"][rim], g["qb"][rim]
+    top = best[rim]
+    score = _worst_corner(top, hcr)
+    n = _RIM_POINTS
+    for u in range(n):
+        for v in range(n):
+            plane = _tangent(tool, (qa + (u + 0.5) / n * dy, qb + (v + 0.5) / n * dx), cy, cx)
+            s = _worst_corner(plane, hcr)
+            better = s > score
+            top[better], score[better] = plane[better], s[better]
+    best[rim] = top
+
+
+def _bilinear_lowered(tool: Tool, dx: float, dy: float, A: int, B: int, planes: str) -> F64:
+    """Per node offset, the least of its cells' affine minorants of ``h`` (inf: no cell
+    reaches the disc); per cell the candidate plane closest to ``h`` at its worst corner."""
+    g = _cell_geometry(dx, dy, A, B)
+    dmin = np.hypot(g["ny"], g["nx"])
+    reach = dmin <= tool.radius * _REACH
+    if tool.kind == "flat":
+        best = np.zeros_like(g["cy"])
+    else:
+        stack = _candidate_planes(tool, g, dx, dy, planes)
+        hc = _h(tool, np.hypot(g["cy"], g["cx"]))
+        pick = np.argmax(_worst_corner(stack, hc), axis=0)
         best = np.take_along_axis(stack, pick[None, ..., None], axis=0)[0]
         best = np.where(np.isnan(best), _h(tool, dmin)[..., None], best)
+        if planes == "rim":
+            _refine_rim(tool, g, dx, dy, best, hc)
     best = np.where(reach[..., None], best, np.inf)
     low = np.full((2 * A + 1, 2 * B + 1), np.inf)
     for j, (da, db) in enumerate(((0, 0), (0, 1), (1, 0), (1, 1))):
@@ -167,4 +231,4 @@ def flat_reach_profile(radius: float, dx: float, dy: float, interpolation: Inter
                        ) -> F64:
     """Flat disc of ``radius`` for the highest surface point within it (0 on, -inf off):
     a flat end mill's drop-cutter element, used for the stock a tool's cylinder meets."""
-    return drop_profile(Tool("_reach", "flat", 2.0 * radius, 1.0), dx, dy, interpolation)
+    return drop_profile(Tool("_reach", "flat", 2.0 * radius, 1.0), dx, dy, interpolation)[0]

@@ -79,12 +79,7 @@ def drop_cutter(part: ZMap, tool: Tool, interpolation: Interpolation = "bilinear
         meets a wall) and the float32 rounding bound.
     """
     _check(tool, part.dx, part.dy, interpolation)
-    cl = dilate(part.z, drop_profile(tool, part.dx, part.dy, interpolation))
-    if interpolation == "bilinear" and tool.kind == "ball":
-        # two safe bounds, each tight where the other is not: take the lesser
-        np.minimum(cl, dilate(part.z, drop_profile(tool, part.dx, part.dy, interpolation,
-                                                   "nearest")), out=cl)
-    return cl
+    return dilate(part.z, drop_profile(tool, part.dx, part.dy, interpolation))
 
 
 def envelope(cl: F64, tool: Tool, dx: float, dy: float,
