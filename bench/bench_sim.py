@@ -19,7 +19,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from zwcore import Tool, ZMap  # noqa: E402
-from zwcore.sim import closing, drop_cutter  # noqa: E402
+from zwcore.sim import closing, drop_cutter, simulation_work  # noqa: E402
 
 X0, Y0, DX = -40.958, -24.696, 0.1
 
@@ -108,9 +108,9 @@ def main() -> None:
         row = []
         for dd in (2.0, 6.0, 12.0):
             row.append(best_of(lambda zm=zm, dd=dd: drop_cutter(zm, Tool("b", "ball", dd, 1)), 1))
-        foot = (2 * 32 + 1) ** 2
+        work = simulation_work(zm.shape, Tool("b", "ball", 6.0, 1), DX, DX)
         print(f"{n:>5}² " + " ".join(f"{s:8.3f}" for s in row)
-              + f"   {row[1] / (n * n * foot) * 1e9:.3f}")
+              + f"   {row[1] / work * 1e9:.3f}")
 
 
 if __name__ == "__main__":

@@ -63,7 +63,7 @@ class Settings(BaseSettings):
         10_000, gt=0, description="Most contour slabs one contour-plan stage may need (413).")
     max_simulation_work: int = Field(
         20_000_000_000, gt=0, description="Largest cutting simulation, grid cells times the "
-        "tool's footprint in nodes (413): about 10 s of one core.")
+        "tool's footprint in nodes (413): a few seconds of one core.")
     workers: int = Field(default_factory=_cpu_count, gt=0, description="Compute pool threads.")
     process_workers: int = Field(
         default_factory=_cpu_count, ge=0, description="Worker processes for Python-bound work "
