@@ -90,12 +90,14 @@ def test_cl_is_never_below_the_dense_reference_and_the_tool_never_gouges(
     assert 0.0 <= gap.min() and gap.max() <= 1e-4, "envelope not the tools' lowest surface"
 
 
-@pytest.mark.parametrize("kind", ["ball", "flat"])
-def test_cell_meaning_is_exact_against_a_square_by_square_reference(kind: str) -> None:
-    rng = np.random.default_rng(3)
-    z = rng.uniform(-3, 3, (9, 12))
-    dx, r = 0.5, 1.3
-    cl = drop_cutter(ZMap(z, dx=dx, dy=dx), Tool("t", kind, 2 * r, 5), "cell")
+@given(st.integers(0, 2**32 - 1), st.sampled_from(["ball", "flat"]), st.floats(0.1, 1.6),
+       st.sampled_from([0.25, 0.5]), st.sampled_from(["cell", "bilinear"]))
+def test_cell_meaning_is_exact_against_a_square_by_square_reference(
+        seed: int, kind: str, r: float, dx: float, meaning: str) -> None:
+    rng = np.random.default_rng(seed)
+    z = rng.uniform(-3, 3, (int(rng.integers(2, 8)), int(rng.integers(2, 9))))
+    tool = Tool("t", kind, 2 * r, 5)
+    cl = drop_cutter(ZMap(z, dx=dx, dy=dx), tool, "cell")
     ref = np.full(z.shape, -np.inf)
     for i, k in np.ndindex(z.shape):
         for j, m in np.ndindex(z.shape):  # nearest point of square (j, m) to node (i, k)
@@ -104,6 +106,26 @@ def test_cell_meaning_is_exact_against_a_square_by_square_reference(kind: str) -
                 ref[i, k] = max(ref[i, k], z[j, m] - float(h(kind, r, np.array(d))))
     assert (cl - ref).min() >= 0.0
     assert (cl - ref).max() <= 3e-5
+    if meaning == "cell":
+        # the envelope over each square: the highest point any tool leaves there
+        env = envelope(cl, tool, dx, dx, "cell")
+        assert (env - z).min() >= 0.0
+
+
+def test_rest_regions_grow_a_seed_by_the_radius_and_box_it() -> None:
+    z = np.zeros((41, 61))
+    surface = z.copy()
+    surface[20, 30] = 1.0
+    part = ZMap(z, x0=10.0, y0=-5.0, dx=0.1, dy=0.1)
+    regions = rest_regions(surface, part, tolerance=0.5, grow_radius=0.75)
+    yy, xx = np.mgrid[0:41, 0:61]
+    disc = np.hypot((yy - 20) * 0.1, (xx - 30) * 0.1) <= 0.75 + 1e-9
+    assert (regions.mask == disc).all() and regions.count == 1
+    box = regions.boxes[0]
+    assert (box.x_min, box.x_max) == pytest.approx((10.0 + 2.3, 10.0 + 3.7))
+    assert (box.y_min, box.y_max) == pytest.approx((-5.0 + 1.3, -5.0 + 2.7))
+    assert box.area == pytest.approx(disc.sum() * 0.01)
+    assert regions.area_fraction == pytest.approx(disc.mean())
 
 
 @pytest.mark.parametrize("slope", [0.0, 0.5, 1.0, 2.0])

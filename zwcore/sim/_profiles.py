@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import functools
 import math
+from collections.abc import Iterator
 
 import numpy as np
 from numpy.typing import NDArray
@@ -145,19 +146,19 @@ def _cell_geometry(dx: float, dy: float, A: int, B: int) -> dict[str, F64]:
 
 
 def _candidate_planes(tool: Tool, g: dict[str, F64], dx: float, dy: float, planes: str
-                      ) -> NDArray[np.float64]:
-    """Affine minorants of ``h`` per cell, evaluated at its corners: (n, 2A, 2B, 4), nan
+                      ) -> Iterator[F64]:
+    """Affine minorants of ``h`` per cell, evaluated at its corners, (2A, 2B, 4) each, nan
     where a tangent point lies outside the disc: the constant ``h(d_min)`` and the
     tangent plane at the nearest point (``nearest``), plus those at the centre and
-    corners (``balanced``, ``rim``)."""
+    corners (``balanced``, ``rim``). One at a time: a large ball's cells are many."""
     qa, qb, cy, cx = g["qa"], g["qb"], g["cy"], g["cx"]
     dmin = np.hypot(g["ny"], g["nx"])
-    cands = [np.broadcast_to(_h(tool, dmin)[..., None], cy.shape),
-             _tangent(tool, (g["ny"], g["nx"]), cy, cx)]
+    yield np.broadcast_to(_h(tool, dmin)[..., None], cy.shape)
+    yield _tangent(tool, (g["ny"], g["nx"]), cy, cx)
     if planes != "nearest":
-        points = [(qa + dy / 2, qb + dx / 2)] + [(cy[..., j], cx[..., j]) for j in range(4)]
-        cands += [_tangent(tool, p, cy, cx) for p in points]
-    return np.stack(cands)
+        yield _tangent(tool, (qa + dy / 2, qb + dx / 2), cy, cx)
+        for j in range(4):
+            yield _tangent(tool, (cy[..., j], cx[..., j]), cy, cx)
 
 
 def _worst_corner(planes: F64, hc: F64) -> F64:
@@ -193,11 +194,13 @@ def _bilinear_lowered(tool: Tool, dx: float, dy: float, A: int, B: int, planes: 
     if tool.kind == "flat":
         best = np.zeros_like(g["cy"])
     else:
-        stack = _candidate_planes(tool, g, dx, dy, planes)
         hc = _h(tool, np.hypot(g["cy"], g["cx"]))
-        pick = np.argmax(_worst_corner(stack, hc), axis=0)
-        best = np.take_along_axis(stack, pick[None, ..., None], axis=0)[0]
-        best = np.where(np.isnan(best), _h(tool, dmin)[..., None], best)
+        best = np.empty_like(g["cy"])
+        score = np.full(dmin.shape, -np.inf)
+        for n, plane in enumerate(_candidate_planes(tool, g, dx, dy, planes)):
+            s = _worst_corner(plane, hc)
+            better = s > score if n else np.ones(dmin.shape, dtype=bool)
+            best[better], score[better] = plane[better], s[better]
         if planes == "rim":
             _refine_rim(tool, g, dx, dy, best, hc)
     best = np.where(reach[..., None], best, np.inf)

@@ -29,8 +29,9 @@ __all__ = ["MAX_FOOTPRINT", "closing", "drop_cutter", "envelope",
 
 F64 = NDArray[np.float64]
 
-#: Largest structuring element (nodes) a simulation accepts: a Ø40 ball at 0.02 mm.
-MAX_FOOTPRINT = 16_000_000
+#: Largest structuring element (nodes) a simulation accepts: about a Ø28 ball at 0.02 mm
+#: (its profile takes some hundred MB to build).
+MAX_FOOTPRINT = 2_000_000
 
 
 def simulation_work(shape: tuple[int, int], tool: Tool, dx: float, dy: float) -> int:
