@@ -33,6 +33,7 @@ BODIES: dict[str, dict[str, Any]] = {
     "plan_scanline": {"grid": GRID, "tolerance": 0.1},
     "plan_contour": {"grid": GRID},
     "fit_arcs": {"points": ARC_POINTS, "tolerance": 0.05},
+    "simulate": {"grid": GRID, "tool": {"kind": "ball", "diameter": 2.0, "flute_length": 4.0}},
 }
 # Operations whose body is not JSON: (query, media type, body).
 RAW_BODIES: dict[str, tuple[str, str, bytes]] = {
