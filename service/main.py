@@ -7,7 +7,11 @@ import sys
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 
+from typing import Any
+
 from fastapi import Depends, FastAPI
+from pydantic import BaseModel
+from pydantic.json_schema import models_json_schema
 
 import zwcore
 from service import problems
@@ -31,6 +35,26 @@ def _configure_logging(level: str) -> None:
     root.handlers[:] = [handler]
     root.setLevel(level.upper())
     root.propagate = False
+
+
+def _list_models(app: FastAPI, models: tuple[type[BaseModel], ...]) -> None:
+    """Put request models that no route parameter names (a route reading several media
+    types parses its body itself) into the document's components."""
+    build = app.openapi
+
+    def openapi() -> dict[str, Any]:
+        cached = app.openapi_schema is not None
+        schema = build()
+        if not cached:
+            _, defs = models_json_schema([(m, "validation") for m in models],
+                                         ref_template="#/components/schemas/{model}")
+            components = schema.setdefault("components", {}).setdefault("schemas", {})
+            for name, model_schema in defs.get("$defs", {}).items():
+                components.setdefault(name, model_schema)
+            schema["components"]["schemas"] = dict(sorted(components.items()))
+        return schema
+
+    app.openapi = openapi  # type: ignore[method-assign]
 
 
 def create_app(settings: Settings | None = None) -> FastAPI:
@@ -62,6 +86,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.include_router(zmaps.router, dependencies=secured)
     app.include_router(tools.router, dependencies=secured)
     app.include_router(health.router)
+    _list_models(app, arcs.OPENAPI_MODELS)
     app.add_middleware(ServiceMiddleware, max_body_bytes=settings.max_body_bytes,
                        max_json_values=settings.max_json_values,
                        api_keys=settings.api_key_list)
