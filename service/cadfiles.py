@@ -19,6 +19,16 @@ DXF_TYPES = ("application/dxf", "image/vnd.dxf", "application/x-dxf", "image/x-d
 DXF_MEDIA_TYPE = "application/dxf"
 
 
+def sniff(raw: bytes) -> str:
+    """The media type of an octet-stream upload: a DXF begins with group code 0 and
+    ``SECTION`` (or a 999 comment); anything else is read as a program."""
+    head = raw[:4096].split(b"\n", 4)
+    first = [line.strip() for line in head[:2]]
+    if (first and first[0] in (b"0", b"999")) or raw.startswith(b"AutoCAD Binary DXF"):
+        return DXF_MEDIA_TYPE
+    return GCODE_TYPES[0]
+
+
 def segment_json(s: Segment) -> dict[str, Any]:
     out: dict[str, Any] = {"kind": s.kind, "start": list(s.start), "end": list(s.end)}
     if s.kind == "arc":

@@ -72,11 +72,11 @@ def _as_points(points: list[tuple[float, float]]) -> np.ndarray:
 #: The three bodies ``POST /v1/arcs`` reads, and what it answers.
 ArcsAnyResult = Annotated[ArcsResult | GcodeArcsResult | DxfArcsResult,
                           Field(discriminator="operation")]
-_TEXT_BODY = {"schema": {"type": "string"}}
+# Files are declared as one octet-stream body (what client generators support); the
+# service also takes them as text/plain (a program) and application/dxf (a drawing).
 _OPENAPI_EXTRA = {"requestBody": {"required": True, "content": {
     "application/json": {"schema": {"$ref": "#/components/schemas/ArcsRequest"}},
-    "text/plain": {**_TEXT_BODY, "description": "a G-code program"},
-    cadfiles.DXF_MEDIA_TYPE: {**_TEXT_BODY, "description": "an ASCII DXF drawing"},
+    "application/octet-stream": {"schema": {"type": "string", "format": "binary"}},
 }}}
 _FILE_RESPONSES: dict[int | str, dict[str, Any]] = {200: {"content": {
     "text/plain": {"schema": {"type": "string"}},
@@ -169,13 +169,14 @@ async def post_arcs(request: Request, settings: SettingsDep, store: StoreDep, po
     tangentially except at real corners.
 
     - JSON (`ArcsRequest`): one point curve; G02/G03/G01 on request.
-    - `text/plain`: a G-code program; every run of G01 moves in the XY plane at constant Z
+    - `text/plain` (or `application/octet-stream`, told apart from a DXF by its first
+      lines): a G-code program; every run of G01 moves in the XY plane at constant Z
       becomes a chain, everything else stays in place (options as query parameters). The
       answer holds the rewritten program and a summary; `Accept: text/plain` gets the
       program alone.
-    - `application/dxf` (also `image/vnd.dxf`): an ASCII DXF; its LWPOLYLINE, POLYLINE and
-      SPLINE entities become chains of LINE and ARC entities (bulges and ARC entities stay
-      arcs). `Accept: application/dxf` gets the DXF alone.
+    - `application/dxf` (also `image/vnd.dxf`, or `application/octet-stream`): an ASCII
+      DXF; its LWPOLYLINE, POLYLINE and SPLINE entities become chains of LINE and ARC
+      entities (bulges and ARC entities stay arcs). `Accept: application/dxf` gets the DXF alone.
     """
     raw = await request.body()
     kind = _media_type(request)
@@ -183,6 +184,8 @@ async def post_arcs(request: Request, settings: SettingsDep, store: StoreDep, po
         if tolerance is not None or corner_angle_deg is not None or max_radius is not None:
             raise InvalidInputError("query", "with a JSON body, options go in the body")
         return await _points_arcs(raw, request, settings, store, pool)
+    if kind == "application/octet-stream":
+        kind = cadfiles.sniff(raw)
     tol = 0.01 if tolerance is None else tolerance
     corner = 30.0 if corner_angle_deg is None else corner_angle_deg
     limits = (settings.max_points, settings.max_arc_resolution)
@@ -191,7 +194,8 @@ async def post_arcs(request: Request, settings: SettingsDep, store: StoreDep, po
         response = await serve_task(
             request, store, pool, operation="arcs_gcode",
             params={"tolerance": tol, "corner_angle_deg": corner, "max_radius": max_radius,
-                    "program_sha256": hashlib.sha256(text.encode()).hexdigest()}, arrays=None, compute=cadfiles.gcode_result,
+                    "program_sha256": hashlib.sha256(text.encode()).hexdigest()},
+            arrays=None, compute=cadfiles.gcode_result,
             args=(text, tol, corner, max_radius, *limits), in_process=True)
         return _as_file(response, "program", "text/plain") if _wants(
             request, "text/plain") else response
@@ -201,7 +205,8 @@ async def post_arcs(request: Request, settings: SettingsDep, store: StoreDep, po
         response = await serve_task(
             request, store, pool, operation="arcs_dxf",
             params={"tolerance": tol, "corner_angle_deg": corner,
-                    "dxf_sha256": hashlib.sha256(raw).hexdigest()}, arrays=None, compute=cadfiles.dxf_result,
+                    "dxf_sha256": hashlib.sha256(raw).hexdigest()},
+            arrays=None, compute=cadfiles.dxf_result,
             args=(raw, tol, corner, *limits), in_process=True)
         wanted = next((t for t in cadfiles.DXF_TYPES if _wants(request, t)), None)
         return _as_file(response, "dxf", wanted) if wanted else response

@@ -12,8 +12,9 @@ A run is only rewritten when the reader knows the position at its start and
 the program is in a state where the geometry is plain: ``G17`` plane, ``G90``
 absolute, motion mode ``G01``, and the block holds only ``G01``, ``N``, ``X``,
 ``Y``, ``Z`` (equal to the current Z) and ``F`` (on its first block, or equal to
-the modal feed). Any G-code outside a short list of state codes that do not
-move the coordinate frame (``G28``, ``G92``, ``G54``..., polar or scaling
+the modal feed), and no comment (a commented block stays as written). Block
+numbers (``N``) inside a rewritten run are dropped. Any G-code outside a short
+list of state codes that do not move the coordinate frame (``G28``, ``G92``, ``G54``..., polar or scaling
 modes) makes the reader forget the position until absolute words set it again,
 so a run after it is left alone rather than guessed at. Units are the
 program's own (``G20``/``G21`` are passed through): ``tolerance`` is in them.
@@ -314,7 +315,8 @@ def rewrite_program(text: str, tolerance: float, *, corner_angle_deg: float = 30
         gs = [float(v) for k, v in words if k == "G"]
         if _is_motion(words, gs, state) is not None:
             moves_before += 1
-        end = _run_move(words, gs, state, run)
+        # a commented block stays as written (its comment with it), so it ends a run
+        end = _run_move(words, gs, state, run) if code == line else None
         if end is None:
             run = None
         else:
