@@ -7,6 +7,7 @@ what a control would cut.
 
 from __future__ import annotations
 
+import itertools
 import math
 import re
 from dataclasses import dataclass
@@ -84,7 +85,7 @@ def two_sided(a: np.ndarray, b: np.ndarray) -> tuple[float, float]:
 def densify(poly: np.ndarray, step: float) -> np.ndarray:
     """The polyline ``(N, 2)`` with points at most ``step`` apart."""
     out = [poly[:1]]
-    for p, q in zip(poly[:-1], poly[1:], strict=True):
+    for p, q in itertools.pairwise(poly):
         n = max(1, math.ceil(float(np.hypot(*(q - p))) / step))
         out.append(p + (q - p) * (np.arange(1, n + 1) / n)[:, None])
     return np.vstack(out)

@@ -14,9 +14,9 @@ absolute, motion mode ``G01``, and the block holds only ``G01``, ``N``, ``X``,
 ``Y``, ``Z`` (equal to the current Z) and ``F`` (on its first block, or equal to
 the modal feed), and no comment (a commented block stays as written). Block
 numbers (``N``) inside a rewritten run are dropped. Any G-code outside a short
-list of state codes that do not move the coordinate frame (``G28``, ``G92``, ``G54``..., polar or scaling
-modes) makes the reader forget the position until absolute words set it again,
-so a run after it is left alone rather than guessed at. Units are the
+list of state codes that do not move the coordinate frame (``G28``, ``G92``,
+``G54``..., polar or scaling modes) makes the reader forget the position until
+absolute words set it again, so a run after it is left alone, not guessed at. Units are the
 program's own (``G20``/``G21`` are passed through): ``tolerance`` is in them.
 """
 
