@@ -15,6 +15,11 @@ from zwcore.io.gcode_program import rewrite_program
 #: Request media types read as an NC program and as a DXF drawing.
 GCODE_TYPES = ("text/plain", "text/x-gcode", "application/x-gcode")
 DXF_TYPES = ("application/dxf", "image/vnd.dxf", "application/x-dxf", "image/x-dxf")
+def input_key(task_id: str) -> str:
+    """Store key beside a task's result holding its input, for previews to draw."""
+    return f"{task_id}.input"
+
+
 #: Response media type of the DXF when a client asks for the file itself.
 DXF_MEDIA_TYPE = "application/dxf"
 
@@ -67,6 +72,7 @@ def dxf_result(data: bytes, tolerance: float, corner_angle_deg: float,
     n_arcs = sum(s.kind == "arc" for s in segs)
     chains = [{"source": c.source, "handle": c.handle, "layer": c.layer, "closed": c.closed,
                "fitted": c.fitted, "segments": [segment_json(s) for s in c.segments],
+               "points": c.points.tolist(), "corners": list(c.corners),
                "max_deviation_points": c.max_deviation_points,
                "max_deviation_chain": c.max_deviation_chain} for c in res.chains]
     return {"tolerance": tolerance,

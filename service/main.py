@@ -16,7 +16,7 @@ import zwcore
 from service import problems
 from service.compute import ComputePool
 from service.middleware import JsonFormatter, ServiceMiddleware
-from service.routers import arcs, health, mrr, plans, simulate, tasks, tools, zmaps
+from service.routers import arcs, health, mrr, plans, previews, simulate, tasks, tools, zmaps
 from service.security import require_api_key
 from service.settings import Settings, get_settings
 from service.store import open_store
@@ -83,6 +83,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.include_router(simulate.router, dependencies=secured)
     app.include_router(tasks.router, dependencies=secured)
     app.include_router(zmaps.router, dependencies=secured)
+    app.include_router(previews.router, dependencies=secured)
     app.include_router(tools.router, dependencies=secured)
     app.include_router(health.router)
     _list_models(app, arcs.OPENAPI_MODELS)

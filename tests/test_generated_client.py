@@ -59,7 +59,11 @@ def generated(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[Module
     proc = subprocess.run(
         [sys.executable, "-m", "openapi_python_client", "generate", "--path", str(SPEC_PATH),
          "--output-path", str(out_dir / PACKAGE), "--meta", "none", "--fail-on-warning",
+<<<<<<< HEAD
          "--config", str(config)],
+=======
+         "--config", str(ROOT / "openapi" / "generator-config.yaml")],
+>>>>>>> 6455b1a (Previews: GET /v1/tasks/{id}/preview.png (stage models and MRR levels as shaded reliefs with colour and scale bars, a plan's stages side by side with their tools, arc chains over their input points with corners marked); bench_preview)
         capture_output=True, text=True, cwd=out_dir, env=env, timeout=120)
     log = proc.stdout + proc.stderr
     assert proc.returncode == 0, log

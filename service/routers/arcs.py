@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import hashlib
+import io
 import json
 import math
+from collections.abc import Callable
 from typing import Annotated, Any
 
 import anyio
@@ -146,10 +148,26 @@ async def _points_arcs(raw: bytes, request: Request, settings: Settings, store: 
             "tolerance", f"curve length {length:.6g} mm over tolerance {body.tolerance:g} mm "
             f"exceeds {settings.max_arc_resolution:g}; use a larger tolerance")
     params = body.model_dump(exclude={"points"})
-    return await serve_task(request, store, pool, operation="arcs", params=params,
-                            arrays={"points": points}, compute=arcs_result,
-                            args=(points, body.model_copy(update={"points": []})),
-                            in_process=True)
+    response = await serve_task(request, store, pool, operation="arcs", params=params,
+                                arrays={"points": points}, compute=arcs_result,
+                                args=(points, body.model_copy(update={"points": []})),
+                                in_process=True)
+    await _keep_input(request, response, store, lambda: _npy(points))
+    return response
+
+
+def _npy(points: np.ndarray) -> bytes:
+    out = io.BytesIO()
+    np.save(out, points, allow_pickle=False)
+    return out.getvalue()
+
+
+async def _keep_input(request: Request, response: Response, store: TaskStore,
+                      encode: Callable[[], bytes]) -> None:
+    """Store the input beside a freshly computed result: previews draw the chain over it."""
+    if response.status_code == 200 and response.headers.get("x-cache") in ("miss", "shared"):
+        tid = request.state.task_id
+        await anyio.to_thread.run_sync(store.put, cadfiles.input_key(tid), encode())
 
 
 def _decode_text(raw: bytes) -> str:
@@ -197,6 +215,7 @@ async def post_arcs(request: Request, settings: SettingsDep, store: StoreDep, po
                     "program_sha256": hashlib.sha256(text.encode()).hexdigest()},
             arrays=None, compute=cadfiles.gcode_result,
             args=(text, tol, corner, max_radius, *limits), in_process=True)
+        await _keep_input(request, response, store, text.encode)
         return _as_file(response, "program", "text/plain") if _wants(
             request, "text/plain") else response
     if kind in cadfiles.DXF_TYPES:

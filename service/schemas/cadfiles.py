@@ -57,6 +57,11 @@ class DxfChainOut(BaseModel):
     closed: bool
     fitted: bool = Field(description="false: a LINE, ARC or CIRCLE passed through unchanged")
     segments: list[SegmentOut]
+    points: list[tuple[float, float]] = Field(
+        description="the polyline the chain was fitted to: the vertices, or the flattened "
+                    "spline (its ends for a passed-through entity)")
+    corners: list[int] = Field(
+        description="junctions where the chain is not tangent-continuous (i: end of segment i)")
     max_deviation_points: float = Field(description="max distance source polyline -> chain")
     max_deviation_chain: float = Field(description="max distance chain -> source polyline")
 

@@ -33,13 +33,15 @@ from typing import Any
 
 import numpy as np
 
-from zwcore.arcs.fit import Segment, fit_arcs
+from zwcore.arcs.fit import Segment, chain_tangents, fit_arcs
 from zwcore.errors import InvalidInputError, LimitExceededError
 
 __all__ = ["SPLINE_SHARE", "DxfChain", "DxfResult", "chains_to_dxf", "dxf_to_chains"]
 
 #: Share of the tolerance spent on flattening splines (the fit gets the rest).
 SPLINE_SHARE = 0.1
+#: A junction turning more than this (radians) is a corner, not a smooth junction.
+CORNER_KINK = 1e-6
 _CURVES = ("LWPOLYLINE", "POLYLINE", "SPLINE")
 _PASS = ("LINE", "ARC", "CIRCLE")
 
@@ -62,6 +64,12 @@ class DxfChain:
     fitted: bool
     max_deviation_points: float = 0.0
     max_deviation_chain: float = 0.0
+
+    @property
+    def corners(self) -> tuple[int, ...]:
+        """Junctions (``i``: end of segment ``i``) where the chain is not tangent-continuous."""
+        kinks = chain_tangents(self.segments, self.closed)
+        return tuple(int(i) for i in np.flatnonzero(kinks > CORNER_KINK))
 
 
 @dataclass(frozen=True)

@@ -31,7 +31,7 @@ import numpy as np
 from zwcore.arcs.fit import Segment, fit_arcs
 from zwcore.errors import InvalidInputError, LimitExceededError
 
-__all__ = ["GcodeRun", "RewrittenProgram", "rewrite_program"]
+__all__ = ["GcodeRun", "RewrittenProgram", "program_runs", "rewrite_program"]
 
 _COMMENT = re.compile(r"\([^()]*\)|;.*$")
 _BLOCK = re.compile(r"(?:[A-Z][+-]?(?:\d+\.?\d*|\.\d+))*")
@@ -291,6 +291,16 @@ def rewrite_program(text: str, tolerance: float, *, corner_angle_deg: float = 30
         raise InvalidInputError("tolerance", "must be a finite number > 0")
     newline = "\r\n" if "\r\n" in text else "\n"
     lines = text.splitlines()
+    runs, moves_before, unparsable, parsed_any = _scan(lines)
+    if not parsed_any:
+        raise InvalidInputError("body", "no line of the program parses as G-code")
+    _check_work(runs, tolerance, max_points, max_resolution)
+    return _assemble(lines, runs, tolerance, corner_angle_deg, max_radius, newline, text,
+                     moves_before, unparsable)
+
+
+def _scan(lines: list[str]) -> tuple[list[_OpenRun], int, list[int], bool]:
+    """The runs, the motion-block count, the unparsable lines and whether any line parsed."""
     state = _State()
     unparsable: list[int] = []
     moves_before = 0
@@ -331,11 +341,13 @@ def rewrite_program(text: str, tolerance: float, *, corner_angle_deg: float = 30
             run.lines.append(n)
             run.decimals = max([run.decimals, *(_decimals(v) for k, v in words if k in "XY")])
         _apply(words, gs, state)
-    if not parsed_any:
-        raise InvalidInputError("body", "no line of the program parses as G-code")
-    _check_work(runs, tolerance, max_points, max_resolution)
-    return _assemble(lines, runs, tolerance, corner_angle_deg, max_radius, newline, text,
-                     moves_before, unparsable)
+    return runs, moves_before, unparsable, parsed_any
+
+
+def program_runs(text: str) -> list[np.ndarray]:
+    """The polylines ``(n_moves + 1, 2)`` of a program's runs of G01 moves (no fitting):
+    what :func:`rewrite_program` fits, e.g. to draw them."""
+    return [np.array([r.start, *r.ends], dtype=np.float64) for r in _scan(text.splitlines())[0]]
 
 
 def _check_work(runs: list[_OpenRun], tolerance: float, max_points: int | None,
