@@ -16,7 +16,18 @@ import zwcore
 from service import problems
 from service.compute import ComputePool
 from service.middleware import JsonFormatter, ServiceMiddleware
-from service.routers import arcs, health, mrr, plans, previews, simulate, tasks, tools, zmaps
+from service.routers import (
+    arcs,
+    health,
+    mrr,
+    plans,
+    previews,
+    simulate,
+    tasks,
+    tools,
+    viewer,
+    zmaps,
+)
 from service.security import require_api_key
 from service.settings import Settings, get_settings
 from service.store import open_store
@@ -86,6 +97,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.include_router(previews.router, dependencies=secured)
     app.include_router(tools.router, dependencies=secured)
     app.include_router(health.router)
+    app.include_router(viewer.router)
     _list_models(app, arcs.OPENAPI_MODELS)
     app.add_middleware(ServiceMiddleware, max_body_bytes=settings.max_body_bytes,
                        max_json_values=settings.max_json_values,

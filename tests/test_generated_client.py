@@ -50,20 +50,17 @@ def generated(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[Module
     # The generator formats its output with ruff (a test dependency) if it is on PATH;
     # without it, it warns, and this test accepts no warnings.
     env["PATH"] = str(Path(sys.executable).parent) + os.pathsep + env.get("PATH", "")
-    # Binary bodies (.npy grids, STL) are bytes to a client: the generator's documented
+    # Binary bodies (.npy grids, STL, PNG previews) are bytes to a client: the generator's documented
     # override maps their media types onto the one it knows.
     config = out_dir / "config.json"
     config.write_text(json.dumps({"content_type_overrides": {
         "application/x-npy": "application/octet-stream",
-        "model/stl": "application/octet-stream"}}))
+        "model/stl": "application/octet-stream",
+        "image/png": "application/octet-stream"}}))  # previews
     proc = subprocess.run(
         [sys.executable, "-m", "openapi_python_client", "generate", "--path", str(SPEC_PATH),
          "--output-path", str(out_dir / PACKAGE), "--meta", "none", "--fail-on-warning",
-<<<<<<< HEAD
          "--config", str(config)],
-=======
-         "--config", str(ROOT / "openapi" / "generator-config.yaml")],
->>>>>>> 6455b1a (Previews: GET /v1/tasks/{id}/preview.png (stage models and MRR levels as shaded reliefs with colour and scale bars, a plan's stages side by side with their tools, arc chains over their input points with corners marked); bench_preview)
         capture_output=True, text=True, cwd=out_dir, env=env, timeout=120)
     log = proc.stdout + proc.stderr
     assert proc.returncode == 0, log

@@ -14,7 +14,15 @@ from PIL import Image
 
 from service.previews import display_grid
 from tests.test_gcode_program import arc_points, g01
+from tests.conftest import make_client
 from tests.test_service_errors import assert_problem
+
+
+@pytest.fixture
+def client(tmp_path):  # type: ignore[no-untyped-def]
+    # arcs fitted in the threads: no worker processes to start for a few small curves
+    with make_client(tmp_path, process_workers=0) as c:
+        yield c
 
 
 def bump(n: int = 48) -> list[list[float]]:
@@ -55,7 +63,7 @@ def test_plan_overview_and_one_stage(client: TestClient, plan: dict) -> None:  #
 
 def test_mrr_levels_and_arc_chains(client: TestClient) -> None:
     r = client.post("/v1/mrr", json={"grid": {"dx": 0.5, "dy": 0.5, "z": bump(32)},
-                                      "wavelet": "haar", "include_models": True})
+                                      "wavelet": "haar", "levels": 2, "include_models": True})
     png(client.get(f"/v1/tasks/{r.json()['task_id']}/preview.png"))
     png(client.get(f"/v1/tasks/{r.json()['task_id']}/preview.png?stage=1"))
     t = np.linspace(0, np.pi, 100)
