@@ -13,8 +13,8 @@ from hypothesis.extra import numpy as hnp
 from PIL import Image
 
 from service.previews import display_grid
-from tests.test_gcode_program import arc_points, g01
 from tests.conftest import make_client
+from tests.test_gcode_program import arc_points, g01
 from tests.test_service_errors import assert_problem
 
 
