@@ -45,6 +45,8 @@ def _configure_logging(level: str) -> None:
     root.handlers[:] = [handler]
     root.setLevel(level.upper())
     root.propagate = False
+    # ezdxf logs every repair of a broken DXF upload as a warning: noise, not service events
+    logging.getLogger("ezdxf").setLevel(logging.ERROR)
 
 
 def _list_models(app: FastAPI, models: tuple[type[BaseModel], ...]) -> None:

@@ -208,6 +208,11 @@ async def post_arcs(request: Request, settings: SettingsDep, store: StoreDep, po
     corner = 30.0 if corner_angle_deg is None else corner_angle_deg
     limits = (settings.max_points, settings.max_arc_resolution)
     if kind in cadfiles.GCODE_TYPES:
+        # reading costs per line: bound the lines as the point curve's points are bounded
+        lines = raw.count(b"\n") + 1
+        if lines > settings.max_points:
+            raise LimitExceededError(
+                "body", f"{lines} program lines exceed the limit of {settings.max_points}")
         text = await anyio.to_thread.run_sync(_decode_text, raw)
         response = await serve_task(
             request, store, pool, operation="arcs_gcode",

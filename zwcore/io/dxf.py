@@ -40,6 +40,8 @@ __all__ = ["SPLINE_SHARE", "DxfChain", "DxfResult", "chains_to_dxf", "dxf_to_cha
 
 #: Share of the tolerance spent on flattening splines (the fit gets the rest).
 SPLINE_SHARE = 0.1
+#: Largest coordinate read (drawing units); entities beyond are skipped with a note.
+MAX_COORDINATE = 1e6
 #: A junction turning more than this (radians) is a corner, not a smooth junction.
 CORNER_KINK = 1e-6
 _CURVES = ("LWPOLYLINE", "POLYLINE", "SPLINE")
@@ -153,6 +155,8 @@ def _polyline_pieces(entity: Any) -> tuple[np.ndarray, np.ndarray, bool] | None:
         return None
     xy, mirrored = got
     bulges = -raw[:, 2] if mirrored else raw[:, 2]
+    if not np.all(np.isfinite(bulges)) or np.abs(bulges).max(initial=0.0) > 1e6:
+        raise InvalidInputError("body", "a bulge is not finite or beyond 1e6")
     return xy, bulges, closed
 
 
@@ -226,6 +230,8 @@ def _passed(entity: Any) -> tuple[Segment, ...] | None:
 
 def _spline_points(entity: Any, tol: float, max_points: int) -> np.ndarray:
     ctrl = np.asarray(entity.control_points or entity.fit_points, dtype=float).reshape(-1, 3)
+    if not (np.all(np.isfinite(ctrl)) and np.abs(ctrl).max(initial=0.0) <= MAX_COORDINATE):
+        raise InvalidInputError("body", f"control points not finite or beyond {MAX_COORDINATE:g}")
     # a B-spline lies in its control polygon's hull and is no longer than it: the
     # polygon's length bounds the flattening's point count before it runs
     bound = float(np.hypot(*np.diff(ctrl[:, :2], axis=0).T).sum()) if len(ctrl) > 1 else 0.0
@@ -313,6 +319,8 @@ class _Budget:
     length: float = 0.0
 
     def spend(self, pts: np.ndarray) -> None:
+        if not (np.all(np.isfinite(pts)) and np.abs(pts).max(initial=0.0) <= MAX_COORDINATE):
+            raise InvalidInputError("body", f"coordinates not finite or beyond {MAX_COORDINATE:g}")
         self.points += len(pts)
         self.length += float(np.hypot(*np.diff(pts, axis=0).T).sum()) if len(pts) > 1 else 0.0
         if self.points > self.max_points:
@@ -333,6 +341,11 @@ def _entity_chain(e: Any, tol: float, corner: float, budget: _Budget, notes: lis
             notes.append(f"{kind} {handle}: not in the XY plane, skipped")
             return None
         pts = np.array([segs[0].start, segs[-1].end])
+        seg = segs[0]
+        numbers = [*seg.start, *seg.end, *(seg.center or ()), seg.radius or 0.0]
+        if not all(math.isfinite(v) and abs(v) <= MAX_COORDINATE for v in numbers):
+            raise InvalidInputError("body", f"coordinates not finite or beyond "
+                                    f"{MAX_COORDINATE:g}")
         return DxfChain(kind, handle, layer, kind == "CIRCLE", segs, pts, False)
     if kind == "SPLINE":
         pts = _spline_points(e, tol, budget.max_points - budget.points)

@@ -40,6 +40,10 @@ _WORD = re.compile(r"([A-Z])([+-]?(?:\d+\.?\d*|\.\d+))")
 _STATE_CODES = {4.0, 17.0, 18.0, 19.0, 20.0, 21.0, 40.0, 41.0, 42.0, 61.0, 64.0, 80.0,
                 90.0, 91.0, 94.0, 95.0, 98.0, 99.0}
 _CANNED = {73.0, 74.0, 76.0, 81.0, 82.0, 83.0, 84.0, 85.0, 86.0, 87.0, 88.0, 89.0}
+#: Largest word value read; anything larger makes the block unparsable.
+MAX_WORD = 1e9
+#: Runs with coordinates beyond this (program units) are kept verbatim.
+MAX_COORDINATE = 1e6
 _AXES = "XYZ"
 _OTHER_AXES = set("ABCUVWE")
 _RUN_LETTERS = set("GNXYZF")
@@ -117,7 +121,9 @@ def _parse(code: str) -> list[tuple[str, str]] | None:
     compact = re.sub(r"\s+", "", code.upper())
     if not _BLOCK.fullmatch(compact):
         return None
-    return _WORD.findall(compact)
+    words = _WORD.findall(compact)
+    # a number no control holds (hundreds of digits) is not G-code either
+    return words if all(abs(float(v)) <= MAX_WORD for _k, v in words) else None
 
 
 def _strip_comments(line: str) -> str | None:
@@ -161,7 +167,10 @@ def _run_move(words: list[tuple[str, str]], gs: list[float], state: _State,
         return None
     x0, y0 = state.pos[0], state.pos[1]
     assert x0 is not None and y0 is not None
-    return (vals.get("X", x0), vals.get("Y", y0))
+    end = (vals.get("X", x0), vals.get("Y", y0))
+    if max(abs(x0), abs(y0), abs(end[0]), abs(end[1])) > MAX_COORDINATE:
+        return None  # as the point-curve API: coordinates within +-1e6
+    return end
 
 
 def _apply(words: list[tuple[str, str]], gs: list[float], state: _State) -> None:
