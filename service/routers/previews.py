@@ -3,8 +3,11 @@
 Kinds drawn today: ``model`` (an MRR level or a plan stage as a shaded relief; without
 ``stage``, every level or stage side by side with its tool) and ``chain`` (arc chains
 over their input points, corners marked). ``stock``, ``rest`` and ``toolpaths`` come
-with the cutting simulation and the tool paths; asked for now, they get a 422 naming
-the kinds the task has.
+with the cutting simulation and the tool paths (they are not in the ``kind`` enum yet).
+
+Status codes: a schema-valid request for a picture the task cannot have is a 404 (a
+kind the task has no data for, a stage it does not have) or a 409 (a grid task computed
+without its models: the stored state, not the request, is what is missing).
 """
 
 from __future__ import annotations
@@ -28,15 +31,15 @@ from zwcore.io.gcode_program import program_runs
 
 router = APIRouter(prefix="/v1", tags=["tasks"])
 
-Kind = Literal["model", "chain", "stock", "rest", "toolpaths"]
+Kind = Literal["model", "chain"]
 _GRID_OPS = ("mrr", "plan_scanline", "plan_contour")
 _CHAIN_OPS = ("arcs", "arcs_gcode", "arcs_dxf")
 #: Bumped when pictures change, so cached previews (by ETag) are redrawn.
 _STYLE = "1"
 
 
-def _unprocessable(field: str, reason: str) -> Problem:
-    return Problem(422, "No preview", f"{field}: {reason}", kind="no-preview",
+def _no_preview(status: int, field: str, reason: str) -> Problem:
+    return Problem(status, "No preview", f"{field}: {reason}", kind="no-preview",
                    errors=[{"field": field, "reason": reason}])
 
 
@@ -74,8 +77,8 @@ def _items(result: dict[str, Any]) -> tuple[list[dict[str, Any] | None], str, li
 def render_model(result: dict[str, Any], stage: int | None) -> bytes:
     grids, what, titles = _items(result)
     if any(g is None for g in grids):
-        raise _unprocessable("include_models", "the task was computed without its models; "
-                             "repeat the request with include_models=true")
+        raise _no_preview(409, "include_models", "the task was computed without its "
+                          "models; repeat the request with include_models=true")
     if stage is not None and stage >= len(grids):
         raise _stage_missing(stage, len(grids), what)
     if stage is not None:
@@ -129,10 +132,7 @@ def render(body: bytes, stored_input: bytes | None, stage: int | None, kind: str
     has = ["chain"] if op in _CHAIN_OPS else ["model"]
     kind = kind or has[0]
     if kind not in has:
-        later = kind in ("stock", "rest", "toolpaths")
-        reason = (f"{kind} previews come with the cutting simulation and tool paths; "
-                  if later else f"a {op} task has no {kind}; ") + f"this task has: {has}"
-        raise _unprocessable("kind", reason)
+        raise _no_preview(404, "kind", f"a {op} task has no {kind} picture; it has: {has}")
     if kind == "chain":
         return render_chain(result, stored_input, stage)
     return render_model(result, stage)
@@ -155,7 +155,7 @@ async def _load(store: TaskStore, task_id: str) -> tuple[bytes, bytes | None]:
             summary="A PNG picture of a stored result", response_class=Response,
             responses={200: {"content": {"image/png": {
                 "schema": {"type": "string", "format": "binary"}}},
-                "description": "the picture"}, **responses(304, 404)})
+                "description": "the picture"}, **responses(304, 404, 409)})
 async def get_preview(
     request: Request,
     store: StoreDep,
@@ -166,8 +166,8 @@ async def get_preview(
         "(0-based, as listed in the result); omitted: all of them")] = None,
     kind: Annotated[Kind | None, Query(
         description="model: stage models and levels (grid tasks); chain: arc chains over "
-        "their input points (arcs tasks). stock, rest and toolpaths come with the cutting "
-        "simulation and tool paths (422 until then)")] = None,
+        "their input points (arcs tasks); default: what the task has. Stock left, rest "
+        "regions and tool paths come with the cutting simulation and the tool paths")] = None,
 ) -> Response:
     """Stage models as shaded reliefs with a colour bar in mm and a scale bar (grids over
     512 nodes a side are shown by block maxima), a plan's stages side by side with their
