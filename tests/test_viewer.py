@@ -106,6 +106,11 @@ def test_npy_file_and_curve_from_the_page(server: LiveServer, browser: object,
                            "'contour plan done'")
     assert page.locator("#stages thead th", has_text="contours").count() == 1
     _preview_decoded(page, "#preview")
+    # the page sent exactly these heights: the same request from here is the same task
+    same = httpx.post(server.url + "/v1/plans/contour", timeout=60, json={
+        "grid": {"dx": 1.0, "dy": 1.0, "z": z.astype(np.float64).tolist()},
+        "include_models": True})
+    assert same.json()["task_id"][:12] in page.inner_text("#plan-info")
     page.screenshot(path=str(tmp_path / "viewer.png"), full_page=True)
     page.click("#curve-example")
     page.click("#run-arcs")

@@ -79,10 +79,11 @@ function parseNpy(buffer) {
       z[i * nx + k] = read(dv, data + index * size, little);
     }
   }
-  return { ny, nx, z };
+  // float32 files go up as float32 (half the bytes); everything else as float64
+  return { ny, nx, z, dtype: descr[2] === "f4" ? "float32" : "float64" };
 }
 
-function setGrid(ny, nx, z, label) {
+function setGrid(ny, nx, z, label, dtype = "float64") {
   let lo = Infinity;
   let hi = -Infinity;
   for (const v of z) {
@@ -90,7 +91,7 @@ function setGrid(ny, nx, z, label) {
     lo = Math.min(lo, v);
     hi = Math.max(hi, v);
   }
-  state.grid = { ny, nx, z };
+  state.grid = { ny, nx, z, dtype };
   $("zmap-info").textContent =
     `${label}: ${ny} x ${nx} nodes, heights ${lo.toFixed(3)} .. ${hi.toFixed(3)} mm`;
   $("run-scanline").disabled = false;
@@ -98,11 +99,13 @@ function setGrid(ny, nx, z, label) {
 }
 
 function gridBody() {
-  const { ny, nx, z } = state.grid;
+  const { ny, nx, z, dtype } = state.grid;
   const dx = Number($("dx").value);
   const dy = Number($("dy").value);
-  return { x0: 0, y0: 0, dx, dy, shape: [ny, nx], dtype: "float64",
-           z_b64: bytesToBase64(new Uint8Array(z.buffer)) };
+  // typed arrays use the platform byte order: little-endian wherever browsers run today
+  const values = dtype === "float32" ? Float32Array.from(z) : z;
+  return { x0: 0, y0: 0, dx, dy, shape: [ny, nx], dtype,
+           z_b64: bytesToBase64(new Uint8Array(values.buffer)) };
 }
 
 function syntheticGrid() {
@@ -298,8 +301,8 @@ function guarded(fn) {
 async function readNpy() {
   const file = $("npy-file").files[0];
   if (!file) return;
-  const { ny, nx, z } = parseNpy(await file.arrayBuffer());
-  setGrid(ny, nx, z, file.name);
+  const { ny, nx, z, dtype } = parseNpy(await file.arrayBuffer());
+  setGrid(ny, nx, z, file.name, dtype);
   status("");
 }
 
