@@ -7,6 +7,7 @@ sampled from.
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -16,7 +17,7 @@ from hypothesis import strategies as st
 
 from tests.nc_reader import densify, read_moves, two_sided
 from zwcore.errors import InvalidInputError, LimitExceededError
-from zwcore.io.gcode_program import rewrite_program
+from zwcore.io.gcode_program import RewrittenProgram, rewrite_program
 
 TOL = 0.01
 
@@ -58,6 +59,12 @@ def known_program() -> tuple[str, list[dict[str, object]]]:
     return "\n".join(lines) + "\n", runs
 
 
+@functools.cache
+def known_rewrite() -> tuple[str, list[dict[str, object]], RewrittenProgram]:
+    text, runs = known_program()
+    return text, runs, rewrite_program(text, TOL)
+
+
 def _arc_moves_fit_circles(moves: list, circles: list, tol: float) -> None:
     for m in moves:
         if m.code not in (2, 3):
@@ -70,8 +77,7 @@ def _arc_moves_fit_circles(moves: list, circles: list, tol: float) -> None:
 
 
 def test_known_circles_and_lines_come_back() -> None:
-    text, runs = known_program()
-    out = rewrite_program(text, TOL)
+    text, runs, out = known_rewrite()
     moves_in, moves_out = read_moves(text), read_moves(out.text)
     assert out.moves_before == len(moves_in) and out.moves_after == len(moves_out)
     assert out.moves_after < out.moves_before / 20
@@ -99,8 +105,7 @@ def test_known_circles_and_lines_come_back() -> None:
 
 
 def test_everything_else_stays_in_place() -> None:
-    text, _runs = known_program()
-    out = rewrite_program(text, TOL)
+    text, _runs, out = known_rewrite()
     in_lines = text.splitlines()
     run_lines = {n - 1 for r in out.runs for n in range(r.first_line, r.last_line + 1)}
     kept_in = [line for n, line in enumerate(in_lines) if n not in run_lines]
@@ -165,7 +170,7 @@ def test_bad_programs() -> None:
     assert e.value.field == "tolerance"
 
 
-@settings(max_examples=12)
+@settings(max_examples=8)
 @given(seed=st.integers(0, 2**32 - 1), tol=st.sampled_from([0.005, 0.02, 0.1]))
 def test_random_runs_stay_within_tolerance(seed: int, tol: float) -> None:
     rng = np.random.default_rng(seed)

@@ -5,19 +5,36 @@ from __future__ import annotations
 import io
 
 import ezdxf
+import pytest
 from fastapi.testclient import TestClient
 
 from service.schemas.cadfiles import DxfArcsResult, GcodeArcsResult
+from tests.conftest import make_client
 from tests.nc_reader import read_moves, two_sided
 from tests.test_dxf import TOL, by_layer, drawing
 from tests.test_gcode_program import known_program
 from tests.test_service_errors import assert_problem
 
 PLAIN = {"content-type": "text/plain"}
+
+
+@pytest.fixture
+def client(tmp_path):  # type: ignore[no-untyped-def]
+    # fits in the threads: worker processes start once, in the one test that needs them
+    with make_client(tmp_path, process_workers=0) as c:
+        yield c
+
+
+@pytest.fixture
+def process_client(tmp_path):  # type: ignore[no-untyped-def]
+    with make_client(tmp_path) as c:
+        yield c
 DXF = {"content-type": "application/dxf"}
 
 
-def test_program_is_rewritten_with_a_summary(client: TestClient) -> None:
+def test_program_is_rewritten_with_a_summary(process_client: TestClient) -> None:
+    # in a worker process: the program, the result and any error cross the process boundary
+    client = process_client
     text, runs = known_program()
     r = client.post("/v1/arcs?tolerance=0.01", content=text, headers=PLAIN)
     assert r.status_code == 200, r.text
@@ -39,8 +56,11 @@ def test_program_is_rewritten_with_a_summary(client: TestClient) -> None:
     assert client.get(f"/v1/tasks/{res.task_id}").json()["program"] == res.program
 
 
+SMALL_PROGRAM = "G90 G17\nG00 X0 Y0 Z0\n#1 = [2 * 3]\nG01 X1 Y0 F100\nX2 Y0\nX3 Y0.001\nM30\n"
+
+
 def test_unparsable_lines_are_counted(client: TestClient) -> None:
-    text = "G90 G17\nG00 X0 Y0 Z0\n#1 = [2 * 3]\nG01 X1 Y0 F100\nX2 Y0\nX3 Y0.001\nM30\n"
+    text = SMALL_PROGRAM
     r = client.post("/v1/arcs", content=text, headers=PLAIN)
     assert r.status_code == 200, r.text
     body = r.json()
@@ -97,5 +117,5 @@ def test_octet_stream_is_told_apart(client: TestClient) -> None:
     octet = {"content-type": "application/octet-stream"}
     r = client.post("/v1/arcs", content=drawing(), headers=octet)
     assert r.status_code == 200 and r.json()["operation"] == "arcs_dxf"
-    r = client.post("/v1/arcs", content=known_program()[0], headers=octet)
+    r = client.post("/v1/arcs", content=SMALL_PROGRAM, headers=octet)
     assert r.status_code == 200 and r.json()["operation"] == "arcs_gcode"
