@@ -16,6 +16,8 @@ from service.previews import display_grid
 from tests.conftest import make_client
 from tests.test_gcode_program import arc_points, g01
 from tests.test_service_errors import assert_problem
+from tests.test_service_zmaps import steps_stl
+from tests.test_sim_service import BALL, bowl
 
 
 @pytest.fixture
@@ -101,3 +103,16 @@ def test_display_grid_is_the_block_maximum(z: np.ndarray, side: int) -> None:
         for k in range(shown.shape[1]):
             block = z[i * s:(i + 1) * s, k * s:(k + 1) * s]
             assert shown[i, k] == block.max()  # never lower than what it stands for
+
+
+def test_zmap_and_simulated_stock(client: TestClient) -> None:
+    r = client.post("/v1/zmaps?dx=0.25", content=steps_stl(),
+                    headers={"content-type": "model/stl"})
+    assert r.status_code == 200, r.text
+    png(client.get(f"/v1/tasks/{r.json()['task_id']}/preview.png"))
+    r = client.post("/v1/simulate", json={"grid": {"dx": 0.1, "dy": 0.1, "z": bowl().tolist()},
+                                          "tool": BALL, "stock_top": 6.0})
+    assert r.status_code == 200, r.text
+    png(client.get(f"/v1/tasks/{r.json()['task_id']}/preview.png?kind=stock"))
+    assert_problem(client.get(f"/v1/tasks/{r.json()['task_id']}/preview.png?kind=model"), 404,
+                   "kind", "it has: ['stock']")

@@ -1,9 +1,10 @@
 """``GET /v1/tasks/{task_id}/preview.png``: a picture of a stored result.
 
-Kinds drawn today: ``model`` (an MRR level or a plan stage as a shaded relief; without
-``stage``, every level or stage side by side with its tool) and ``chain`` (arc chains
-over their input points, corners marked). ``stock``, ``rest`` and ``toolpaths`` come
-with the cutting simulation and the tool paths (they are not in the ``kind`` enum yet).
+Kinds drawn today: ``model`` (a z-map, an MRR level or a plan stage as a shaded relief;
+without ``stage``, every level or stage side by side with its tool), ``stock`` (the stock
+a simulated pass leaves, ``POST /v1/simulate``) and ``chain`` (arc chains over their input
+points, corners marked). Rest regions (they need the part, which a simulate result does
+not store) and tool paths are not drawn yet and are not in the ``kind`` enum.
 
 Status codes: a schema-valid request for a picture the task cannot have is a 404 (a
 kind the task has no data for, a stage it does not have) or a 409 (a grid task computed
@@ -31,7 +32,7 @@ from zwcore.io.gcode_program import program_runs
 
 router = APIRouter(prefix="/v1", tags=["tasks"])
 
-Kind = Literal["model", "chain"]
+Kind = Literal["model", "stock", "chain"]
 _GRID_OPS = ("mrr", "plan_scanline", "plan_contour")
 _CHAIN_OPS = ("arcs", "arcs_gcode", "arcs_dxf")
 #: Bumped when pictures change, so cached previews (by ETag) are redrawn.
@@ -70,6 +71,11 @@ def _items(result: dict[str, Any]) -> tuple[list[dict[str, Any] | None], str, li
             titles.append(f"stage {s['index']}: {t['id']} ({t['kind']} Ø{t['diameter']:g}, "
                           f"flutes {t['flute_length']:g}), level {s['level']}")
         return [s.get("model") for s in stages], "stage", titles
+    if op == "simulate":
+        t = result["tool"]
+        return ([result["machined"]], "stock",
+                [f"stock after {t['id']} ({t['kind']} Ø{t['diameter']:g}), "
+                 f"rest up to {result['rest']['max']:.3g} mm"])
     grid = result.get("grid")  # a z-map task
     return [grid], "grid", [f"z-map {result.get('task_id', '')[:12]}"]
 
@@ -129,7 +135,7 @@ def render(body: bytes, stored_input: bytes | None, stage: int | None, kind: str
     """The PNG of a stored result (runs in the compute pool)."""
     result = orjson.loads(body)
     op = result.get("operation", "")
-    has = ["chain"] if op in _CHAIN_OPS else ["model"]
+    has = ["chain"] if op in _CHAIN_OPS else ["stock"] if op == "simulate" else ["model"]
     kind = kind or has[0]
     if kind not in has:
         raise _no_preview(404, "kind", f"a {op} task has no {kind} picture; it has: {has}")
@@ -165,9 +171,9 @@ async def get_preview(
         ge=0, le=10_000, description="one MRR level, plan stage, G-code run or DXF chain "
         "(0-based, as listed in the result); omitted: all of them")] = None,
     kind: Annotated[Kind | None, Query(
-        description="model: stage models and levels (grid tasks); chain: arc chains over "
-        "their input points (arcs tasks); default: what the task has. Stock left, rest "
-        "regions and tool paths come with the cutting simulation and the tool paths")] = None,
+        description="model: z-maps, MRR levels and plan stage models; stock: the stock a "
+        "simulated pass leaves; chain: arc chains over their input points (arcs tasks); "
+        "default: what the task has. Rest regions and tool paths are not drawn yet")] = None,
 ) -> Response:
     """Stage models as shaded reliefs with a colour bar in mm and a scale bar (grids over
     512 nodes a side are shown by block maxima), a plan's stages side by side with their
