@@ -3,7 +3,8 @@
 Skips where no browser is installed (``.ci/run`` installs the ``chromium`` package,
 best effort). The page loads, a scan-line plan of a small z-map runs from the
 page, the stage table and the preview picture appear, and the browser logs no
-error; an .npy file picked in the page is parsed by its own reader and planned.
+error; an .npy file picked in the page is parsed by its own reader and planned, an STL
+becomes a z-map task that a plan names.
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ import numpy as np
 import pytest
 
 from tests.live_server import LiveServer, live_server
+from tests.test_service_zmaps import steps_stl
 
 playwright_api = pytest.importorskip("playwright.sync_api")
 BROWSER = next((p for p in (shutil.which("chromium"), shutil.which("chromium-browser"),
@@ -112,6 +114,19 @@ def test_npy_file_and_curve_from_the_page(server: LiveServer, browser: object,
         "include_models": True})
     assert same.json()["task_id"][:12] in page.inner_text("#plan-info")
     page.screenshot(path=str(tmp_path / "viewer.png"), full_page=True)
+    # an STL: the service makes the z-map, the plan names it by its task id
+    stl = tmp_path / "steps.stl"
+    stl.write_bytes(steps_stl())
+    page.fill("#dx", "0.5")
+    page.fill("#dy", "0.5")
+    page.set_input_files("#npy-file", str(stl))
+    page.wait_for_function("document.getElementById('zmap-info').textContent.includes("
+                           "'z-map task')")
+    assert "17 x 21 nodes" in page.inner_text("#zmap-info")  # 8 x 10 mm at 0.5 mm
+    page.click("#run-scanline")
+    page.wait_for_function("document.getElementById('status').textContent === "
+                           "'scanline plan done'")
+    _preview_decoded(page, "#preview")
     page.click("#curve-example")
     page.click("#run-arcs")
     page.wait_for_function("document.getElementById('status').textContent === 'arcs done'")

@@ -204,7 +204,9 @@ function showPreview(query = "") {
 
 async function runPlan(kind) {
   if (!state.grid) throw new Error("load or make a z-map first");
-  const body = { grid: gridBody(), include_models: true };
+  const body = { include_models: true };
+  if (state.grid.gridTask) body.grid_task = state.grid.gridTask;
+  else body.grid = gridBody();
   const tools = toolsOfKind(kind === "scanline" ? "ball" : "flat");
   if (tools) body.tools = tools;
   if (kind === "scanline") body.tolerance = Number($("tolerance").value);
@@ -298,9 +300,33 @@ function guarded(fn) {
   return () => fn().catch((e) => status(e.message, true));
 }
 
-async function readNpy() {
+// An STL becomes a z-map task on the service (POST /v1/zmaps); plans then name it by
+// its task id (grid_task), so the grid is uploaded once and planned many times.
+async function readStl(file) {
+  const dx = Number($("dx").value);
+  const dy = Number($("dy").value);
+  status(`making the z-map of ${file.name} ...`);
+  const result = await (await api(`/v1/zmaps?dx=${dx}&dy=${dy}&grid_encoding=float32`, {
+    method: "POST", headers: { "Content-Type": "model/stl" }, body: await file.arrayBuffer(),
+  })).json();
+  const { nx, ny } = result.grid;
+  state.grid = { gridTask: result.task_id, ny, nx };
+  const b = result.bounds;
+  $("zmap-info").textContent = `${file.name}: z-map task ${result.task_id.slice(0, 12)}, ` +
+    `${ny} x ${nx} nodes, part ${b.min[2].toFixed(3)} .. ${b.max[2].toFixed(3)} mm` +
+    (result.notes.length ? ` (${result.notes.join("; ")})` : "");
+  $("run-scanline").disabled = false;
+  $("run-contour").disabled = false;
+  status("");
+}
+
+async function readGridFile() {
   const file = $("npy-file").files[0];
   if (!file) return;
+  if (file.name.toLowerCase().endsWith(".stl")) {
+    await readStl(file);
+    return;
+  }
   const { ny, nx, z, dtype } = parseNpy(await file.arrayBuffer());
   setGrid(ny, nx, z, file.name, dtype);
   status("");
@@ -315,7 +341,7 @@ $("api-key").value = sessionStorage.getItem("zwplan-api-key") || "";
 $("api-key").addEventListener("change", () => {
   sessionStorage.setItem("zwplan-api-key", $("api-key").value.trim());
 });
-$("npy-file").addEventListener("change", guarded(readNpy));
+$("npy-file").addEventListener("change", guarded(readGridFile));
 $("synthetic").addEventListener("click", guarded(async () => syntheticGrid()));
 $("tools-file").addEventListener("change", guarded(readTools));
 $("tools-default").addEventListener("click", guarded(loadDefaultTools));
