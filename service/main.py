@@ -9,11 +9,12 @@ from contextlib import asynccontextmanager
 from typing import Any
 
 from fastapi import Depends, FastAPI
+from fastapi_offline import FastAPIOffline
 from pydantic import BaseModel
 from pydantic.json_schema import models_json_schema
 
 import zwcore
-from service import problems
+from service import openapi, problems
 from service.compute import ComputePool
 from service.middleware import JsonFormatter, ServiceMiddleware
 from service.routers import (
@@ -47,6 +48,12 @@ def _configure_logging(level: str) -> None:
     root.propagate = False
     # ezdxf logs every repair of a broken DXF upload as a warning: noise, not service events
     logging.getLogger("ezdxf").setLevel(logging.ERROR)
+    # One line per request: the middleware's JSON line. uvicorn's own access line would
+    # repeat it in another format (and is on unless started with --no-access-log).
+    access = logging.getLogger("uvicorn.access")
+    access.handlers[:] = []
+    access.propagate = False
+    access.disabled = True
 
 
 def _list_models(app: FastAPI, models: tuple[type[BaseModel], ...]) -> None:
@@ -85,10 +92,13 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             app.state.pool.shutdown()
             app.state.store.close()
 
-    app = FastAPI(title="zwplan", version=zwcore.__version__, description=DESCRIPTION,
-                  lifespan=lifespan)
+    # Swagger UI and ReDoc from assets shipped in the package, not a CDN: shop networks
+    # are often offline (/docs, /redoc; assets under /static-offline-docs).
+    app = FastAPIOffline(title="zwplan", version=zwcore.__version__, description=DESCRIPTION,
+                         lifespan=lifespan)
     app.state.settings = settings
     problems.install(app)
+    openapi.install(app, keys_required=bool(settings.api_key_list))
     secured = [Depends(require_api_key)]
     app.include_router(mrr.router, dependencies=secured)
     app.include_router(plans.router, dependencies=secured)

@@ -12,7 +12,7 @@ import orjson
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from service import metrics
-from service.problems import PROBLEM_JSON, problem_response
+from service.problems import PROBLEM_BASE, PROBLEM_JSON, problem_response
 from service.security import api_key_problem
 
 log = logging.getLogger("zwplan.access")
@@ -38,9 +38,9 @@ class JsonFormatter(logging.Formatter):
         return json.dumps(entry, default=str)
 
 
-def _problem(status: int, title: str, detail: str) -> bytes:
-    return orjson.dumps({"type": "about:blank", "title": title, "status": status,
-                         "detail": detail, "errors": [{"field": "body", "reason": detail}]})
+def _problem(status: int, title: str, detail: str, kind: str, field: str) -> bytes:
+    return orjson.dumps({"type": PROBLEM_BASE + kind, "title": title, "status": status,
+                         "detail": detail, "errors": [{"field": field, "reason": detail}]})
 
 
 class ServiceMiddleware:
@@ -87,11 +87,12 @@ class ServiceMiddleware:
                                       (b"x-request-id", request_id.encode("latin-1"))]
             await send(message)
 
-        async def reject(code: int, title: str, detail: str) -> None:
+        async def reject(code: int, title: str, detail: str, kind: str = "too-large",
+                         field: str = "body") -> None:
             await send_wrapper({"type": "http.response.start", "status": code,
                                 "headers": [(b"content-type", PROBLEM_JSON.encode())]})
             await send_wrapper({"type": "http.response.body",
-                                "body": _problem(code, title, detail)})
+                                "body": _problem(code, title, detail, kind, field)})
 
         try:
             if self.api_keys and scope["path"].startswith("/v1"):
@@ -107,7 +108,8 @@ class ServiceMiddleware:
                 try:
                     too_big = int(declared) > self.max_body_bytes
                 except ValueError:
-                    await reject(400, "Bad request", "Content-Length is not a number")
+                    await reject(400, "Bad request", "Content-Length is not a number",
+                                 kind="malformed-header", field="Content-Length")
                     return
                 if too_big:
                     await reject(413, "Request too large",
@@ -155,7 +157,8 @@ class ServiceMiddleware:
         except Exception:
             log.exception("unhandled error", extra={"fields": {"request_id": request_id}})
             if not response_started:
-                await reject(500, "Internal error", "The service failed on this request.")
+                await reject(500, "Internal error", "The service failed on this request.",
+                             kind="internal")
         finally:
             elapsed = time.perf_counter() - start
             route = scope.get("route")

@@ -48,17 +48,39 @@ def problem_response(status: int, title: str, detail: str, *, kind: str = "about
                     headers=headers)
 
 
+#: Where a validation error's location starts: the body, or a parameter's place.
+_LOCATIONS = ("body", "path", "query", "header", "cookie")
+
+
 def field_path(loc: Sequence[str | int]) -> str:
-    """``("body", "grid", "z", 3, 5)`` -> ``"grid.z[3][5]"``."""
+    """The one field-path convention of every problem's ``errors[].field``.
+
+    A body field is its path inside the body (``("body", "grid", "z", 3, 5)`` ->
+    ``"grid.z[3][5]"``), a parameter is its name as the document spells it
+    (``("path", "task_id")`` -> ``"task_id"``, ``("header", "If-None-Match")``),
+    and the body as a whole is ``"body"``.
+    """
     out = ""
-    for part in loc:
-        if part == "body" and not out:
-            continue
+    parts = list(loc)
+    if parts and parts[0] in _LOCATIONS:
+        head = parts.pop(0)
+        if not parts:
+            return str(head)
+    for part in parts:
         if isinstance(part, int):
             out += f"[{part}]"
         else:
             out += ("." if out else "") + str(part)
     return out or "body"
+
+
+def _unparsable_reason(exc: BaseException | None) -> str:
+    """Why FastAPI could not parse a body that is not a JSON syntax error."""
+    if isinstance(exc, UnicodeDecodeError):
+        return f"the body is not valid UTF-8 (byte {exc.start})"
+    if isinstance(exc, RecursionError):
+        return "the JSON is nested too deeply"
+    return "the body could not be parsed as JSON"
 
 
 def _validation_problem(request: Request, exc: RequestValidationError) -> Response:
@@ -84,52 +106,6 @@ def _validation_problem(request: Request, exc: RequestValidationError) -> Respon
                             instance=request.url.path, errors=errors)
 
 
-def _link_results_to_tasks(schema: dict[str, Any]) -> None:
-    """An OpenAPI link from every operation's result to ``get_task`` with its ``task_id``.
-
-    Clients (and schemathesis' stateful tests) learn from the document that a
-    result can be fetched again by its task id.
-    """
-    ops = [op for item in schema.get("paths", {}).values() for op in item.values()]
-    if not any(op.get("operationId") == "get_task" for op in ops):
-        return
-    component_schemas = schema.get("components", {}).get("schemas", {})
-    for op in ops:
-        ok = op.get("responses", {}).get("200", {})
-        ref = ok.get("content", {}).get("application/json", {}).get("schema", {}).get("$ref", "")
-        result = component_schemas.get(ref.rsplit("/", 1)[-1], {})
-        if op.get("operationId") != "get_task" and "task_id" in result.get("required", []):
-            ok.setdefault("links", {})["GetTask"] = {
-                "operationId": "get_task",
-                "parameters": {"task_id": "$response.body#/task_id"},
-                "description": "The stored result, by the task id this call returned."}
-
-
-def _problem_media_type_in_openapi(app: FastAPI) -> None:
-    """Declare the ProblemDetails schema under ``application/problem+json``, the type sent.
-
-    FastAPI files an error response's ``model`` under ``application/json``;
-    left so, the document promised a JSON body and an untyped problem+json one,
-    and generated clients parsed every error as nothing.
-    """
-    build = app.openapi
-
-    def openapi() -> dict[str, Any]:
-        cached = app.openapi_schema is not None
-        schema = build()
-        if not cached:
-            for item in schema.get("paths", {}).values():
-                for op in item.values():
-                    for response in op.get("responses", {}).values():
-                        content = response.get("content", {})
-                        if PROBLEM_JSON in content and "application/json" in content:
-                            content[PROBLEM_JSON] = content.pop("application/json")
-            _link_results_to_tasks(schema)
-        return schema
-
-    app.openapi = openapi  # type: ignore[method-assign]
-
-
 #: How each core error is reported, most specific class first.
 _CORE_ERRORS: dict[type[ZwError], tuple[int, str, str]] = {
     LimitExceededError: (413, "Request too large", "too-large"),
@@ -141,8 +117,6 @@ _CORE_ERRORS: dict[type[ZwError], tuple[int, str, str]] = {
 
 def install(app: FastAPI) -> None:
     """Register the handlers that turn every error into a problem document."""
-
-    _problem_media_type_in_openapi(app)
 
     @app.exception_handler(RequestValidationError)
     async def _on_validation(request: Request, exc: RequestValidationError) -> Response:
@@ -163,6 +137,13 @@ def install(app: FastAPI) -> None:
 
     @app.exception_handler(StarletteHTTPException)
     async def _on_http(request: Request, exc: StarletteHTTPException) -> Response:
+        if exc.status_code == 400:
+            # FastAPI's "error parsing the body" (invalid UTF-8, deep nesting): its cause
+            # says which, and it gets the same type and errors[] as malformed JSON.
+            reason = _unparsable_reason(exc.__cause__)
+            return problem_response(400, "Malformed request body", reason,
+                                    kind="malformed-body", instance=request.url.path,
+                                    errors=[{"field": "body", "reason": reason}])
         title = {404: "Not found", 405: "Method not allowed"}.get(exc.status_code, "HTTP error")
         return problem_response(exc.status_code, title, str(exc.detail),
                                 instance=request.url.path,

@@ -11,7 +11,8 @@ from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
 from service.problems import Problem
 from service.settings import Settings
 
-_bearer = HTTPBearer(auto_error=False, description="Required when ZW_API_KEYS is set.")
+_bearer = HTTPBearer(scheme_name="bearer", auto_error=False,
+                     description="Required when ZW_API_KEYS is set.")
 
 
 def api_key_problem(authorization: str | None, keys: list[str]) -> Problem | None:
@@ -26,14 +27,16 @@ def api_key_problem(authorization: str | None, keys: list[str]) -> Problem | Non
     scheme, _, token = (authorization or "").partition(" ")
     if scheme.lower() != "bearer" or not token.strip():
         return Problem(401, "Unauthorized", "this call needs Authorization: Bearer <key>",
-                       kind="unauthorized", headers={"WWW-Authenticate": "Bearer"})
+                       kind="unauthorized", headers={"WWW-Authenticate": "Bearer"},
+                       errors=[{"field": "Authorization", "reason": "a bearer key is required"}])
     given = token.strip().encode()
     # Compare against every key in constant time so timing reveals neither key nor index.
     matched = False
     for key in keys:
         matched |= hmac.compare_digest(given, key.encode())
     if not matched:
-        return Problem(403, "Forbidden", "the API key is not valid", kind="forbidden")
+        return Problem(403, "Forbidden", "the API key is not valid", kind="forbidden",
+                       errors=[{"field": "Authorization", "reason": "not a valid key"}])
     return None
 
 

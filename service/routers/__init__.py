@@ -1,16 +1,18 @@
-"""One router per OpenAPI tag."""
+"""One router per OpenAPI tag; the response and header declarations they share."""
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Annotated, Any
+
+from fastapi import Header
 
 from service.schemas.common import ProblemDetails
 
 _TEXT = {
-    304: "Not modified: If-None-Match named this task",
-    400: "Malformed JSON body",
-    401: "Missing API key",
-    403: "Invalid API key",
+    304: "Not modified: If-None-Match named this task (no body)",
+    400: "Malformed body: not JSON, not UTF-8, nested too deeply, or a bad Content-Length",
+    401: "Missing API key (only when the deployment sets ZW_API_KEYS)",
+    403: "Invalid API key (only when the deployment sets ZW_API_KEYS)",
     404: "Not found",
     409: "The stored result lacks what the request needs",
     413: "Body or grid over the configured limits",
@@ -19,15 +21,45 @@ _TEXT = {
     503: "Compute pool saturated; retry after Retry-After seconds",
 }
 
+#: Response headers, as OpenAPI header objects.
+ETAG: dict[str, Any] = {
+    "description": "The task id in quotes; send it back as If-None-Match to get a 304.",
+    "required": True, "schema": {"type": "string", "pattern": '^"[0-9a-f]{64}"$'}}
+X_CACHE: dict[str, Any] = {
+    "description": "Where the result came from: hit (the store), miss (computed for this "
+    "request) or shared (computed once for identical concurrent requests).",
+    "required": True, "schema": {"type": "string"}}
+RETRY_AFTER: dict[str, Any] = {
+    "description": "Seconds to wait before retrying.", "required": True,
+    "schema": {"type": "integer", "minimum": 0}}
 
-def responses(*extra: int) -> dict[int | str, dict[str, Any]]:
-    """OpenAPI response entries: problem+json for every error a /v1 call may return."""
-    codes = sorted({400, 401, 403, 422, 503, *extra})
+
+def responses(*extra: int, conditional: bool = False) -> dict[int | str, dict[str, Any]]:
+    """OpenAPI response entries: problem+json for every error a /v1 call may return.
+
+    ``conditional``: the operation answers a task (ETag and X-Cache on 200) and
+    honours ``If-None-Match`` (304, with the ETag).
+    """
+    codes = sorted({400, 401, 403, 422, 503, *extra} | ({304} if conditional else set()))
     out: dict[int | str, dict[str, Any]] = {}
+    if conditional:
+        out[200] = {"headers": {"ETag": ETAG, "X-Cache": X_CACHE}}
     for code in codes:
         if code == 304:
-            out[code] = {"description": _TEXT[code]}
+            out[code] = {"description": _TEXT[code], "headers": {"ETag": ETAG}}
             continue
         out[code] = {"description": _TEXT.get(code, "Error"), "model": ProblemDetails,
                      "content": {"application/problem+json": {}}}
+        if code in (429, 503):
+            out[code]["headers"] = {"Retry-After": RETRY_AFTER}
     return out
+
+
+def if_none_match(
+    if_none_match: Annotated[str | None, Header(
+        alias="If-None-Match",
+        description="ETags (task ids in quotes) the client holds, or *: a matching task is "
+        "answered 304 without a body")] = None,
+) -> None:
+    """Declares ``If-None-Match`` in the document; :func:`service.tasks.not_modified`
+    reads it off the request (the route answers 304 before any work)."""

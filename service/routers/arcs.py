@@ -11,14 +11,14 @@ from typing import Annotated, Any
 
 import anyio
 import numpy as np
-from fastapi import APIRouter, Query, Request, Response
+from fastapi import APIRouter, Depends, Query, Request, Response
 from fastapi.exceptions import RequestValidationError
 from pydantic import Field, ValidationError
 
 from service import cadfiles
 from service.deps import PoolDep, SettingsDep, StoreDep
 from service.problems import Problem
-from service.routers import responses
+from service.routers import if_none_match, responses
 from service.schemas.arcs import ArcsRequest, ArcsResult
 from service.schemas.cadfiles import DxfArcsResult, GcodeArcsResult
 from service.settings import Settings
@@ -98,6 +98,11 @@ MaxRadius = Annotated[float | None, Query(
     description="program only: arcs flatter than this radius become lines")]
 
 
+def _with_files(declared: dict[int | str, dict[str, Any]]) -> dict[int | str, dict[str, Any]]:
+    """``responses()`` with the 200 also offering the files (its headers kept)."""
+    return {**declared, 200: {**declared.get(200, {}), **_FILE_RESPONSES[200]}}
+
+
 def _media_type(request: Request) -> str:
     return request.headers.get("content-type", "application/json").split(";")[0].strip().lower()
 
@@ -148,7 +153,7 @@ async def _points_arcs(raw: bytes, request: Request, settings: Settings, store: 
             "tolerance", f"curve length {length:.6g} mm over tolerance {body.tolerance:g} mm "
             f"exceeds {settings.max_arc_resolution:g}; use a larger tolerance")
     params = body.model_dump(exclude={"points"})
-    response = await serve_task(request, store, pool, operation="arcs", params=params,
+    response = await serve_task(request, store, pool, operation="fit_arcs", params=params,
                                 arrays={"points": points}, compute=arcs_result,
                                 args=(points, body.model_copy(update={"points": []})),
                                 in_process=True)
@@ -179,7 +184,8 @@ def _decode_text(raw: bytes) -> str:
 
 @router.post("/arcs", response_model=ArcsAnyResult, operation_id="fit_arcs",
              summary="Fit C1 chains of arcs and lines: a point curve, a G-code program or a DXF",
-             responses={**responses(413, 415), **_FILE_RESPONSES}, openapi_extra=_OPENAPI_EXTRA)
+             responses=_with_files(responses(413, 415, conditional=True)),
+             dependencies=[Depends(if_none_match)], openapi_extra=_OPENAPI_EXTRA)
 async def post_arcs(request: Request, settings: SettingsDep, store: StoreDep, pool: PoolDep,
                     tolerance: Tolerance = None, corner_angle_deg: CornerAngle = None,
                     max_radius: MaxRadius = None) -> Response:

@@ -5,11 +5,11 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
-from fastapi import APIRouter, Request, Response
+from fastapi import APIRouter, Depends, Request, Response
 
 from service.deps import PoolDep, SettingsDep, StoreDep
 from service.grids import canonical_grid
-from service.routers import responses
+from service.routers import if_none_match, responses
 from service.schemas.mrr import MrrRequest, MrrResult
 from service.tasks import serve_task
 from service.uploads import GridRoute, binary_grid_openapi, request_zmap
@@ -66,7 +66,9 @@ def mrr_result(zmap: ZMap, wavelet: str, levels: int | None, include_models: boo
 
 
 @router.post("/mrr", response_model=MrrResult, operation_id="compute_mrr",
-             summary="Multiresolution representation of a z-map", responses=responses(413, 415),
+             summary="Multiresolution representation of a z-map",
+             responses=responses(413, 415, conditional=True),
+             dependencies=[Depends(if_none_match)],
              openapi_extra=binary_grid_openapi(MrrRequest))
 async def compute_mrr(body: MrrRequest, request: Request, settings: SettingsDep,
                       store: StoreDep, pool: PoolDep) -> Response:
@@ -75,6 +77,6 @@ async def compute_mrr(body: MrrRequest, request: Request, settings: SettingsDep,
     params = {"grid": [zmap.x0, zmap.y0, zmap.dx, zmap.dy], "wavelet": body.wavelet,
               "levels": body.levels, "include_models": body.include_models}
     return await serve_task(
-        request, store, pool, operation="mrr", params=params, arrays={"z": zmap.z},
+        request, store, pool, operation="compute_mrr", params=params, arrays={"z": zmap.z},
         compute=lambda: mrr_result(zmap, body.wavelet, body.levels, body.include_models),
         encoding=encoding)

@@ -8,12 +8,12 @@ from typing import Any
 
 import anyio
 import numpy as np
-from fastapi import APIRouter, Request, Response
+from fastapi import APIRouter, Depends, Request, Response
 from pydantic import BaseModel
 
 from service.deps import PoolDep, SettingsDep, StoreDep
 from service.grids import canonical_grid
-from service.routers import responses
+from service.routers import if_none_match, responses
 from service.schemas.common import ToolIn
 from service.schemas.plans import (
     ContourChecksOut,
@@ -155,7 +155,9 @@ def contour_result(zmap: ZMap, tools: list[Tool], stock_top: float | None, strat
 
 @router.post("/scanline", response_model=ScanlinePlanResult, operation_id="plan_scanline",
              summary="Scan-line plan: stage models and ball-end-mill sequence",
-             responses=responses(413, 415), openapi_extra=binary_grid_openapi(ScanlinePlanRequest))
+             responses=responses(413, 415, conditional=True),
+             dependencies=[Depends(if_none_match)],
+             openapi_extra=binary_grid_openapi(ScanlinePlanRequest))
 async def post_scanline_plan(body: ScanlinePlanRequest, request: Request, settings: SettingsDep,
                              store: StoreDep, pool: PoolDep) -> Response:
     """Roughing-to-finishing stage models from the lifted single-knot MRR, each with the
@@ -175,7 +177,9 @@ async def post_scanline_plan(body: ScanlinePlanRequest, request: Request, settin
 
 @router.post("/contour", response_model=ContourPlanResult, operation_id="plan_contour",
              summary="Contour plan: equal-load contour heights and terraced stage models",
-             responses=responses(413, 415), openapi_extra=binary_grid_openapi(ContourPlanRequest))
+             responses=responses(413, 415, conditional=True),
+             dependencies=[Depends(if_none_match)],
+             openapi_extra=binary_grid_openapi(ContourPlanRequest))
 async def post_contour_plan(body: ContourPlanRequest, request: Request, settings: SettingsDep,
                             store: StoreDep, pool: PoolDep) -> Response:
     """Per flat end mill, the z-levels of its waterline passes (equal slab volumes) and the

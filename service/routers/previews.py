@@ -33,8 +33,8 @@ from zwcore.io.gcode_program import program_runs
 router = APIRouter(prefix="/v1", tags=["tasks"])
 
 Kind = Literal["model", "stock", "chain"]
-_GRID_OPS = ("mrr", "plan_scanline", "plan_contour")
-_CHAIN_OPS = ("arcs", "arcs_gcode", "arcs_dxf")
+_GRID_OPS = ("compute_mrr", "plan_scanline", "plan_contour")
+_CHAIN_OPS = ("fit_arcs", "arcs_gcode", "arcs_dxf")
 #: Bumped when pictures change, so cached previews (by ETag) are redrawn.
 _STYLE = "1"
 
@@ -58,7 +58,7 @@ def _panel(grid: dict[str, Any], title: str) -> previews.Panel:
 def _items(result: dict[str, Any]) -> tuple[list[dict[str, Any] | None], str, list[str]]:
     """The grids of a result, the name of one, and each one's title."""
     op = result["operation"]
-    if op == "mrr":
+    if op == "compute_mrr":
         levels = result["levels"]
         return ([lv.get("grid") for lv in levels], "level",
                 [f"level {lv['level']} ({result['wavelet']}, {lv['nx']} x {lv['ny']})"
@@ -101,7 +101,7 @@ def render_model(result: dict[str, Any], stage: int | None) -> bytes:
 def _chains(result: dict[str, Any], stored_input: bytes | None
             ) -> tuple[list[list[dict[str, Any]]], list[np.ndarray], list[list[int]]]:
     op = result["operation"]
-    if op == "arcs":
+    if op == "fit_arcs":
         points = [] if stored_input is None else [
             np.load(io.BytesIO(stored_input), allow_pickle=False)]
         return [result["segments"]], points, [result["summary"]["corners"]]

@@ -5,11 +5,11 @@ from __future__ import annotations
 from typing import Annotated, Literal
 
 import anyio
-from fastapi import APIRouter, Path, Query, Request, Response
+from fastapi import APIRouter, Depends, Path, Query, Request, Response
 
 from service.deps import StoreDep
 from service.problems import Problem
-from service.routers import responses
+from service.routers import if_none_match, responses
 from service.schemas.tasks import TaskResult
 from service.tasks import not_modified, respond
 
@@ -17,7 +17,8 @@ router = APIRouter(prefix="/v1", tags=["tasks"])
 
 
 @router.get("/tasks/{task_id}", response_model=TaskResult, operation_id="get_task",
-            summary="The stored result of an earlier call", responses=responses(304, 404))
+            summary="The stored result of an earlier call",
+            responses=responses(404, conditional=True), dependencies=[Depends(if_none_match)])
 async def get_task(
     request: Request,
     store: StoreDep,

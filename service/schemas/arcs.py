@@ -60,7 +60,7 @@ class OffsetOut(BaseModel):
 
 class ArcsResult(BaseModel):
     task_id: str
-    operation: Literal["arcs"]
+    operation: Literal["fit_arcs"]
     tolerance: float
     closed: bool
     segments: list[SegmentOut]

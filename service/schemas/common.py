@@ -99,7 +99,10 @@ class ToolLibrary(BaseModel):
 
 
 class ProblemField(BaseModel):
-    field: str
+    field: str = Field(
+        description="What the client got wrong. A body field is its path inside the body "
+        "(grid.z[1], tools[0].diameter, tolerance); a parameter or header is its name "
+        "(task_id, grid_encoding, Authorization, Content-Length); body is the body as a whole")
     reason: str
 
 
@@ -111,4 +114,5 @@ class ProblemDetails(BaseModel):
     status: int
     detail: str
     instance: str | None = None
-    errors: list[ProblemField] | None = None
+    errors: list[ProblemField] | None = Field(
+        None, description="each field at fault and why; on every 400, 401, 403, 413 and 422")

@@ -39,7 +39,7 @@ class MrrLevel(BaseModel):
 
 class MrrResult(BaseModel):
     task_id: str
-    operation: Literal["mrr"]
+    operation: Literal["compute_mrr"]
     wavelet: Literal["haar", "single_knot"]
     lifted: bool
     interpolation: Literal["bilinear", "cell"]

@@ -376,8 +376,15 @@ def fit_arcs(
     # between them would not survive the shift back to input coordinates
     scale = max(float(np.abs(x).max()), float(np.abs(raw).max()))
     eps = max(1e-9 * tol, 1e-14 * scale)
+    x_all = x
     x = _dedupe(x, closed, eps)
     if len(x) < 2:
+        # Distinct at the coordinates' own precision but merged at 1e-9 tolerance: the
+        # tolerance is what is out of scale, not the points.
+        if len(_dedupe(x_all, closed, 1e-14 * scale)) >= 2:
+            raise InvalidInputError(
+                "tolerance", f"{tol:g} mm is too large for this curve: all its points lie "
+                f"within {1e-9 * tol:g} mm (1e-9 tolerances) of each other")
         raise InvalidInputError("points", "fewer than two distinct points")
     corners_in = _find_corners(x, closed, tol, math.radians(corner_angle_deg))
     poly = np.vstack([x, x[:1]]) if closed else x
