@@ -101,6 +101,7 @@ class ServiceMiddleware:
                 if denied is not None:
                     await problem_response(denied.status, denied.title, denied.detail,
                                            kind=denied.kind, instance=scope["path"],
+                                           errors=denied.errors,
                                            headers=denied.headers)(scope, receive, send_wrapper)
                     return
             declared = headers.get(b"content-length")

@@ -19,7 +19,7 @@ import subprocess
 import sys
 import tempfile
 import time
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
@@ -70,8 +70,13 @@ def _wait_healthy(url: str, process: subprocess.Popen[bytes], log_path: Path,
 
 @contextmanager
 def live_server(env: Mapping[str, str] | None = None, *, data_dir: Path | None = None,
-                startup_timeout: float = 30.0) -> Iterator[LiveServer]:
+                startup_timeout: float = 30.0,
+                uvicorn_args: Sequence[str] = ("--no-access-log", "--log-level", "warning"),
+                ) -> Iterator[LiveServer]:
     """Start ``python -m uvicorn service.main:app``, wait for /healthz, stop it on exit.
+
+    ``uvicorn_args`` are uvicorn's logging options; ``()`` runs it as the image's
+    command does (access log on, level info).
 
     ``env`` adds or overrides ``ZW_*`` settings; any ``ZW_*`` variable of the
     calling environment is dropped first so the server sees only what the
@@ -88,7 +93,7 @@ def live_server(env: Mapping[str, str] | None = None, *, data_dir: Path | None =
         with open(log_path, "wb") as log:
             process = subprocess.Popen(
                 [sys.executable, "-m", "uvicorn", "service.main:app", "--host", "127.0.0.1",
-                 "--port", str(port), "--no-access-log", "--log-level", "warning"],
+                 "--port", str(port), *uvicorn_args],
                 cwd=ROOT, env=child_env, stdout=log, stderr=subprocess.STDOUT)
         url = f"http://127.0.0.1:{port}"
         try:

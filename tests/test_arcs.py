@@ -820,3 +820,17 @@ def test_coarse_ellipse_polygon_tight_tolerance_gives_lines_along_edges():
             best = max(best, hi - lo)
         followed += best >= 0.5 * length
     assert followed >= len(pts) - 2, followed
+
+
+@pytest.mark.parametrize("closed", [False, True])
+def test_a_tolerance_that_merges_every_point_is_the_tolerances_fault(closed: bool) -> None:
+    """Points 1 mm apart merge at 1e-9 of a 1e12 mm tolerance: the error names
+    ``tolerance``; points that coincide at their own precision name ``points``."""
+    curve = np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 1.0]])
+    with pytest.raises(InvalidInputError) as err:
+        fit_arcs(curve, 1e12, closed=closed)
+    assert err.value.field == "tolerance"
+    assert fit_arcs(curve, 1e6, closed=closed).segments  # 1e-3 mm merge radius: fits
+    with pytest.raises(InvalidInputError) as err:
+        fit_arcs(np.array([[5.0, 5.0], [5.0, 5.0], [5.0, 5.0]]), 0.1, closed=closed)
+    assert err.value.field == "points"

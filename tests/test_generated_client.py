@@ -3,7 +3,10 @@
 The generator must run without a single warning (every schema named, every
 response typed), produce a module for every operation of the document, and
 the generated calls must round-trip real requests on a live server, errors
-included (problem documents parse as ``ProblemDetails``).
+included (problem documents parse as ``ProblemDetails``). The server is a default
+one (no API keys): the committed document declares no security requirement, so a
+plain ``Client`` is all a caller needs; a keyed server is used only for the auth
+errors.
 """
 
 from __future__ import annotations
@@ -75,8 +78,13 @@ def generated(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[Module
 
 @pytest.fixture(scope="module")
 def server() -> Iterator[LiveServer]:
-    with live_server({"ZW_API_KEYS": API_KEY, "ZW_MAX_GRID_CELLS": "4096",
-                      "ZW_MAX_POINTS": "2000"}) as s:
+    with live_server({"ZW_MAX_GRID_CELLS": "4096", "ZW_MAX_POINTS": "2000"}) as s:
+        yield s
+
+
+@pytest.fixture(scope="module")
+def keyed_server() -> Iterator[LiveServer]:
+    with live_server({"ZW_API_KEYS": API_KEY, "ZW_MAX_GRID_CELLS": "4096"}) as s:
         yield s
 
 
@@ -105,7 +113,7 @@ def needs(operation_id: str) -> None:
 @pytest.fixture
 def client(generated: tuple[ModuleType, str], server: LiveServer) -> Any:
     pkg, _log = generated
-    return pkg.AuthenticatedClient(base_url=server.url, token=API_KEY, timeout=30.0)
+    return pkg.Client(base_url=server.url, timeout=30.0)
 
 
 def test_generation_is_clean_and_covers_every_operation(
@@ -118,6 +126,16 @@ def test_generation_is_clean_and_covers_every_operation(
     # Problem responses are typed, not Any: the document puts ProblemDetails under
     # the media type the service actually sends.
     assert "ProblemDetails" in Path(op_module("compute_mrr").__file__ or "").read_text()
+
+
+def test_every_operation_takes_a_plain_client(generated: tuple[ModuleType, str]) -> None:
+    """No operation demands an ``AuthenticatedClient`` (the generator does so for an
+    operation with a security requirement), typed or at run time."""
+    for operation_id in _operations():
+        source = Path(op_module(operation_id).__file__ or "").read_text()
+        signature = re.search(r"def sync_detailed\((.*?)\)\s*->", source, re.S)
+        assert signature and "client: AuthenticatedClient | Client" in signature.group(1), (
+            operation_id)
 
 
 def test_health_readiness_metrics(client: Any) -> None:
@@ -149,7 +167,7 @@ def test_mrr_then_task(client: Any) -> None:
     assert r.status_code == 200, r.content
     result = r.parsed
     assert re.fullmatch(r"[0-9a-f]{64}", result.task_id)
-    assert result.operation == "mrr" and result.wavelet.value == "single_knot"
+    assert result.operation == "compute_mrr" and result.wavelet.value == "single_knot"
     finest = result.levels[-1]
     assert (finest.ny, finest.nx) == (7, 9)
     assert finest.grid.z == z  # the input comes back exactly, in the rows encoding sent
@@ -163,7 +181,7 @@ def test_mrr_then_task(client: Any) -> None:
 
 
 def test_errors_parse_as_problems(generated: tuple[ModuleType, str], client: Any,
-                                  server: LiveServer) -> None:
+                                  keyed_server: LiveServer) -> None:
     pkg, _log = generated
     problem_cls = model("ProblemDetails")
     missing = op_module("get_task").sync_detailed("0" * 64, client=client)
@@ -177,14 +195,19 @@ def test_errors_parse_as_problems(generated: tuple[ModuleType, str], client: Any
     assert isinstance(bad.parsed, problem_cls)
     assert any(e.field == "grid.z[1]" for e in bad.parsed.errors)
 
-    wrong = pkg.AuthenticatedClient(base_url=server.url, token="not-the-key")
+    good = pkg.AuthenticatedClient(base_url=keyed_server.url, token=API_KEY)
+    assert op_module("list_tools").sync_detailed(client=good).status_code == 200
+    wrong = pkg.AuthenticatedClient(base_url=keyed_server.url, token="not-the-key")
     denied = op_module("list_tools").sync_detailed(client=wrong)
     assert denied.status_code == 403 and isinstance(denied.parsed, problem_cls)
     # The token goes into a header the service ignores: no Authorization at all.
-    anonymous = pkg.AuthenticatedClient(base_url=server.url, token="x",
+    anonymous = pkg.AuthenticatedClient(base_url=keyed_server.url, token="x",
                                         auth_header_name="X-Not-Authorization")
     unauth = op_module("list_tools").sync_detailed(client=anonymous)
     assert unauth.status_code == 401 and unauth.parsed.status == 401
+    assert [(e.field, bool(e.reason)) for e in unauth.parsed.errors] == [("Authorization", True)]
+    plain = op_module("list_tools").sync_detailed(client=pkg.Client(base_url=keyed_server.url))
+    assert plain.status_code == 401
 
 
 def _bowl(n: int = 24) -> list[list[float]]:
@@ -229,7 +252,44 @@ def test_fit_arcs(client: Any) -> None:
     r = op_module("fit_arcs").sync_detailed(client=client, body=body)
     assert r.status_code == 200, r.content
     result = r.parsed
-    assert result.operation == "arcs" and result.segments
+    assert result.operation == "fit_arcs" and result.segments
     assert {s.kind.value for s in result.segments} <= {"arc", "line"}
     assert result.summary.max_deviation_points <= 0.01 + 1e-9
     assert isinstance(result.gcode, str) and result.gcode.strip()
+
+
+def test_task_results_are_told_apart_by_operation(client: Any) -> None:
+    """``get_task`` answers any operation's result; the generated client returns the
+    class whose ``operation`` matches, for every operation, and that name is the
+    operation id the document gives the call that made it."""
+    bodies = {"compute_mrr": {"grid": {"dx": 1.0, "dy": 1.0, "z": _bowl(8)}},
+              "plan_scanline": {"grid": {"dx": 1.0, "dy": 1.0, "z": _bowl()},
+                                "tolerance": 0.05},
+              "plan_contour": {"grid": {"dx": 1.0, "dy": 1.0, "z": _bowl()}},
+              "fit_arcs": {"points": [[0.0, 0.0], [5.0, 0.0], [10.0, 3.0]]}}
+    mapping = (_operations()["get_task"][2]["responses"]["200"]["content"]["application/json"]
+               ["schema"]["discriminator"]["mapping"])
+    assert set(mapping) == set(bodies)
+    for operation_id, raw in bodies.items():
+        made = op_module(operation_id).sync_detailed(
+            client=client, body=request_model(operation_id).from_dict(raw))
+        assert made.status_code == 200, made.content
+        got = op_module("get_task").sync_detailed(made.parsed.task_id, client=client)
+        assert got.status_code == 200
+        assert type(got.parsed).__name__ == mapping[operation_id].rsplit("/", 1)[1]
+        assert got.parsed.operation == operation_id == made.parsed.operation
+
+
+def test_if_none_match_is_a_declared_parameter(client: Any) -> None:
+    """The generated calls take ``if_none_match``; the ETag they got back answers 304."""
+    raw = {"grid": {"dx": 1.0, "dy": 1.0, "z": _bowl(6)}}
+    first = op_module("compute_mrr").sync_detailed(
+        client=client, body=request_model("compute_mrr").from_dict(raw))
+    etag = first.headers["etag"]
+    assert etag == f'"{first.parsed.task_id}"' and first.headers["x-cache"] in ("miss", "hit")
+    again = op_module("compute_mrr").sync_detailed(
+        client=client, body=request_model("compute_mrr").from_dict(raw), if_none_match=etag)
+    assert again.status_code == 304 and again.content == b"" and again.headers["etag"] == etag
+    stored = op_module("get_task").sync_detailed(first.parsed.task_id, client=client,
+                                                 if_none_match=etag)
+    assert stored.status_code == 304 and stored.headers["etag"] == etag
