@@ -11,7 +11,6 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
-from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -91,10 +90,7 @@ def test_default_document_requires_no_key() -> None:
     assert not [op["operationId"] for _m, _p, op in _operations() if op.get("security")]
 
 
-@pytest.fixture(scope="module")
-def server() -> Iterator[LiveServer]:
-    with live_server(SERVER_ENV) as s:
-        yield s
+API_KEY = "st-test-key"
 
 
 def test_spec_lists_the_core_operations() -> None:
@@ -103,12 +99,12 @@ def test_spec_lists_the_core_operations() -> None:
             "get_metrics"} <= ids
 
 
-@pytest.mark.timeout(180)
-def test_every_operation_passes_all_checks(server: LiveServer, tmp_path: Path) -> None:
+def _run(server: LiveServer, tmp_path: Path, location: str, max_examples: int,
+         extra: tuple[str, ...] = ()) -> str:
     config = _config(tmp_path)
     cmd = [sys.executable, "-m", "schemathesis.cli", "--config-file", str(config), "--no-color",
-           "run", str(SPEC), "--url", server.url,
-           "--max-examples", str(MAX_EXAMPLES), "--seed", "20240611",
+           "run", location, "--url", server.url, *extra,
+           "--max-examples", str(max_examples), "--seed", "20240611",
            # A request this slow on these small limits is a failure (unbounded work per
            # request is a denial of service), reported as such instead of a hung run.
            "--max-response-time", "10", "--request-timeout", "30",
@@ -132,3 +128,21 @@ def test_every_operation_passes_all_checks(server: LiveServer, tmp_path: Path) -
     statuses = [e["status"] for e in log_lines if e.get("msg") == "request"]
     assert len(statuses) > 5 * n_ops
     assert not [s for s in statuses if s >= 500 and s != 503], "server errors in the log"
+    return out
+
+
+@pytest.mark.timeout(180)
+def test_every_operation_passes_all_checks(tmp_path: Path) -> None:
+    """The committed document against a default server, without credentials."""
+    with live_server(SERVER_ENV) as server:
+        _run(server, tmp_path, str(SPEC), MAX_EXAMPLES)
+
+
+@pytest.mark.timeout(180)
+def test_a_keyed_server_passes_all_checks_on_its_served_document(tmp_path: Path) -> None:
+    """With ZW_API_KEYS set, the served /openapi.json requires the bearer scheme, and the
+    auth checks (a call without or with a wrong key must be refused) hold. Fewer
+    examples: the operations' bodies are fuzzed in full above."""
+    with live_server({**SERVER_ENV, "ZW_API_KEYS": f"{API_KEY},second-key"}) as server:
+        _run(server, tmp_path, server.url + "/openapi.json", MAX_EXAMPLES // 4,
+             ("--header", f"Authorization: Bearer {API_KEY}"))
