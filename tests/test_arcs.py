@@ -834,3 +834,7 @@ def test_a_tolerance_that_merges_every_point_is_the_tolerances_fault(closed: boo
     with pytest.raises(InvalidInputError) as err:
         fit_arcs(np.array([[5.0, 5.0], [5.0, 5.0], [5.0, 5.0]]), 0.1, closed=closed)
     assert err.value.field == "points"
+    # a curve below a nanometre is no curve, even though 1e-9 tolerances merged it
+    with pytest.raises(InvalidInputError) as err:
+        fit_arcs(np.array([[1.0, 1.0], [1.0, 1.0 + 1e-12]]), 0.1, closed=closed)
+    assert err.value.field == "points"

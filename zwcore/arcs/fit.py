@@ -79,6 +79,9 @@ LOOP_SWEEP_MAX_SAMPLES = 5_000
 
 #: Default corner angle: turning sharper than this (over the tolerance scale) stays sharp.
 DEFAULT_CORNER_ANGLE_DEG = 30.0
+#: mm; a curve spanning less has no two points a machine tells apart: an error on
+#: ``points``, whatever the tolerance (above it, merged points blame the tolerance)
+MIN_CURVE_SPAN = 1e-6
 
 
 @dataclass(frozen=True)
@@ -379,9 +382,10 @@ def fit_arcs(
     x_all = x
     x = _dedupe(x, closed, eps)
     if len(x) < 2:
-        # Distinct at the coordinates' own precision but merged at 1e-9 tolerance: the
-        # tolerance is what is out of scale, not the points.
-        if len(_dedupe(x_all, closed, 1e-14 * scale)) >= 2:
+        # A curve of measurable size merged only by the tolerance term: the tolerance
+        # is what is out of scale, not the points.
+        span = float(np.ptp(x_all, axis=0).max())
+        if span >= MIN_CURVE_SPAN and len(_dedupe(x_all, closed, 1e-14 * scale)) >= 2:
             raise InvalidInputError(
                 "tolerance", f"{tol:g} mm is too large for this curve: all its points lie "
                 f"within {1e-9 * tol:g} mm (1e-9 tolerances) of each other")
