@@ -35,8 +35,10 @@ MAX_EXAMPLES = 100  # per operation and phase: ~15-25 s for nine operations on t
 
 _GRID_RULES = (
     "a grid's rows have equal length, it has at most ZW_MAX_GRID_CELLS nodes (a product "
-    "of two sizes), z_b64 decodes to shape x dtype bytes of finite heights, and shape/dtype "
-    "go with z_b64 only")
+    "of two sizes), and z_b64 decodes to shape x dtype bytes of finite heights; one more "
+    "rule could be said but is not: exactly one of z (rows) or z_b64 with shape and dtype "
+    "(an object-level oneOf, which openapi-python-client cannot parse: the generated client "
+    "would lose the operation; the Grid description says it)")
 #: Operations whose schema-valid requests the service may rightly refuse (4xx problem
 #: naming the field), because the rule cannot be said in JSON Schema. The
 #: ``positive_data_acceptance`` check is off for exactly these; every other check, and
