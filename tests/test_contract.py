@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import re
+import time
 from collections.abc import Iterator
 from html.parser import HTMLParser
 from pathlib import Path
@@ -223,7 +224,10 @@ def test_one_log_line_per_request_with_uvicorn_defaults() -> None:
         http.post("/v1/mrr", content=b"{bad", headers={"X-Request-ID": ids[2],
                                                        "content-type": "application/json"})
         http.get("/v1/tasks/" + "0" * 64, headers={"X-Request-ID": ids[3]})
-        http.get("/healthz")
+        # the line is written once the response is sent: wait for the last one
+        deadline = time.monotonic() + 10
+        while ids[-1] not in server.log_text() and time.monotonic() < deadline:
+            time.sleep(0.05)
         log = server.log_text()
     lines = log.splitlines()
     for rid in ids:
