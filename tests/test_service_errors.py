@@ -195,3 +195,21 @@ def test_too_many_json_values_is_413_before_parsing(tmp_path) -> None:  # type: 
         assert_problem(r, 413, "body", "z_b64")
         small = c.post("/v1/mrr", json={"grid": {"dx": 1, "dy": 1, "z": [[0, 1], [2, 3]]}})
         assert small.status_code == 200
+
+
+def test_a_ball_far_too_small_for_the_grid_is_refused_not_computed(client: TestClient) -> None:
+    """A 0.01 mm ball over a 2 x 2 grid of 856 m cells needed extra scan lines over ~10**8
+    grid cells: minutes of work and GBs (found by schemathesis). Refused with 422 naming
+    tools; the same ball on a grid it fits still plans."""
+    import time
+
+    grid = {"x0": 31346.8, "y0": 192657.8, "dx": 1.000001, "dy": 856142.34,
+            "z": [[0.01, -5.96e-08], [0.01, -5.96e-08]]}
+    body = {"grid": grid, "tolerance": 9007199254740992.0,
+            "tools": [{"id": "0", "flute_length": 0.01, "diameter": 0.01}]}
+    start = time.perf_counter()
+    r = client.post("/v1/plans/scanline", json=body)
+    assert time.perf_counter() - start < 20
+    assert_problem(r, 422, "tools", "too small")
+    fits = client.post("/v1/plans/scanline", json={**body, "grid": {**grid, "dy": 1.0}})
+    assert fits.status_code == 200, fits.text

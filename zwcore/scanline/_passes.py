@@ -42,6 +42,7 @@ from typing import Literal
 import numpy as np
 from numpy.typing import NDArray
 
+from zwcore.errors import PlanningError
 from zwcore.scanline.results import ScanLines
 
 __all__ = ["StripPlan", "cell_cross_slopes", "plan_strips", "scallop_height"]
@@ -200,6 +201,12 @@ def _cell_steps(cell_slopes: F64, picks: F64, counts: NDArray[np.int64], radius:
     return np.maximum(g, 1)
 
 
+#: (extra line, cell) pairs one pass may lay out beyond 64 per cell: a 0.01 mm ball
+#: over a 2 x 2 grid of 10**5 mm cells asked for 10**8 and held a worker (and GBs) for
+#: minutes. Beyond this the plan is refused.
+MAX_LINE_CELLS = 1 << 22
+
+
 def _extra_lines(strips: NDArray[np.intp], counts: NDArray[np.int64], steps: NDArray[np.int64],
                  along: tuple[float, float], radius: float,
                  ) -> tuple[NDArray[np.intp], NDArray[np.int64], F64, F64]:
@@ -218,6 +225,11 @@ def _extra_lines(strips: NDArray[np.intp], counts: NDArray[np.int64], steps: NDA
         none = np.zeros(0)
         return strips[:0], np.zeros(0, dtype=np.int64), none, none
     n = per[row, cell]
+    if int(n.sum()) > max(MAX_LINE_CELLS, 64 * steps.size):
+        raise PlanningError(
+            "tools", f"one pass would need extra scan lines over {int(n.sum()):.3g} grid "
+            f"cells, more than {MAX_LINE_CELLS}: the ball (radius {radius:g} mm) is too small "
+            "for the grid's extent; use a larger ball or a smaller part")
     # Pairs (row, cell, m) with m = g, 2g, .. < k, grouped by line then cell.
     pr = np.repeat(row, n)
     pc = np.repeat(cell, n)
