@@ -176,7 +176,7 @@ def _stored_zmap(store: TaskStore, task_id: str) -> ZMap:
         raise InvalidInputError("grid_task", f"no stored task {task_id} (unknown, or evicted "
                                 "from the cache: upload the STL or grid again)")
     result = orjson.loads(body)
-    if result.get("operation") != "zmap":
+    if result.get("operation") != "create_zmap":
         raise InvalidInputError("grid_task", f"task {task_id} is a {result.get('operation')} "
                                 "task, not a z-map (POST /v1/zmaps)")
     z, geo = stored_grid(result["grid"])

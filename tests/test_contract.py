@@ -28,7 +28,11 @@ BODIES: dict[str, tuple[str, dict[str, Any]]] = {
     "plan_scanline": ("/v1/plans/scanline", {"grid": GRID, "tolerance": 0.1}),
     "plan_contour": ("/v1/plans/contour", {"grid": GRID}),
     "fit_arcs": ("/v1/arcs", {"points": [[0.0, 0.0], [4.0, 0.0], [8.0, 2.0]]}),
+    "simulate": ("/v1/simulate", {"grid": GRID, "tool": {"kind": "ball", "diameter": 2.0,
+                                                         "flute_length": 4.0}}),
 }
+STL = (b"solid t\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nvertex 0 1 1\n"
+       b"endloop\nendfacet\nendsolid t\n")
 TASK_ID = re.compile(r"[0-9a-f]{64}")
 
 
@@ -72,7 +76,7 @@ def test_security_is_required_only_when_keys_are_set(client: TestClient,
 def test_conditional_operations_declare_if_none_match_304_and_headers(
         client: TestClient) -> None:
     ops = operations(client.app.openapi())  # type: ignore[attr-defined]
-    for operation_id in (*BODIES, "get_task"):
+    for operation_id in (*BODIES, "create_zmap", "get_task", "get_task_model"):
         _m, _p, op = ops[operation_id]
         params = {(p["in"], p["name"]): p for p in op.get("parameters", [])}
         assert params[("header", "If-None-Match")]["schema"]["type"] == "string"
@@ -80,7 +84,8 @@ def test_conditional_operations_declare_if_none_match_304_and_headers(
         responses = op["responses"]
         assert set(responses["304"]["headers"]) == {"ETag", "X-Request-ID"}
         assert "content" not in responses["304"]
-        assert {"ETag", "X-Cache", "X-Request-ID"} <= set(responses["200"]["headers"])
+        assert {"ETag", "X-Request-ID"} <= set(responses["200"]["headers"])
+        assert ("X-Cache" in responses["200"]["headers"]) == (operation_id != "get_task_model")
         assert responses["503"]["headers"]["Retry-After"]["schema"]["type"] == "integer"
     for operation_id, (_m, _p, op) in ops.items():
         for status, response in op["responses"].items():
@@ -108,13 +113,39 @@ def test_declared_headers_are_sent(client: TestClient) -> None:
         assert cond.status_code == 304 and cond.headers["etag"] == etag
 
 
+def test_zmap_uploads_and_models_send_their_declared_headers(client: TestClient) -> None:
+    r = client.post("/v1/zmaps?dx=0.5", content=STL, headers={"content-type": "model/stl"})
+    assert r.status_code == 200, r.text
+    tid = r.json()["task_id"]
+    assert r.json()["operation"] == "create_zmap"
+    assert r.headers["etag"] == f'"{tid}"' and r.headers["x-cache"] == "miss"
+    npy = client.post("/v1/zmaps?dx=0.5", content=STL,
+                      headers={"content-type": "model/stl", "accept": "application/x-npy"})
+    assert npy.status_code == 200 and npy.headers["etag"] == f'"{tid}"'
+    cond = client.post("/v1/zmaps?dx=0.5", content=STL,
+                       headers={"content-type": "model/stl", "If-None-Match": f'"{tid}"'})
+    assert cond.status_code == 304
+    model = client.get(f"/v1/tasks/{tid}/models/0")
+    assert model.status_code == 200
+    assert re.fullmatch(r'"[0-9a-f]{64}-[0-9]+-[a-z0-9-]+"', model.headers["etag"])
+    again = client.get(f"/v1/tasks/{tid}/models/0",
+                       headers={"If-None-Match": model.headers["etag"]})
+    assert again.status_code == 304 and again.headers["etag"] == model.headers["etag"]
+    # a z-map task feeds a plan by its id: the stored operation name is the one checked
+    plan = client.post("/v1/mrr", json={"grid_task": tid})
+    assert plan.status_code == 200, plan.text
+    mrr = client.post("/v1/mrr", json={"grid": GRID, "include_models": True}).json()
+    level = client.get(f"/v1/tasks/{mrr['task_id']}/models/0")
+    assert level.status_code == 200 and level.json()["nx"] == mrr["levels"][0]["nx"]
+
+
 def test_discriminator_names_every_result_by_its_operation_id(client: TestClient) -> None:
     spec = client.app.openapi()  # type: ignore[attr-defined]
     ops = operations(spec)
     union = ops["get_task"][2]["responses"]["200"]["content"]["application/json"]["schema"]
     mapping = union["discriminator"]["mapping"]
     assert union["discriminator"]["propertyName"] == "operation"
-    assert set(mapping) == set(BODIES)
+    assert set(mapping) == {*BODIES, "create_zmap"}
     for operation_id, ref in mapping.items():
         _m, _p, op = ops[operation_id]
         assert op["responses"]["200"]["content"]["application/json"]["schema"]["$ref"] == ref

@@ -261,7 +261,7 @@ def test_zmap_grid_encoding_and_model_etags(client: TestClient) -> None:
                     headers={"content-type": "model/stl"})
     assert r.status_code == 200 and r.json()["grid"]["z"][0][0] == 2.0
     assert_problem(client.post("/v1/zmaps?dx=2&colour=red", content=steps_stl(),
-                               headers={"content-type": "model/stl"}), 422, "query.colour",
+                               headers={"content-type": "model/stl"}), 422, "colour",
                    "Extra")
     url = f"/v1/tasks/{r.json()['task_id']}/models/0"
     as_npy = client.get(url, headers={"accept": NPY})

@@ -25,6 +25,10 @@ _TEXT = {
 ETAG: dict[str, Any] = {
     "description": "The task id in quotes; send it back as If-None-Match to get a 304.",
     "required": True, "schema": {"type": "string", "pattern": '^"[0-9a-f]{64}"$'}}
+MODEL_ETAG: dict[str, Any] = {
+    "description": "The grid's representation in quotes (task id, index, encoding); send it "
+    "back as If-None-Match to get a 304.",
+    "required": True, "schema": {"type": "string", "pattern": '^"[0-9a-f]{64}-[0-9]+-[a-z0-9-]+"$'}}
 X_CACHE: dict[str, Any] = {
     "description": "Where the result came from: hit (the store), miss (computed for this "
     "request) or shared (computed once for identical concurrent requests).",
@@ -34,19 +38,21 @@ RETRY_AFTER: dict[str, Any] = {
     "schema": {"type": "integer", "minimum": 0}}
 
 
-def responses(*extra: int, conditional: bool = False) -> dict[int | str, dict[str, Any]]:
+def responses(*extra: int, conditional: bool = False, etag: dict[str, Any] = ETAG,
+              cache: bool = True) -> dict[int | str, dict[str, Any]]:
     """OpenAPI response entries: problem+json for every error a /v1 call may return.
 
-    ``conditional``: the operation answers a task (ETag and X-Cache on 200) and
-    honours ``If-None-Match`` (304, with the ETag).
+    ``conditional``: the operation honours ``If-None-Match`` (304 with the ``etag``
+    header, which the 200 carries too) and, with ``cache``, says in ``X-Cache``
+    whether it answered a task from the store.
     """
     codes = sorted({400, 401, 403, 422, 503, *extra} | ({304} if conditional else set()))
     out: dict[int | str, dict[str, Any]] = {}
     if conditional:
-        out[200] = {"headers": {"ETag": ETAG, "X-Cache": X_CACHE}}
+        out[200] = {"headers": {"ETag": etag, **({"X-Cache": X_CACHE} if cache else {})}}
     for code in codes:
         if code == 304:
-            out[code] = {"description": _TEXT[code], "headers": {"ETag": ETAG}}
+            out[code] = {"description": _TEXT[code], "headers": {"ETag": etag}}
             continue
         out[code] = {"description": _TEXT.get(code, "Error"), "model": ProblemDetails,
                      "content": {"application/problem+json": {}}}

@@ -7,12 +7,12 @@ from typing import Any
 
 import anyio
 import numpy as np
-from fastapi import APIRouter, Request, Response
+from fastapi import APIRouter, Depends, Request, Response
 
 from service.deps import PoolDep, SettingsDep, StoreDep
 from service.grids import canonical_grid, decode_grid, grid_encoding
 from service.hashing import canonical_bytes
-from service.routers import responses
+from service.routers import if_none_match, responses
 from service.schemas.common import Grid
 from service.schemas.simulate import SimulateRequest, SimulateResult
 from service.tasks import serve_task
@@ -105,7 +105,8 @@ def _digest(grid: np.ndarray | float | None) -> str | None:
 
 @router.post("/simulate", response_model=SimulateResult, operation_id="simulate",
              summary="Cutting simulation: the surface a tool leaves and what it engages",
-             responses=responses(413))
+             responses=responses(413, conditional=True),
+             dependencies=[Depends(if_none_match)])
 async def post_simulate(body: SimulateRequest, request: Request, settings: SettingsDep,
                         store: StoreDep, pool: PoolDep) -> Response:
     """One ball or flat end mill machining a stock over a part, with its tip on a given CL

@@ -8,14 +8,14 @@ from typing import Annotated, Any, Literal
 import anyio
 import numpy as np
 import orjson
-from fastapi import APIRouter, Header, Path, Query, Request, Response
+from fastapi import APIRouter, Depends, Header, Path, Query, Request, Response
 from pydantic import ValidationError
 from starlette.datastructures import UploadFile
 
 from service.deps import PoolDep, SettingsDep, StoreDep
 from service.grids import canonical_grid, npy_bytes, render_grids, stored_grid
 from service.problems import Problem
-from service.routers import responses
+from service.routers import MODEL_ETAG, if_none_match, responses
 from service.schemas.common import TASK_ID_PATTERN, GridOut
 from service.schemas.zmaps import ZMapParams, ZMapResult
 from service.tasks import not_modified, serve_task
@@ -95,6 +95,12 @@ async def _stl_and_params(request: Request, params: ZMapParams) -> tuple[bytes, 
         raise InvalidInputError(name, str(err["msg"])) from None
 
 
+def _with_npy(declared: dict[int | str, dict[str, Any]], ok: dict[str, Any],
+              ) -> dict[int | str, dict[str, Any]]:
+    """``responses()`` with the 200 also offering ``.npy`` (its headers kept)."""
+    return {**declared, 200: {**declared.get(200, {}), **ok}}
+
+
 def _prepare(data: bytes, p: ZMapParams, max_cells: int) -> tuple[np.ndarray, ZMapGrid]:
     tri = read_stl(data)
     return tri, zmap_grid(tri, dx=p.dx, dy=p.dy, nx=p.nx, ny=p.ny, x0=p.x0, y0=p.y0,
@@ -104,10 +110,11 @@ def _prepare(data: bytes, p: ZMapParams, max_cells: int) -> tuple[np.ndarray, ZM
 @router.post(
     "/zmaps", response_model=ZMapResult, operation_id="create_zmap",
     summary="STL to z-map: the part seen from +z",
-    responses={**responses(413, 415), 200: {
+    responses=_with_npy(responses(413, 415, conditional=True), {
         "description": "the z-map task; with Accept: application/x-npy the grid alone as "
         ".npy (float64), geometry in X-Grid-* headers, task id in X-Task-Id",
-        "content": {NPY: {"schema": {"type": "string", "format": "binary"}}}}},
+        "content": {NPY: {"schema": {"type": "string", "format": "binary"}}}}),
+    dependencies=[Depends(if_none_match)],
     openapi_extra={"requestBody": {"required": True, "content": {
         "model/stl": {"schema": {"type": "string", "format": "binary",
                                  "description": "binary or ASCII STL, mm"}},
@@ -129,14 +136,14 @@ async def create_zmap(request: Request, settings: SettingsDep, store: StoreDep, 
             "background": p.background}
     as_npy = NPY in request.headers.get("accept", "").lower()
     response = await serve_task(
-        request, store, pool, operation="zmap", params=spec, arrays={"triangles": tri},
+        request, store, pool, operation="create_zmap", params=spec, arrays={"triangles": tri},
         compute=lambda: zmap_result(tri, grid, p.background, max_pairs),
         encoding="float64" if as_npy else p.grid_encoding)
     if not as_npy or response.status_code != 200:
         return response
     result = orjson.loads(bytes(response.body))
     return _npy_response(result["grid"], "float64", result["task_id"],
-                         {"X-Task-Id": result["task_id"],
+                         {"X-Task-Id": result["task_id"], "ETag": f'"{result["task_id"]}"',
                           "X-Cache": response.headers.get("x-cache", "")})
 
 
@@ -154,21 +161,22 @@ def _npy_response(grid: dict[str, Any], dtype: str, name: str,
 
 def _model_at(result: dict[str, Any], index: int) -> dict[str, Any] | None:
     op = result.get("operation")
-    if op == "zmap":
+    if op == "create_zmap":
         return result["grid"] if index == 0 else None
-    items = result.get("levels") if op == "mrr" else result.get("stages")
+    items = result.get("levels") if op == "compute_mrr" else result.get("stages")
     if not isinstance(items, list) or not 0 <= index < len(items):
         return None
-    grid = items[index].get("grid" if op == "mrr" else "model")
+    grid = items[index].get("grid" if op == "compute_mrr" else "model")
     return grid if isinstance(grid, dict) else None
 
 
 @router.get(
     "/tasks/{task_id}/models/{index}", response_model=GridOut, operation_id="get_task_model",
     tags=["tasks"], summary="One stored grid of a task, as JSON or .npy",
-    responses={**responses(304, 404),
-               200: {"description": "the grid; geometry in X-Grid-* headers for .npy",
-                     "content": {NPY: {"schema": {"type": "string", "format": "binary"}}}}})
+    responses=_with_npy(responses(404, conditional=True, etag=MODEL_ETAG, cache=False), {
+        "description": "the grid; geometry in X-Grid-* headers for .npy",
+        "content": {NPY: {"schema": {"type": "string", "format": "binary"}}}}),
+    dependencies=[Depends(if_none_match)])
 async def get_task_model(
     request: Request, store: StoreDep,
     task_id: Annotated[str, Path(pattern=TASK_ID_PATTERN, description="SHA-256, hex")],

@@ -39,7 +39,7 @@ class MeshBounds(BaseModel):
 
 class ZMapResult(BaseModel):
     task_id: str
-    operation: Literal["zmap"]
+    operation: Literal["create_zmap"]
     grid: GridOut = Field(description="the z-map (bilinear): highest surface point above "
                           "each node; as .npy from GET /v1/tasks/{task_id}/models/0")
     background: float = Field(description="height given to nodes outside the part, mm")
