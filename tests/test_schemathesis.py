@@ -49,6 +49,12 @@ POSITIVE_DATA_EXCLUSIONS: dict[str, str] = {
     "property of the heights sent).",
     "plan_contour": _GRID_RULES + "; stock depth over the smallest tool step stays within "
     "ZW_MAX_CONTOUR_SLABS (a ratio of the heights and the tools sent).",
+    "simulate": _GRID_RULES + "; stock and cl grids have the part's shape, origin and "
+    "spacing, the stock lies at or above the part, stock_top at or above the part's top "
+    "(relations between arrays sent).",
+    "create_zmap": "the body is an STL file holding triangles (a binary or text file format, "
+    "not JSON), and the grid it asks for has at most ZW_MAX_GRID_CELLS nodes (nx x ny, or "
+    "the mesh's extent over dx x dy).",
     "fit_arcs": "the curve has two points that differ by more than 1e-9 tolerances, and its "
     "length over the tolerance stays within ZW_MAX_ARC_RESOLUTION (a sum over the points "
     "divided by another field).",

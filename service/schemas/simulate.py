@@ -23,7 +23,9 @@ class SimulateRequest(StrictModel):
     interpolation: Literal["bilinear", "cell"] = Field(
         "bilinear", description="meaning of the part, stock and returned grids: bilinear "
         "between nodes (ball end mills, scan-line models) or flat cells (terraces)")
-    tool: SimTool | None = Field(None, description="required")
+    # Required in the schema (it was optional and null there, then refused by the route):
+    # the document says what the service does.
+    tool: SimTool = Field(description="the end mill to simulate")
     stock_top: FiniteFloat | None = Field(
         None, description="flat stock top, mm; default: part top + the tool's flute length")
     stock: Grid | None = Field(
