@@ -31,7 +31,7 @@ SERVER_ENV = {
     "ZW_WORKERS": "2",
     "ZW_MAX_PENDING": "16",
 }
-MAX_EXAMPLES = 100  # per operation and phase: ~15-25 s for nine operations on two cores
+MAX_EXAMPLES = 40  # per operation and phase: ~30 s for twelve operations on two cores
 
 _GRID_RULES = (
     "a grid's rows have equal length, it has at most ZW_MAX_GRID_CELLS nodes (a product "
@@ -152,5 +152,5 @@ def test_a_keyed_server_passes_all_checks_on_its_served_document(tmp_path: Path)
     auth checks (a call without or with a wrong key must be refused) hold. Fewer
     examples: the operations' bodies are fuzzed in full above."""
     with live_server({**SERVER_ENV, "ZW_API_KEYS": f"{API_KEY},second-key"}) as server:
-        _run(server, tmp_path, server.url + "/openapi.json", MAX_EXAMPLES // 4,
+        _run(server, tmp_path, server.url + "/openapi.json", MAX_EXAMPLES // 8,
              ("--header", f"Authorization: Bearer {API_KEY}"))
