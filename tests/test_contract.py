@@ -145,13 +145,17 @@ def test_discriminator_names_every_result_by_its_operation_id(client: TestClient
     union = ops["get_task"][2]["responses"]["200"]["content"]["application/json"]["schema"]
     mapping = union["discriminator"]["mapping"]
     assert union["discriminator"]["propertyName"] == "operation"
-    assert set(mapping) == {*BODIES, "create_zmap"}
-    for operation_id, ref in mapping.items():
-        _m, _p, op = ops[operation_id]
-        assert op["responses"]["200"]["content"]["application/json"]["schema"]["$ref"] == ref
+    # fit_arcs answers three kinds of result (a point curve, a G-code program, a DXF): the
+    # curve's is named fit_arcs, the files' arcs_gcode and arcs_dxf
+    kinds = {"arcs_gcode": "fit_arcs", "arcs_dxf": "fit_arcs"}
+    assert set(mapping) == {*BODIES, "create_zmap", *kinds}
+    for name_in_result, ref in mapping.items():
+        _m, _p, op = ops[kinds.get(name_in_result, name_in_result)]
+        answer = op["responses"]["200"]["content"]["application/json"]["schema"]
+        assert answer.get("$ref") == ref or ref in [s["$ref"] for s in answer["oneOf"]]
         name = ref.rsplit("/", 1)[1]
         assert spec["components"]["schemas"][name]["properties"]["operation"]["const"] == (
-            operation_id)
+            name_in_result)
 
 
 # -- errors: one field-path convention, every 400 typed ------------------------------------
@@ -193,8 +197,8 @@ def test_a_huge_tolerance_is_reported_against_tolerance(client: TestClient,
 
 @pytest.mark.parametrize(("content", "reason"), [
     (b"{not json", "malformed JSON"),
-    (b'{"grid": "\xff\xfe"}', "UTF-8"),
-    (b'{"grid": ' + b"[" * 100_000 + b"]" * 100_000 + b"}", "nested too deeply"),
+    (b'{"grid": "\xff\xfe"}', "utf-8"),
+    (b'{"grid": ' + b"[" * 100_000 + b"]" * 100_000 + b"}", "nested too deeply|recursion"),
 ])
 def test_every_400_is_typed_with_errors(client: TestClient, content: bytes,
                                         reason: str) -> None:
@@ -202,7 +206,8 @@ def test_every_400_is_typed_with_errors(client: TestClient, content: bytes,
         r = client.post(path, content=content, headers={"content-type": "application/json"})
         body = problem(r, 400)
         assert body["type"].endswith("/malformed-body")
-        assert fields(body) == ["body"] and reason in body["errors"][0]["reason"]
+        assert fields(body) == ["body"]
+        assert re.search(reason, body["errors"][0]["reason"], re.I), body
 
 
 def test_a_bad_content_length_is_a_typed_400(client: TestClient) -> None:

@@ -82,12 +82,12 @@ def test_unknown_task_stage_and_kind(client: TestClient, plan: dict) -> None:  #
     tid = plan["task_id"]
     assert_problem(client.get(f"/v1/tasks/{'0' * 64}/preview.png"), 404, "task_id")
     assert_problem(client.get(f"/v1/tasks/{tid}/preview.png?stage=99"), 404, "stage")
-    assert_problem(client.get(f"/v1/tasks/{tid}/preview.png?stage=-1"), 422, "query.stage")
+    assert_problem(client.get(f"/v1/tasks/{tid}/preview.png?stage=-1"), 422, "stage")
     assert_problem(client.get(f"/v1/tasks/{tid}/preview.png?kind=toolpaths"), 422,
-                   "query.kind")  # comes with the tool paths
+                   "kind")  # comes with the tool paths
     assert_problem(client.get(f"/v1/tasks/{tid}/preview.png?kind=chain"), 404, "kind",
                    "no chain picture")
-    assert_problem(client.get(f"/v1/tasks/{tid}/preview.png?kind=bogus"), 422, "query.kind")
+    assert_problem(client.get(f"/v1/tasks/{tid}/preview.png?kind=bogus"), 422, "kind")
     r = client.post("/v1/plans/scanline", json={"grid": {"dx": 1.0, "dy": 1.0, "z": bump(16)}})
     assert_problem(client.get(f"/v1/tasks/{r.json()['task_id']}/preview.png"), 409,
                    "include_models")

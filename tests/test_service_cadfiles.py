@@ -104,7 +104,7 @@ def test_bad_files_are_problems(client: TestClient) -> None:
     assert_problem(client.post("/v1/arcs", content=b"garbage", headers=DXF),
                    422, "body", "not a readable DXF")
     assert_problem(client.post("/v1/arcs?tolerance=0", content=b"G01 X1", headers=PLAIN),
-                   422, "query.tolerance")
+                   422, "tolerance")
     assert_problem(client.post("/v1/arcs?tolerance=1e-9", content=known_program()[0],
                                headers=PLAIN), 413, "tolerance")
     assert_problem(client.post("/v1/arcs", content=b"x", headers={"content-type": "image/png"}),

@@ -7,6 +7,7 @@ from typing import Annotated
 from pydantic import Field
 
 from service.schemas.arcs import ArcsResult
+from service.schemas.cadfiles import DxfArcsResult, GcodeArcsResult
 from service.schemas.mrr import MrrResult
 from service.schemas.plans import ContourPlanResult, ScanlinePlanResult
 from service.schemas.simulate import SimulateResult
@@ -15,6 +16,6 @@ from service.schemas.zmaps import ZMapResult
 # `operation` tells the results apart, so generated clients get a tagged union.
 TaskResult = Annotated[
     MrrResult | ScanlinePlanResult | ContourPlanResult | ArcsResult | ZMapResult
-    | SimulateResult,
+    | SimulateResult | GcodeArcsResult | DxfArcsResult,
     Field(discriminator="operation"),
 ]
