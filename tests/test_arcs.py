@@ -820,3 +820,24 @@ def test_coarse_ellipse_polygon_tight_tolerance_gives_lines_along_edges():
             best = max(best, hi - lo)
         followed += best >= 0.5 * length
     assert followed >= len(pts) - 2, followed
+
+
+# ----------------------------------------------------------------------------
+# layout: every function of the arc fit reads on one screen (issue 10)
+
+
+def test_arc_functions_and_modules_are_short():
+    import ast
+
+    root = Path(__file__).resolve().parents[1] / "zwcore" / "arcs"
+    long_ = []
+    for path in sorted(root.glob("*.py")):
+        text = path.read_text()
+        if len(text.splitlines()) > 500:
+            long_.append((path.name, "module", len(text.splitlines())))
+        for node in ast.walk(ast.parse(text)):
+            if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef):
+                n = (node.end_lineno or node.lineno) - node.lineno + 1
+                if n > 80:
+                    long_.append((path.name, node.name, n))
+    assert not long_, long_

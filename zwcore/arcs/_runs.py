@@ -6,12 +6,14 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from zwcore.arcs._anchors import StraightRuns
 from zwcore.arcs._geometry import rotate
-from zwcore.arcs._lines import Anchor, StraightRuns, refit_along_straight_runs
+from zwcore.arcs._lines import refit_along_straight_runs
 from zwcore.arcs._pieces import Piece
 from zwcore.arcs._prepare import Prepared
 from zwcore.arcs._search import Fitter, Stuck
 from zwcore.arcs._start import free_start
+from zwcore.arcs._straight import Anchor
 from zwcore.arcs.verify import deviations
 
 FloatArray = NDArray[np.float64]
