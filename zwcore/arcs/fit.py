@@ -204,6 +204,7 @@ def fit_arcs(
     closed: bool = False,
     corner_angle_deg: float = DEFAULT_CORNER_ANGLE_DEG,
     max_radius: float | None = None,
+    reserve: float = 0.0,
 ) -> ArcChain:
     """Fit a tangent-continuous chain of arcs and lines to an ordered point curve.
 
@@ -230,13 +231,17 @@ def fit_arcs(
         Arcs of larger radius are not used (such pieces are lines or shorter
         arcs); ``None`` means no cap (lines are still preferred whenever a line
         fits).
+    reserve : float
+        Part of ``tolerance`` kept free for what follows the fit, in ``[0,
+        tolerance)``: the chain is fitted within ``tolerance - reserve`` (for a G-code
+        program within ``tolerance``: :func:`zwcore.arcs.gcode.rounding_budget`).
 
     Returns
     -------
     ArcChain
         Segments in input coordinates with the two-sided deviations measured by
-        dense sampling, the largest tangent kink at smooth junctions and the
-        corner junctions.
+        dense sampling, the largest tangent kink at smooth junctions and the corner
+        junctions (its ``tolerance`` is the one fitted to, ``tolerance - reserve``).
 
     Raises
     ------
@@ -245,7 +250,10 @@ def fit_arcs(
         option out of range.
     """
     raw = validate(points, tolerance, corner_angle_deg, max_radius)
-    tol = float(tolerance)
+    if not (isinstance(reserve, int | float) and 0.0 <= reserve < tolerance):
+        raise InvalidInputError(
+            "tolerance", f"must exceed the reserve {reserve:g} mm (the G-code rounding)")
+    tol = float(tolerance) - float(reserve)
     closed = bool(closed)
     prep = prepare(raw, tol, closed, corner_angle_deg)
     samples = prep.samples
