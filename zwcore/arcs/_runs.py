@@ -9,7 +9,8 @@ from numpy.typing import NDArray
 from zwcore.arcs._anchors import StraightRuns
 from zwcore.arcs._geometry import rotate
 from zwcore.arcs._lines import refit_along_straight_runs
-from zwcore.arcs._pieces import Piece
+from zwcore.arcs._pieces import Piece, ToleranceBand
+from zwcore.arcs._polygon import polygon_run
 from zwcore.arcs._prepare import Prepared
 from zwcore.arcs._search import Fitter, Stuck
 from zwcore.arcs._start import free_start
@@ -36,6 +37,11 @@ class _RunFitter:
         self.prep = prep
         self.max_radius = max_radius
         self.bridge = bridge
+        #: runs fitted in closed form (:mod:`zwcore.arcs._polygon`); off: the beam only
+        self.closed_form = bridge and max_radius is None
+        #: every run so far was fitted in closed form
+        self.all_closed_form = True
+        self._band: ToleranceBand | None = None
 
     def fitter(self, work: float, anchors: list[Anchor]) -> Fitter:
         f = Fitter(self.prep.samples, self.prep.tol, work, self.max_radius)
@@ -56,20 +62,30 @@ class _RunFitter:
         return self.fitter(0.9, anchors).run(a, b, loop, allow_forced=True, t_start=t_start)
 
     def run(self, a: int, b: int, t_start: FloatArray | None) -> RunFit:
+        loop = self.prep.loop
+        if self._band is None:
+            self._band = self.fitter(0.95, []).band
+        if self.closed_form and t_start is None:
+            # a coarse polygon: the filleted polygon (checked densely by fit_arcs; the
+            # refit without closed forms uses the beam)
+            got = polygon_run(self._band, a, b, loop)
+            if got is not None:
+                return got, []
+        self.all_closed_form = False
         # arcs over straight runs (the tangent missed the run) are refitted with those
         # runs as anchors the chain follows with lines (zwcore.arcs._lines)
-        loop = self.prep.loop
         return refit_along_straight_runs(
             lambda anchors: self.beam(a, b, t_start, anchors), self.prep.samples, a, b,
             self.prep.tol, pin_start=t_start is None and not loop, pin_end=not loop,
-            band=self.fitter(0.95, []).band)
+            band=self._band)
 
 
 def assemble(
     prep: Prepared, max_radius: float | None, bridge: bool
-) -> tuple[list[Piece], list[int], list[int]]:
-    """Every run fitted and joined: the pieces, the corner junctions and the forced
-    corners (``-1``: the closing junction). ``bridge``: allow biarc bridges."""
+) -> tuple[list[Piece], list[int], list[int], bool]:
+    """Every run fitted and joined: the pieces, the corner junctions, the forced corners
+    (``-1``: the closing junction) and whether every run was a closed form.
+    ``bridge``: allow biarc bridges and closed forms (off: the beam only)."""
     fit = _RunFitter(prep, max_radius, bridge)
     bounds = prep.bounds
     n_runs = len(bounds) - 1
@@ -92,7 +108,7 @@ def assemble(
         pieces.extend(run_pieces)
         if r < n_runs - 1 or (prep.closed and prep.cs and not prep.wrap):
             corner_j.append(len(pieces) - 1)
-    return pieces, corner_j, forced_j
+    return pieces, corner_j, forced_j, fit.all_closed_form
 
 
 def sweep_loop_start(

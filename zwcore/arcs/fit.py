@@ -257,16 +257,18 @@ def fit_arcs(
     closed = bool(closed)
     prep = prepare(raw, tol, closed, corner_angle_deg)
     samples = prep.samples
-    pieces, corner_j, forced_j = assemble(prep, max_radius, True)
+    pieces, corner_j, forced_j, closed_form = assemble(prep, max_radius, True)
     dev_p, dev_c = deviations(samples, pieces, tol)
     lim = tol * (1.0 + 1e-12)
     # (written so that a NaN figure counts as a failure: ``max`` would let it through)
     if not (dev_p <= lim and dev_c <= lim):
         # safety net: a bridged chain that the dense measurement rejects is refitted
         # without bridges (forced corners instead, never a tolerance violation)
-        pieces, corner_j, forced_j = assemble(prep, max_radius, False)
+        pieces, corner_j, forced_j, closed_form = assemble(prep, max_radius, False)
         dev_p, dev_c = deviations(samples, pieces, tol)
-    if prep.loop and len(pieces) > 2 and prep.m_last <= LOOP_SWEEP_MAX_SAMPLES:
+    # (a closed-form loop, a filleted polygon, has no start tangent to sweep)
+    if (prep.loop and not closed_form and len(pieces) > 2
+            and prep.m_last <= LOOP_SWEEP_MAX_SAMPLES):
         swept = sweep_loop_start(prep, max_radius, pieces, lim)
         if swept is not None:
             pieces, dev_p, dev_c = swept
