@@ -3,7 +3,8 @@
 Each glyph is scaled to ``height`` mm; each closed contour is sampled three ways:
 ``even`` (uniformly every 0.2 mm of arc length), ``chordal`` (each Bezier piece cut
 where the chord leaves the curve by more than ``chord_tol``; every on-curve point
-kept) and ``noisy`` (``even`` plus uniform noise of +-0.01 mm per coordinate, seeded).
+kept) and ``noisy`` (``even`` with every point moved by at most 0.01 mm: a uniform
+direction, a length uniform in [0, 0.01], seeded).
 The true corners (on-curve points where the outline turns by more than 30 degrees)
 are returned with each contour so a benchmark can count the ones a chain keeps.
 """
@@ -122,5 +123,8 @@ def glyph_contours(
             even = _even(pcs, 0.2)
             out["even"].append((label, even, corners))
             out["chordal"].append((label, _chordal(pcs, chord_tol), corners))
-            out["noisy"].append((label, even + rng.uniform(-0.01, 0.01, even.shape), corners))
+            ang = rng.uniform(0.0, 2.0 * math.pi, len(even))
+            rad = rng.uniform(0.0, 0.01, len(even))
+            noise = rad[:, None] * np.stack([np.cos(ang), np.sin(ang)], axis=1)
+            out["noisy"].append((label, even + noise, corners))
     return out
