@@ -31,6 +31,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from curves import ARCWELDER_REFERENCE, BENCH_CURVES, coarse_ellipse, coarse_spiral, ellipse
 
 from zwcore.arcs.fit import fit_arcs
+from zwcore.arcs.verify import densify
 
 
 def _annulus_width(pts: np.ndarray, cc: np.ndarray) -> float:
@@ -124,10 +125,122 @@ def _timed(pts: np.ndarray, closed: bool, tol: float = 0.1) -> tuple[float, obje
     return time.perf_counter() - t0, chain
 
 
+def _corners_kept(chain: object, corners: np.ndarray, reach: float) -> int:
+    """True corners with a corner junction of ``chain`` within ``reach`` mm."""
+    segs = chain.segments  # type: ignore[attr-defined]
+    at = np.array([segs[c].end for c in chain.corners]).reshape(-1, 2)  # type: ignore[attr-defined]
+    if not len(at):
+        return 0
+    d = np.hypot(corners[:, None, 0] - at[None, :, 0], corners[:, None, 1] - at[None, :, 1])
+    return int((d.min(axis=1) <= reach).sum())
+
+
+def glyphs(quick: bool, arcwelder: str | None) -> None:
+    """Glyph outlines (bench/glyphs.py): per sampling and tolerance, the totals over all
+    contours against ArcWelder (``arcwelder``: its console) or the greedy bound."""
+    from glyphs import GLYPHS, QUICK_GLYPHS, glyph_contours
+
+    from zwcore.arcs.fit import chain_tangents
+
+    chars = QUICK_GLYPHS if quick else GLYPHS
+    sets = glyph_contours(chars)
+    ref = "AW seg" if arcwelder else "greedy<="
+    print(f"Glyph outlines {chars!r} (DejaVu Sans, 50 mm high, {len(sets['even'])} closed"
+          " contours), corner angle 30 deg\n")
+    head = (f"{'sampling':8s} {'tol':>5s} {'points':>6s} {'seg':>5s} {'arc':>5s} {'line':>5s}"
+            f" {'max dev':>8s} {'kink deg':>8s} {'corners':>9s} {'time s':>7s}"
+            f" {'ms/seg':>6s} {ref:>8s} {'ratio':>5s}"
+            + (f" {'AW dev':>7s} {'AW kink':>7s} {'AW s':>6s}" if arcwelder else ""))
+    print(head)
+    print("-" * len(head))
+    for tol in (0.05, 0.01):
+        for name in ("even", "chordal", "noisy"):
+            n_pts = seg = arcs = lines = kept = n_corner = n_ref = 0
+            dev = kink = t_all = aw_dev = aw_kink = aw_t = 0.0
+            for _label, pts, corners in sets[name]:
+                dt, chain = _timed(pts, True, tol)
+                n_pts += len(pts)
+                seg += len(chain.segments)
+                arcs += chain.n_arcs
+                lines += chain.n_lines
+                dev = max(dev, chain.max_deviation_points, chain.max_deviation_chain)
+                kink = max(kink, math.degrees(chain.max_kink_smooth))
+                kept += _corners_kept(chain, corners, 0.2 + 3 * tol)
+                n_corner += len(corners)
+                t_all += dt
+                if arcwelder:
+                    from _arcwelder import run_arcwelder
+
+                    aw, adt = run_arcwelder(arcwelder, pts, tol)
+                    n_ref += len(aw)
+                    aw_t += adt
+                    awd, awk = _aw_figures(aw, pts)
+                    aw_dev, aw_kink = max(aw_dev, awd), max(aw_kink, awk)
+                else:
+                    n_ref += greedy_min_pieces(pts, tol, True)
+            _ = chain_tangents
+            print(f"{name:8s} {tol:5.2f} {n_pts:6d} {seg:5d} {arcs:5d} {lines:5d} {dev:8.5f}"
+                  f" {kink:8.1e} {kept:4d}/{n_corner:<4d} {t_all:7.2f}"
+                  f" {1e3 * t_all / max(seg, 1):6.2f} {n_ref:8d} {seg / max(n_ref, 1):5.2f}"
+                  + (f" {aw_dev:7.4f} {aw_kink:7.1f} {aw_t:6.2f}" if arcwelder else ""),
+                  flush=True)
+
+
+def _aw_figures(segs: list[tuple], pts: np.ndarray) -> tuple[float, float]:
+    """ArcWelder's chain -> polyline deviation (sampled) and largest kink (degrees)."""
+    from scipy.spatial import cKDTree
+
+    samples = []
+    tans = []
+    for s in segs:
+        a, b = np.array(s[1]), np.array(s[2])
+        if s[0] == "line":
+            samples.append(a + np.linspace(0, 1, 50)[:, None] * (b - a))
+            d = (b - a) / max(np.hypot(*(b - a)), 1e-300)
+            tans.append((d, d))
+        else:
+            c = np.array(s[3])
+            a0 = math.atan2(*(a - c)[::-1])
+            a1 = math.atan2(*(b - c)[::-1])
+            sw = (a1 - a0) % (2 * math.pi) if s[4] else -((a0 - a1) % (2 * math.pi))
+            r = np.hypot(*(a - c))
+            ang = a0 + np.linspace(0, sw, 50)
+            samples.append(c + r * np.stack([np.cos(ang), np.sin(ang)], 1))
+            sg = 1.0 if s[4] else -1.0
+            tans.append((sg * np.array([-(a - c)[1], (a - c)[0]]) / r,
+                         sg * np.array([-(b - c)[1], (b - c)[0]]) / r))
+    dense = densify(np.vstack([pts, pts[:1]]), 0.002)
+    dev = float(cKDTree(dense).query(np.vstack(samples))[0].max())
+    kink = 0.0
+    for (_, t0), (t1, _) in zip(tans, tans[1:] + tans[:1], strict=True):
+        kink = max(kink, abs(math.degrees(math.atan2(t0[0] * t1[1] - t0[1] * t1[0],
+                                                     float(t0 @ t1)))))
+    return dev, kink
+
+
+def coarse_polygon(n: int = 1000, edge: float = 10.0, turn_deg: float = 12.0,
+                   flip: int = 15) -> np.ndarray:
+    """An open polygon of ``n`` vertices, ``edge`` mm edges, turning ``turn_deg`` at
+    every vertex, the turn changing sides every ``flip`` vertices (a meander)."""
+    h = 0.0
+    p = np.zeros(2)
+    out = [p.copy()]
+    for i in range(n - 1):
+        p = p + edge * np.array([math.cos(h), math.sin(h)])
+        out.append(p.copy())
+        h += math.radians(turn_deg) * (1 if (i // flip) % 2 == 0 else -1)
+    return np.array(out)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--quick", action="store_true", help="skip the 1M-point run")
+    ap.add_argument("--glyphs", action="store_true", help="glyph outlines benchmark only")
+    ap.add_argument("--arcwelder", metavar="PATH", help="ArcWelder console (see README)")
     args = ap.parse_args()
+    if args.glyphs:
+        glyphs(args.quick, args.arcwelder)
+        return
     tol = 0.1
     print(f"C1 arc fit, tolerance {tol} mm, curves sampled at 0.5 mm\n")
     head = (f"{'curve':10s} {'N':>6s} {'seg':>4s} {'arc':>4s} {'line':>4s} {'dev pts':>8s}"
@@ -172,6 +285,12 @@ def main() -> None:
         dt, chain = _timed(pts, closed, 0.01)
         print(f"{label:22s} {len(pts):6d} {len(chain.segments):4d} {chain.n_arcs:4d}"
               f" {chain.n_lines:4d} {dt:7.3f}")
+    print("\nCoarse polygon: 10 mm edges, 12 deg turns (sides change every 15), open, tol 0.05")
+    print(f"{'vertices':>8s} {'seg':>5s} {'arc':>5s} {'line':>5s} {'time s':>7s} {'ms/seg':>6s}")
+    for n in (100, 1000):
+        dt, chain = _timed(coarse_polygon(n), False, 0.05)
+        print(f"{n:8d} {len(chain.segments):5d} {chain.n_arcs:5d} {chain.n_lines:5d}"
+              f" {dt:7.3f} {1e3 * dt / len(chain.segments):6.2f}")
     print("\nArcWelder 2.0 on the 0.02 mm ellipse (24,223 points): 10.3 s (issue text)")
     _ = math.pi
 

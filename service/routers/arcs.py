@@ -25,7 +25,7 @@ from service.settings import Settings
 from service.store import TaskStore
 from service.tasks import serve_task
 from zwcore.arcs.fit import ArcChain, Segment, fit_arcs
-from zwcore.arcs.gcode import to_gcode
+from zwcore.arcs.gcode import rounding_budget, to_gcode
 from zwcore.arcs.offset import offset_chain
 from zwcore.errors import InvalidInputError, LimitExceededError
 
@@ -42,9 +42,11 @@ def _segment(s: Segment) -> dict[str, Any]:
 def arcs_result(points: np.ndarray, body: ArcsRequest) -> dict[str, Any]:
     """The ``/v1/arcs`` result (module level and plain arguments: it runs in a worker
     process, fitting being Python-bound)."""
+    # the program as rounded stays within the tolerance: its rounding is budgeted
     chain: ArcChain = fit_arcs(points, body.tolerance, closed=body.closed,
                                corner_angle_deg=body.corner_angle_deg,
-                               max_radius=body.max_radius)
+                               max_radius=body.max_radius,
+                               reserve=rounding_budget(4) if body.gcode else 0.0)
     result: dict[str, Any] = {
         "tolerance": body.tolerance, "closed": body.closed,
         "segments": [_segment(s) for s in chain.segments],

@@ -4,9 +4,15 @@
 - :mod:`zwcore.arcs.verify`: two-sided deviation of a chain from its polyline;
 - :mod:`zwcore.arcs.offset`: tool-radius offsets of a chain;
 - :mod:`zwcore.arcs.gcode`: the chain as a G02/G03/G01 program;
-- private: ``_search`` (the junction search), ``_pieces`` (tolerance band and
-  piece geometry), ``_lines`` (straight runs), ``_start`` (start tangents),
-  ``_fallback`` (the always-valid fallback), ``_geometry`` (arc primitives).
+- private, in the order of the fit: ``_prepare`` (validation, corners, samples),
+  ``_runs`` (runs between corners, joined; the loop start sweep), ``_search`` (the
+  beam search of one run) with ``_states`` (its junction states) and ``_unstick``
+  (bridges and the fallback when it is stuck), ``_start`` (start tangents, one-piece
+  runs), ``_pieces`` (the tolerance band: feasible curvatures, reach, verification,
+  biarcs) with ``_checks`` (the two-sided bounds) and ``_biarc`` (biarc geometry),
+  ``_lines`` (refits along straight runs) with ``_straight`` (finding them) and
+  ``_anchors`` (following them), ``_fallback`` (the filleted polyline, valid by
+  construction), ``_geometry`` (arc primitives).
 """
 
 from zwcore.arcs.fit import ArcChain, Segment, chain_tangents, fit_arcs

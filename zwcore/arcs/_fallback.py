@@ -20,6 +20,7 @@ an extra vertex beside them; collinear and repeated vertices are dropped.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
@@ -66,22 +67,84 @@ def fillet_stretch(
     shortly before ``S[m]`` and returns the end state ``(point, tangent, e)``
     with ``e`` its distance from ``S[m]`` (the chain then continues from there).
     """
-    nseg = len(S) - 1
+    poly = _virtual_polyline(S, tol, p, t, k, m, mode, t_end)
+    _simplify(poly, tol)
+    _split_reversals(poly, tol)
+    fil = _fillets(poly, tol, mode)
+    return _assemble(poly, fil, S, tol, k, m, mode, t_end)
+
+
+@dataclass
+class _Polyline:
+    """The polyline the fallback fillets: vertices ``V``, the largest displacement ``D``
+    of each leg from the original polyline (one per leg), whether the first virtual
+    vertex is pinned and the index of the pinned last one (-1: none)."""
+
+    V: list[FloatArray]
+    D: list[float]
+    pinned_first: bool
+    n_pin_last: int
+
+    def pinned(self, x: int) -> bool:
+        """True for a pinned vertex (its fillet joins the chain C1)."""
+        return (x == 1 and self.pinned_first) or x == self.n_pin_last
+
+
+@dataclass
+class _Fillets:
+    """Legs, their directions, the tangent lengths ``L`` and turns ``th`` per vertex and
+    the distance ``e_last`` the chain stops short of the last vertex."""
+
+    legs: list[float]
+    dirs: list[FloatArray]
+    L: list[float]
+    th: list[float]
+    e_last: float
+
+
+def _near_run(S: FloatArray, at: FloatArray, idx: range, tol: float) -> tuple[int, float]:
+    """First index of ``idx`` whose sample is further than ``0.2 tol`` from ``at``, and
+    the largest distance of the nearer ones passed (``-1`` for the index when none)."""
+    near = 0.0
+    for i in idx:
+        d = float(np.hypot(*(S[i] - at)))
+        if d > 0.2 * tol:
+            return i, near
+        near = max(near, d)
+    return -1, near
+
+
+def _reversal_vertex(w: FloatArray, dv: FloatArray, tt: FloatArray, away: bool,
+                     h: float) -> FloatArray | None:
+    """A vertex ``h`` beside the virtual vertex ``w`` when the leg ``dv`` and the pinned
+    tangent ``tt`` turn by nearly pi there (a reversal: the vertex makes room for its
+    fillet), on the side of ``dv`` (``away``: the other side), else None."""
+    if not (float(np.hypot(*dv)) > 0.0 and abs(_turn(tt, _unit(dv))) > math.pi - 0.1):
+        return None
+    nrm = np.array([-tt[1], tt[0]])
+    if (float(nrm @ dv) > 0.0) if away else (float(nrm @ dv) < 0.0):
+        nrm = -nrm
+    return w + h * nrm
+
+
+def _virtual_polyline(
+    S: FloatArray, tol: float, p: FloatArray, t: FloatArray, k: int, m: int, mode: str,
+    t_end: FloatArray | None,
+) -> _Polyline:
+    """The polyline ``p .. S[m]`` with the virtual vertices that join it C1."""
     q = S[m]
     # first original vertex clearly away from p; nearer ones are replaced by the
     # virtual leg W -> S[i] (convexity bounds the move by their distance from W)
-    i = k + 1
     near = float(np.hypot(*(S[k] - p)))
-    while i < m and float(np.hypot(*(S[i] - p))) <= 0.2 * tol:
-        near = max(near, float(np.hypot(*(S[i] - p))))
-        i += 1
+    i, near_p = _near_run(S, p, range(k + 1, m), tol)
+    i = m if i < 0 else i
+    near = max(near, near_p)
     # last original vertex clearly away from q (only when the end tangent is pinned)
     j = m - 1
     near_end = 0.0
     if mode == "tangent":
-        while j >= i and float(np.hypot(*(S[j] - q))) <= 0.2 * tol:
-            near_end = max(near_end, float(np.hypot(*(S[j] - q))))
-            j -= 1
+        j, near_end = _near_run(S, q, range(m - 1, i - 1, -1), tol)
+        j = i - 1 if j < 0 else j
     mids = [S[x] for x in range(i, j + 1)] if mode == "tangent" else [S[x] for x in range(i, m)]
     first_far = mids[0] if mids else q
     if mode == "tangent" and not mids:
@@ -97,47 +160,41 @@ def fillet_stretch(
         w = p + eps * t
         verts.append(w)
         disp.append(near + eps)
-        dv = first_far - w
-        if float(np.hypot(*dv)) > 0.0 and abs(_turn(t, _unit(dv))) > math.pi - 0.1:
-            # a reversal at W: a vertex beside it, far enough for W's fillet to fit
-            nrm = np.array([-t[1], t[0]])
-            if float(nrm @ dv) < 0.0:
-                nrm = -nrm
-            h = 2.5 * eps
-            verts.append(w + h * nrm)
-            disp.append(near + eps + h)
-    for v in mids:
-        verts.append(v)
-        disp.append(0.0)
+        side = _reversal_vertex(w, first_far - w, t, False, 2.5 * eps)
+        if side is not None:
+            verts.append(side)
+            disp.append(near + eps + 2.5 * eps)
+    verts.extend(mids)
+    disp.extend([0.0] * len(mids))
     pinned_last = False
     if mode == "tangent":
         assert t_end is not None
-        last_far = verts[-1]
         room_e = max(tol - near_end, 0.0)
-        eps_e = min(0.08 * room_e, 0.3 * float(np.hypot(*(q - last_far))))
+        eps_e = min(0.08 * room_e, 0.3 * float(np.hypot(*(q - verts[-1]))))
         if eps_e > 0.0:
             pinned_last = True
             w2 = q - eps_e * t_end
-            dv = w2 - last_far
-            if float(np.hypot(*dv)) > 0.0 and abs(_turn(_unit(dv), t_end)) > math.pi - 0.1:
-                nrm = np.array([-t_end[1], t_end[0]])
-                if float(nrm @ dv) > 0.0:
-                    nrm = -nrm
-                h = 2.5 * eps_e
-                verts.append(w2 + h * nrm)
-                disp.append(near_end + eps_e + h)
+            side = _reversal_vertex(w2, w2 - verts[-1], t_end, True, 2.5 * eps_e)
+            if side is not None:
+                verts.append(side)
+                disp.append(near_end + eps_e + 2.5 * eps_e)
             verts.append(w2)
             disp.append(near_end + eps_e)
     verts.append(q.copy())
     disp.append(near_end)
     legdev = [max(disp[x], disp[x + 1]) for x in range(len(verts) - 1)]
-    n_pin_last = len(verts) - 2 if pinned_last else -1
-    # drop repeated and collinear vertices (never the pinned ones)
+    return _Polyline(verts, legdev, pinned_first, len(verts) - 2 if pinned_last else -1)
+
+
+def _simplify(poly: _Polyline, tol: float) -> None:
+    """Drop repeated and collinear vertices (never the pinned ones), in place."""
+    verts, legdev = poly.V, poly.D
     V: list[FloatArray] = [verts[0]]
     D: list[float] = []
     cur = legdev[0]
+    n_pin_last = poly.n_pin_last
     for x in range(1, len(verts) - 1):
-        pinned = (x == 1 and pinned_first) or x == n_pin_last
+        pinned = poly.pinned(x)
         a, b, c = V[-1], verts[x], verts[x + 1]
         lab = float(np.hypot(*(b - a)))
         lbc = float(np.hypot(*(c - b)))
@@ -154,29 +211,39 @@ def fillet_stretch(
         V.append(b)
         D.append(cur)
         cur = legdev[x]
-        if pinned and x == n_pin_last:
+        if pinned and x == poly.n_pin_last:
             n_pin_last = len(V) - 1
     V.append(verts[-1])
     D.append(cur)
-    # exact reversals: a vertex beside them
+    poly.V, poly.D, poly.n_pin_last = V, D, n_pin_last
+
+
+def _split_reversals(poly: _Polyline, tol: float) -> None:
+    """Exact reversals: a vertex beside them, in place."""
+    V, D = poly.V, poly.D
     x = 1
     while x < len(V) - 1:
-        pinned = (x == 1 and pinned_first) or x == n_pin_last
         d0 = V[x] - V[x - 1]
         d1 = V[x + 1] - V[x]
         l0, l1 = float(np.hypot(*d0)), float(np.hypot(*d1))
-        if not pinned and l0 > 0 and l1 > 0 and abs(_turn(d0 / l0, d1 / l1)) > math.pi - _REVERSAL:
+        if (not poly.pinned(x) and l0 > 0 and l1 > 0
+                and abs(_turn(d0 / l0, d1 / l1)) > math.pi - _REVERSAL):
             h = 0.2 * min(l0, l1, max(tol - max(D[x - 1], D[x]), 0.0))
             nrm = np.array([-d0[1], d0[0]]) / l0
             V.insert(x + 1, V[x] + h * nrm)
             D.insert(x + 1, D[x] + h)
             D[x] = D[x] + h
-            if n_pin_last > x:
-                n_pin_last += 1
+            if poly.n_pin_last > x:
+                poly.n_pin_last += 1
             x += 2
             continue
         x += 1
-    # tangent lengths
+
+
+def _fillets(poly: _Polyline, tol: float, mode: str) -> _Fillets:
+    """Tangent lengths of the fillets: within the band left by the legs' displacement,
+    at most half of each leg, pinned fillets using their whole virtual leg."""
+    V, D = poly.V, poly.D
     n = len(V)
     legs = [float(np.hypot(*(V[x + 1] - V[x]))) for x in range(n - 1)]
     dirs = [(V[x + 1] - V[x]) / legs[x] if legs[x] > 0 else np.zeros(2) for x in range(n - 1)]
@@ -187,33 +254,44 @@ def fillet_stretch(
         budget = _SAFETY * max(tol - max(D[x - 1], D[x]), 0.0)
         tq = math.tan(0.25 * abs(th[x]))
         lim = budget / tq if tq > 0 else math.inf
-        if x == 1 and pinned_first:
+        if x == 1 and poly.pinned_first:
             L[x] = legs[0]
-        elif x == n_pin_last:
+        elif x == poly.n_pin_last:
             L[x] = legs[-1]
         else:
             L[x] = min(lim, 0.5 * legs[x - 1], 0.5 * legs[x])
     # a pinned fillet may use more than half of its inner leg: the neighbour gives way
     for x in range(1, n - 1):
         if x + 1 < n - 1 and L[x] + L[x + 1] > legs[x]:
-            if (x == 1 and pinned_first) or x == n_pin_last:
+            if poly.pinned(x):
                 L[x + 1] = max(legs[x] - L[x], 0.0)
             else:
                 L[x] = max(legs[x] - L[x + 1], 0.0)
-    e_last = 0.0
-    if mode == "state":
-        e_last = min(0.3 * tol, 0.5 * legs[-1])
-    # assemble: line, fillet, line, ... Each piece starts exactly where the previous one
-    # ends with its end tangent (lines run along the leg direction from there), so the
-    # chain is C1 up to rounding; lines shorter than ``_SHORT`` tolerances are left out
-    # (their end points' rounding would make a visible kink).
+    e_last = min(0.3 * tol, 0.5 * legs[-1]) if mode == "state" else 0.0
+    return _Fillets(legs, dirs, L, th, e_last)
+
+
+def _assemble(
+    poly: _Polyline, fil: _Fillets, S: FloatArray, tol: float, k: int, m: int, mode: str,
+    t_end: FloatArray | None,
+) -> tuple[list[Piece], tuple[FloatArray, FloatArray, float] | None]:
+    """Line, fillet, line, ... (see :func:`fillet_stretch` for the result).
+
+    Each piece starts exactly where the previous one ends with its end tangent (lines
+    run along the leg direction from there), so the chain is C1 up to rounding; lines
+    shorter than ``_SHORT`` tolerances are left out (their end points' rounding would
+    make a visible kink).
+    """
+    V, dirs, L, th = poly.V, fil.dirs, fil.L, fil.th
+    n = len(V)
+    nseg = len(S) - 1
     pieces: list[Piece] = []
     cur_p = V[0].copy()
     cur_k = k
     kidx = _sample_index_map(V, S, k, m)
     for x in range(1, n):
         d = dirs[x - 1]
-        stop = V[x] - (L[x] if x < n - 1 else e_last) * d
+        stop = V[x] - (L[x] if x < n - 1 else fil.e_last) * d
         ln = float((stop - cur_p) @ d)
         if ln > _SHORT * tol or (x == n - 1 and mode != "state" and not pieces):
             end = cur_p + ln * d
@@ -234,15 +312,15 @@ def fillet_stretch(
                             min(kk + 1, nseg), end, dirs[x].copy(), 0.0))
         cur_p = end
         cur_k = kk
-    end_state = None
+    q = S[m]
     if mode == "state":
-        end_state = (cur_p.copy(), dirs[-1].copy(), float(np.hypot(*(q - cur_p))))
-    elif pieces:
+        return pieces, (cur_p.copy(), dirs[-1].copy(), float(np.hypot(*(q - cur_p))))
+    if pieces:
         pieces[-1].end = q.copy()
         if mode == "tangent":
             assert t_end is not None
             pieces[-1].t_end = t_end.copy()
-    return pieces, end_state
+    return pieces, None
 
 
 def _sample_index_map(V: list[FloatArray], S: FloatArray, k: int, m: int) -> list[int]:

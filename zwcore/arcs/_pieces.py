@@ -22,6 +22,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from zwcore.arcs._biarc import junction, last_on_first_arc
+from zwcore.arcs._checks import foot_positions, portion_bounds, samples_within, segments_within
 from zwcore.arcs._geometry import (
     arc_point,
     arc_points,
@@ -30,8 +32,6 @@ from zwcore.arcs._geometry import (
     local_uv,
     points_to_segments_distance,
     rotate1,
-    sagitta,
-    unwrap,
 )
 
 FloatArray = NDArray[np.float64]
@@ -306,59 +306,21 @@ class ToleranceBand:
         pts = self.samples[k : j + 1]
         u, v = local_uv(p, t, pts)
         g = np.abs(circle_gap(u, v, kappa))
-        if kappa != 0.0:
-            phi = np.arctan2(kappa * u, 1.0 - kappa * v)
-            phi[0] = 0.0
-            sig = unwrap(phi) / kappa
-        else:
-            sig = u.copy()
-            sig[0] = 0.0
+        sig = foot_positions(u, v, kappa)
         given_end = sig_end is not None
         if sig_end is None:
             sig_end = float(sig[-1])
         if not sig_end > 0.0 or abs(kappa * sig_end) > 2.0 * math.pi + 1e-9:
             return None
         end = arc_point(p, t, kappa, sig_end)
-        q = np.hypot(u, v)
         de = np.hypot(pts[:, 0] - end[0], pts[:, 1] - end[1])
-        before = sig < 0.0
-        after = sig > sig_end
-        d = np.where(before, q, np.where(after, de, g))
-        if d.size > 1 and d[1:].max() > tol:
+        if not samples_within(u, v, g, sig, sig_end, de, tol):
             return None
-        # polyline segment interiors: the farthest point from a circle on a segment is an
-        # end point or the point closest to the centre
-        if kappa != 0.0 and len(pts) > 1:
-            du = np.diff(u)
-            dv = np.diff(v)
-            den = du * du + dv * dv
-            den = np.where(den > 0.0, den, 1.0)
-            ts = np.clip((-u[:-1] * du + (1.0 / kappa - v[:-1]) * dv) / den, 0.0, 1.0)
-            xu = u[:-1] + ts * du
-            xv = v[:-1] + ts * dv
-            gx = np.abs(circle_gap(xu, xv, kappa))
-            inside = (sig[:-1] >= 0.0) & (sig[1:] <= sig_end)
-            xe = np.hypot(
-                xu - (end[0] - p[0]) * t[0] - (end[1] - p[1]) * t[1],
-                xv - (end[1] - p[1]) * t[0] + (end[0] - p[0]) * t[1],
-            )
-            dx = np.where(inside, gx, np.maximum(gx, np.minimum(np.hypot(xu, xv), xe)))
-            if dense_first:
-                dx[0] = 0.0
-            if dx.max() > tol:
-                return None
-        # arc portions between consecutive (running-max) foot points, against the polyline
-        run = np.maximum.accumulate(sig)
-        phi_c = np.clip(run, 0.0, sig_end)
-        idx = np.arange(len(sig))
-        arg = np.maximum.accumulate(np.where(sig >= run, idx, 0))
-        e_at = np.where(sig <= sig_end, g, de)
-        e_at[0] = e_k
-        dphi = np.diff(phi_c)
+        if kappa != 0.0 and len(pts) > 1 and not segments_within(
+                u, v, sig, sig_end, p, t, end, kappa, tol, dense_first):
+            return None
+        bound, dphi, phi_c = portion_bounds(pts, sig, sig_end, g, de, e_k, kappa)
         if dphi.size:
-            a_idx = arg[:-1]
-            jit = np.hypot(pts[a_idx, 0] - pts[:-1, 0], pts[a_idx, 1] - pts[:-1, 1])
-            bound = np.maximum(e_at[a_idx], e_at[1:]) + sagitta(kappa, dphi) + jit
             mask = dphi > 0.0
             if dense_first:
                 first = np.flatnonzero(mask)
@@ -470,11 +432,6 @@ class ToleranceBand:
         if dist2 <= 0.0:
             return None
         dist = math.sqrt(dist2)
-        vt0 = float(vv @ t0)
-        vt1 = float(vv @ t1)
-        t01 = float(t0 @ t1)
-        p0x, p0y, t0x, t0y = float(p0[0]), float(p0[1]), float(t0[0]), float(t0[1])
-        p1x, p1y, t1x, t1y = float(p1[0]), float(p1[1]), float(t1[0]), float(t1[1])
         # the samples in the start frame, and the curvatures that keep samples k+1..i
         # within (a hair more than) tol of the first arc's circle: a first arc outside
         # them fails verification, so it is not verified (most tried splits end there)
@@ -483,17 +440,9 @@ class ToleranceBand:
         lo_t = np.maximum.accumulate(lo_t)
         up_t = np.minimum.accumulate(up_t)
         for f in splits:
-            d1 = f * dist
-            den = vt1 - d1 * (t01 - 1.0)
-            if abs(den) < 1e-300:
+            jn = junction(p0, t0, p1, t1, f)
+            if jn is None:
                 continue
-            d2 = (0.5 * dist2 - d1 * vt0) / den
-            if not (d2 > 0.0 and math.isfinite(d2)):
-                continue
-            # (per coordinate: numpy's overhead on two elements dominates)
-            jn = np.array([
-                (d2 * (p0x + d1 * t0x) + d1 * (p1x - d2 * t1x)) / (d1 + d2),
-                (d2 * (p0y + d1 * t0y) + d1 * (p1y - d2 * t1y)) / (d1 + d2)])
             first = self.arc_through(p0, t0, jn, dist)
             if first is None:
                 continue
@@ -508,15 +457,7 @@ class ToleranceBand:
             if abs(te[0] * t1[1] - te[1] * t1[0]) > 1e-9 or te @ t1 < 0:
                 continue
             # split the samples: those whose foot point lies on the first arc
-            if k1 != 0.0:
-                ph = np.arctan2(k1 * uu, 1.0 - k1 * vv2)
-                ph[0] = 0.0
-                sg = unwrap(ph) / k1
-            else:
-                sg = uu
-            over = np.flatnonzero(sg > s1)
-            m = k + (int(over[0]) - 1 if over.size else b - k - 1)
-            m = min(max(m, k), b - 1)
+            m = last_on_first_arc(uu, vv2, k1, s1, k, b)
             if m > k and not lo_t[m - k - 1] <= k1 <= up_t[m - k - 1]:
                 continue
             r1 = self.verify(p0, t0, k1, k, m, e, sig_end=s1)

@@ -26,20 +26,20 @@ tolerance, and the last resort is a filleted-polyline stretch
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
 
-from zwcore.arcs._fallback import fillet_stretch
+from zwcore.arcs._anchors import StraightRuns
 from zwcore.arcs._geometry import (
     arc_points,
     local_uv,
     rotate,
 )
-from zwcore.arcs._lines import StraightRuns
 from zwcore.arcs._pieces import Piece, ToleranceBand
 from zwcore.arcs._start import free_start, free_start_tangents, full_circle, one_piece_to_end
+from zwcore.arcs._states import Cand, State, approx_len, unwind
+from zwcore.arcs._unstick import bridge, fallback
 
 FloatArray = NDArray[np.float64]
 
@@ -48,68 +48,6 @@ __all__ = ["Fitter", "Piece", "Stuck"]
 
 class Stuck(Exception):
     """No verified piece could be placed from the current junction."""
-
-
-@dataclass
-class _State:
-    """A junction of a partial chain: the next piece starts at ``p`` with tangent ``t``.
-
-    ``p`` stands for sample ``k`` at distance ``e``; ``piece`` is the piece that
-    ended here (None at the run start), ``parent`` the state it started from,
-    ``t_first`` the chain's first tangent (a loop must close onto it); ``n_over``
-    counts the chain's arcs over straight runs once known (:meth:`Fitter._n_over`).
-    """
-
-    p: FloatArray
-    t: FloatArray | None
-    k: int
-    e: float
-    parent: _State | None
-    piece: Piece | None
-    t_first: FloatArray | None
-    depth: int
-    fresh: bool = False
-    n_over: int | None = None
-    #: :meth:`ToleranceBand.longest_piece_bounds` from here, once asked (see
-    #: :meth:`Fitter._bounds`)
-    bounds: tuple[FloatArray, FloatArray] | None = None
-
-
-@dataclass
-class _Cand:
-    """A candidate piece from a state: it ends at ``end`` with tangent ``t_end`` standing
-    for sample ``j``; ``sig_end`` is its length when given (else the foot point of
-    ``j``), ``special`` marks pieces onto straight runs (:class:`StraightRuns`),
-    ``bonus`` is added to its rank score."""
-
-    j: int
-    kappa: float
-    end: FloatArray
-    t_end: FloatArray
-    bonus: float
-    sig_end: float | None = None
-    special: bool = False
-
-
-def _unwind(st: _State) -> list[Piece]:
-    """The pieces of the chain that ends at ``st``, first to last."""
-    out: list[Piece] = []
-    node: _State | None = st
-    while node is not None:
-        if node.piece is not None:
-            out.append(node.piece)
-        node = node.parent
-    out.reverse()
-    return out
-
-
-def _approx_len(c: _Cand, chord: float) -> float:
-    """Length of candidate ``c`` whose chord is ``chord`` long (its given length, or the
-    chord's arc)."""
-    if c.sig_end is not None:
-        return c.sig_end
-    x = 0.5 * c.kappa * chord
-    return chord * (math.asin(min(abs(x), 1.0)) / abs(x) if x != 0.0 else 1.0)
 
 
 class Fitter:
@@ -157,7 +95,7 @@ class Fitter:
         #: are proposed and chains with fewer arcs over them rank and finish first
         self.straight: StraightRuns | None = None
         #: landing biarcs found at the last level, joining the beam one level later
-        self._landed: list[_State] = []
+        self._landed: list[State] = []
 
     # -- the beam ---------------------------------------------------------------
 
@@ -174,25 +112,10 @@ class Fitter:
         Returns the pieces and the piece indices after which a forced corner sits
         (empty in practice: the fallback joins C1).
         """
-        band = self.band
-        if loop and self.one_piece_runs:
-            circ = full_circle(self.band, a, b)
-            if circ is not None:
-                return [circ], []
-        p0 = self.samples[a].copy()
-        if not loop and t_start is None:
-            t0, r0 = free_start(self.band, p0, a, b)
-            if r0 >= b and self.one_piece_runs:
-                fin = one_piece_to_end(self.band, p0, a, b, math.atan2(t0[1], t0[0]))
-                if fin is not None:
-                    return [fin], []
-        starts = [t_start] if t_start is not None else free_start_tangents(self.band, p0, a, b)
-        sr = self.straight
-        if t_start is None and not loop and sr is not None:
-            d0 = sr.start_direction(a, p0)
-            if d0 is not None:
-                starts = [d0, *starts]  # a straight run from the start: its line first
-        level: list[_State] = [_State(p0, t, a, 0.0, None, None, t, 0) for t in starts]
+        fin = self._one_piece(a, b, loop, t_start)
+        if fin is not None:
+            return [fin], []
+        level = self._start_level(a, b, loop, t_start)
         forced_at: list[int] = []
         # (chain, levels left, its arcs over straight runs)
         flat_fin: tuple[list[Piece], int, int] | None = None
@@ -201,73 +124,119 @@ class Fitter:
                 if flat_fin[1] == 0:
                     return flat_fin[0], forced_at
                 flat_fin = (flat_fin[0], flat_fin[1] - 1, flat_fin[2])
-            # finish from any state of this level (with anchors: the chain with the fewest
-            # arcs over straight runs; one with such arcs only when no state of this
-            # level or the next two finishes without)
-            fins: list[tuple[int, list[Piece]]] = []
-            for st in level:
-                assert st.t is not None
-                if not loop:
-                    fin2 = band.piece_to_sample(st.p, st.t, st.k, st.e, b)
-                    if fin2 is not None:
-                        if sr is None:
-                            return [*_unwind(st), fin2], forced_at
-                        fins.append((self._n_over(st) + sr.is_over(
-                            fin2.k, fin2.j, fin2.kappa, fin2.length), [*_unwind(st), fin2]))
-                elif st.parent is not None:
-                    assert st.t_first is not None
-                    clo = self._try_close(st, b, st.t_first)
-                    if clo is not None:
-                        return _unwind(st) + clo, forced_at
-            if fins:
-                assert sr is not None
-                n_over, best = min(fins, key=lambda f: f[0])
-                if n_over == 0:
-                    return best, forced_at
-                if flat_fin is None:
-                    flat_fin = (best, 2, n_over)
-                elif n_over < flat_fin[2]:
-                    flat_fin = (best, flat_fin[1], n_over)
+            done, flat_fin = self._finish(level, b, loop, flat_fin)
+            if done is not None:
+                return done, forced_at
             nxt = self._expand(level, b)
             if nxt:
                 level = nxt
                 continue
             if flat_fin is not None:
                 return flat_fin[0], forced_at
-            # a biarc bridge from a stuck state onto a sample with the polyline's direction
-            for st in level if self.use_bridge else []:
-                br = self._bridge(st, b, loop)
-                if br is None:
-                    continue
-                if br.k >= b:
-                    return _unwind(br), forced_at
-                nxt = [br]
-                break
-            if nxt:
-                level = nxt
-                continue
-            # nothing placed from any state of this level
-            if loop:
-                # close from earlier junctions of the best states
-                for st in level:
-                    node: _State | None = st
-                    while node is not None and node.parent is not None:
-                        par = node.parent
-                        assert par.t is not None and st.t_first is not None
-                        clo = band.biarc(par.p, par.t, par.k, par.e, b, st.t_first)
-                        if clo is not None:
-                            return _unwind(par) + clo, forced_at
-                        node = par
-            if not allow_forced:
-                raise Stuck
-            # valid by construction: a filleted polyline over a short stretch ahead
-            fb = self._fallback(level[0], b, loop)
-            if fb[1] is None:
-                return fb[0], forced_at
-            level = [fb[1]]
-            continue
+            done, level = self._unstick(level, b, loop, allow_forced)
+            if done is not None:
+                return done, forced_at
 
-    def _candidates(self, st: _State, b: int) -> list[_Cand]:
+    def _one_piece(
+        self, a: int, b: int, loop: bool, t_start: FloatArray | None
+    ) -> Piece | None:
+        """The one piece (a loop: the full circle) that covers the whole run, if any."""
+        if loop and self.one_piece_runs:
+            circ = full_circle(self.band, a, b)
+            if circ is not None:
+                return circ
+        if not loop and t_start is None:
+            p0 = self.samples[a].copy()
+            t0, r0 = free_start(self.band, p0, a, b)
+            if r0 >= b and self.one_piece_runs:
+                return one_piece_to_end(self.band, p0, a, b, math.atan2(t0[1], t0[0]))
+        return None
+
+    def _start_level(
+        self, a: int, b: int, loop: bool, t_start: FloatArray | None
+    ) -> list[State]:
+        """The first level: the run's start with the given tangent, else a few free ones."""
+        p0 = self.samples[a].copy()
+        starts = [t_start] if t_start is not None else free_start_tangents(self.band, p0, a, b)
+        sr = self.straight
+        if t_start is None and not loop and sr is not None:
+            d0 = sr.start_direction(a, p0)
+            if d0 is not None:
+                starts = [d0, *starts]  # a straight run from the start: its line first
+        return [State(p0, t, a, 0.0, None, None, t, 0) for t in starts]
+
+    def _finish(
+        self, level: list[State], b: int, loop: bool,
+        flat_fin: tuple[list[Piece], int, int] | None,
+    ) -> tuple[list[Piece] | None, tuple[list[Piece], int, int] | None]:
+        """The chain when a state of ``level`` finishes the run, and the best finish so
+        far that lays arcs over straight runs (``flat_fin``: chain, levels it waits for
+        a better one, its count of such arcs).
+
+        With anchors the chain with the fewest arcs over straight runs wins; one with
+        such arcs only when no state of this level or the next two finishes without.
+        """
+        band = self.band
+        sr = self.straight
+        fins: list[tuple[int, list[Piece]]] = []
+        for st in level:
+            assert st.t is not None
+            if not loop:
+                fin2 = band.piece_to_sample(st.p, st.t, st.k, st.e, b)
+                if fin2 is not None:
+                    if sr is None:
+                        return [*unwind(st), fin2], flat_fin
+                    fins.append((self._n_over(st) + sr.is_over(
+                        fin2.k, fin2.j, fin2.kappa, fin2.length), [*unwind(st), fin2]))
+            elif st.parent is not None:
+                assert st.t_first is not None
+                clo = self._try_close(st, b, st.t_first)
+                if clo is not None:
+                    return unwind(st) + clo, flat_fin
+        if fins:
+            n_over, best = min(fins, key=lambda f: f[0])
+            if n_over == 0:
+                return best, flat_fin
+            if flat_fin is None:
+                flat_fin = (best, 2, n_over)
+            elif n_over < flat_fin[2]:
+                flat_fin = (best, flat_fin[1], n_over)
+        return None, flat_fin
+
+    def _unstick(
+        self, level: list[State], b: int, loop: bool, allow_forced: bool
+    ) -> tuple[list[Piece] | None, list[State]]:
+        """Nothing verified could be placed from ``level``: a bridge, a loop closed from
+        earlier junctions, or (``allow_forced``) the fallback; the chain when one of them
+        finishes the run, else the next level. Raises :class:`Stuck` when none helps."""
+        # a biarc bridge from a stuck state onto a sample with the polyline's direction
+        for st in level if self.use_bridge else []:
+            br = bridge(self.band, st, b, loop)
+            if br is None:
+                continue
+            if br.k >= b:
+                return unwind(br), []
+            return None, [br]
+        if loop:
+            # close from earlier junctions of the best states
+            for st in level:
+                node: State | None = st
+                while node is not None and node.parent is not None:
+                    par = node.parent
+                    assert par.t is not None and st.t_first is not None
+                    clo = self.band.biarc(par.p, par.t, par.k, par.e, b, st.t_first)
+                    if clo is not None:
+                        return unwind(par) + clo, []
+                    node = par
+        if not allow_forced:
+            raise Stuck
+        # valid by construction: a filleted polyline over a short stretch ahead
+        fb = fallback(self.band, level[0], b, loop, self.FALLBACK_SPAN)
+        if fb[1] is None:
+            return fb[0], []
+        return None, [fb[1]]
+
+    def _candidates(self, st: State, b: int) -> list[Cand]:
         """Candidate pieces from a state (unverified)."""
         p, t, k = st.p, st.t, st.k
         assert t is not None
@@ -293,10 +262,10 @@ class Fitter:
             tends = rotate(t, kk * sj)
             bonus = np.where(line, 0.3 * (self.cum[jj] - self.cum[k]), 0.0).tolist()
             for i, (j, kap) in enumerate(zip(jj.tolist(), kk.tolist(), strict=True)):
-                out.append(_Cand(j, kap, ends[i], tends[i], bonus[i]))
+                out.append(Cand(j, kap, ends[i], tends[i], bonus[i]))
         if self.straight is not None:
             for j, kap, end, tend, s_end in self.straight.candidates(p, t, k, b):
-                out.append(_Cand(j, kap, end, tend, 0.0, s_end, True))
+                out.append(Cand(j, kap, end, tend, 0.0, s_end, True))
         return out
 
     def _candidate_kappas(
@@ -324,99 +293,123 @@ class Fitter:
              np.repeat(ok[:, None], len(self._k_fractions), axis=1)], axis=1)
         return np.repeat(ja[:, None], vals.shape[1], axis=1)[mask], vals[mask]
 
-    def _expand(self, level: list[_State], b: int) -> list[_State]:
+    def _expand(self, level: list[State], b: int) -> list[State]:
         """The next level: the best verified pieces from all states, by look-ahead reach.
 
         With straight runs to follow, pieces onto them take up to half the beam first,
         then candidates rank by the arcs over straight runs in their chain, and landing
         biarcs (:meth:`StraightRuns.landing_biarc`) join one level later.
         """
-        band = self.band
-        rows: list[tuple[int, _Cand]] = []
+        rows: list[tuple[int, Cand]] = []
         for si, st in enumerate(level):
             for c in self._candidates(st, b):
                 rows.append((si, c))
-        out: list[_State] = []
-        if rows:
-            ep = np.array([r[1].end for r in rows])
-            et = np.array([r[1].t_end for r in rows])
-            js = np.array([r[1].j for r in rows], dtype=np.int64)
-            reach, lreach = band.reach_with_lines(ep, et, js, b)
-            reach = np.where(js >= b, b, reach)
-            lreach = np.where(js >= b, b, lreach)
-            lscore = self.cum[lreach] + 0.3 * (self.cum[lreach] - self.cum[js])
-            score = np.maximum(self.cum[reach], lscore) + np.array([r[1].bonus for r in rows])
-            isarc = np.array([r[1].kappa != 0.0 for r in rows])
-            sr = self.straight
-            if sr is not None:
-                sp = np.array([level[r[0]].p for r in rows])
-                chord = np.hypot(ep[:, 0] - sp[:, 0], ep[:, 1] - sp[:, 1]).tolist()
-                flat = np.array([
-                    c.kappa != 0.0 and sr.is_over(level[si].k, c.j, c.kappa,
-                                                  _approx_len(c, chord[i]))
-                    for i, (si, c) in enumerate(rows)])
-                special = np.array([r[1].special for r in rows])
-                # arcs over straight runs in the chain so far, this candidate's included
-                before = [self._n_over(st) for st in level]
-                n_over = np.array([before[r[0]] for r in rows]) + flat
-                order = np.lexsort((-js, isarc, -score, n_over))
-                order = np.concatenate([order[special[order]], order[~special[order]]])
-                n_special_max = self.BEAM // 2
-            else:
-                order = np.lexsort((-js, isarc, -score))
-                n_special_max = 0
-            seen: set[tuple[int, int, int]] = set()
-            checks = 0
-            n_special = 0
-            for i in order:
-                if len(out) >= self.BEAM or checks >= 12 * self.BEAM:
-                    break
-                si, c = rows[int(i)]
-                if c.special and n_special >= n_special_max:
-                    continue
-                st = level[si]
-                key = (int(reach[i]), c.j, round(math.atan2(et[i][1], et[i][0]) * 1e3))
-                if key in seen:
-                    continue
-                checks += 1
-                assert st.t is not None
-                res = band.verify(st.p, st.t, c.kappa, st.k, c.j, st.e, sig_end=c.sig_end)
-                if res is None:
-                    continue
-                seen.add(key)
-                pc = band.make_piece(st.p, st.t, c.kappa, st.k, c.j, res)
-                if c.special:
-                    n_special += 1
-                    pc.t_end = c.t_end.copy()  # exactly the anchor's direction
-                out.append(_State(pc.end, pc.t_end, c.j, pc.e_end, st, pc, st.t_first,
-                                  st.depth + 1))
+        out: list[State] = self._verified(level, rows, b) if rows else []
         if self.straight is not None:
-            # a landing biarc is two pieces: its end joins the level after next
-            out.extend(self._landed)
-            self._landed = []
-            for st in level:
-                assert st.t is not None
-                got = self.straight.landing_biarc(st.p, st.t, st.k, st.e, b,
-                                                  len(self._bounds(st, b)[0]))
-                if got is not None:
-                    a1, a2 = got
-                    mid = _State(a1.end, a1.t_end, a1.j, a1.e_end, st, a1, st.t_first,
-                                 st.depth + 1)
-                    self._landed.append(_State(a2.end, a2.t_end, a2.j, a2.e_end, mid, a2,
-                                               st.t_first, st.depth + 2))
+            out.extend(self._landings(level, b))
         if not out:
-            for st in level:
-                assert st.t is not None
-                lo1, up1 = self._bounds(st, b)
-                jm = min(st.k + len(lo1), b - 1)
-                if jm <= st.k:
-                    continue
-                sh = self._shrink(st.p, st.t, st.k, st.e, jm, lo1, up1)
-                if sh is not None:
-                    out.append(_State(sh.end, sh.t_end, sh.j, sh.e_end, st, sh, st.t_first,
-                                      st.depth + 1))
-                    break
+            out = self._shrunk(level, b)
         return out
+
+    def _rank(
+        self, level: list[State], rows: list[tuple[int, Cand]], b: int
+    ) -> tuple[NDArray[np.int64], NDArray[np.int64], FloatArray]:
+        """The order in which the candidates ``rows`` (state index, candidate) are
+        verified, their reach and end tangents ``(C, 2)``."""
+        band = self.band
+        ep = np.array([r[1].end for r in rows])
+        et = np.array([r[1].t_end for r in rows])
+        js = np.array([r[1].j for r in rows], dtype=np.int64)
+        reach, lreach = band.reach_with_lines(ep, et, js, b)
+        reach = np.where(js >= b, b, reach)
+        lreach = np.where(js >= b, b, lreach)
+        lscore = self.cum[lreach] + 0.3 * (self.cum[lreach] - self.cum[js])
+        score = np.maximum(self.cum[reach], lscore) + np.array([r[1].bonus for r in rows])
+        isarc = np.array([r[1].kappa != 0.0 for r in rows])
+        sr = self.straight
+        if sr is None:
+            return np.lexsort((-js, isarc, -score)), reach, et
+        sp = np.array([level[r[0]].p for r in rows])
+        chord = np.hypot(ep[:, 0] - sp[:, 0], ep[:, 1] - sp[:, 1]).tolist()
+        flat = np.array([
+            c.kappa != 0.0 and sr.is_over(level[si].k, c.j, c.kappa,
+                                          approx_len(c, chord[i]))
+            for i, (si, c) in enumerate(rows)])
+        special = np.array([r[1].special for r in rows])
+        # arcs over straight runs in the chain so far, this candidate's included
+        before = [self._n_over(st) for st in level]
+        n_over = np.array([before[r[0]] for r in rows]) + flat
+        order = np.lexsort((-js, isarc, -score, n_over))
+        order = np.concatenate([order[special[order]], order[~special[order]]])
+        return order, reach, et
+
+    def _verified(self, level: list[State], rows: list[tuple[int, Cand]], b: int
+                  ) -> list[State]:
+        """The best verified candidates, in the order of :meth:`_rank`, at most
+        :attr:`BEAM` of them (pieces onto straight runs at most half of them), one per
+        end state (reach, end sample, end direction)."""
+        band = self.band
+        order, reach, et = self._rank(level, rows, b)
+        n_special_max = self.BEAM // 2 if self.straight is not None else 0
+        out: list[State] = []
+        seen: set[tuple[int, int, int]] = set()
+        checks = 0
+        n_special = 0
+        for i in order:
+            if len(out) >= self.BEAM or checks >= 12 * self.BEAM:
+                break
+            si, c = rows[int(i)]
+            if c.special and n_special >= n_special_max:
+                continue
+            st = level[si]
+            key = (int(reach[i]), c.j, round(math.atan2(et[i][1], et[i][0]) * 1e3))
+            if key in seen:
+                continue
+            checks += 1
+            assert st.t is not None
+            res = band.verify(st.p, st.t, c.kappa, st.k, c.j, st.e, sig_end=c.sig_end)
+            if res is None:
+                continue
+            seen.add(key)
+            pc = band.make_piece(st.p, st.t, c.kappa, st.k, c.j, res)
+            if c.special:
+                n_special += 1
+                pc.t_end = c.t_end.copy()  # exactly the anchor's direction
+            out.append(State(pc.end, pc.t_end, c.j, pc.e_end, st, pc, st.t_first,
+                             st.depth + 1))
+        return out
+
+    def _landings(self, level: list[State], b: int) -> list[State]:
+        """The landing biarcs found one level earlier; this level's are kept for the
+        next (a landing biarc is two pieces: its end joins the level after next)."""
+        assert self.straight is not None
+        out = self._landed
+        self._landed = []
+        for st in level:
+            assert st.t is not None
+            got = self.straight.landing_biarc(st.p, st.t, st.k, st.e, b,
+                                              len(self._bounds(st, b)[0]))
+            if got is not None:
+                a1, a2 = got
+                mid = State(a1.end, a1.t_end, a1.j, a1.e_end, st, a1, st.t_first,
+                            st.depth + 1)
+                self._landed.append(State(a2.end, a2.t_end, a2.j, a2.e_end, mid, a2,
+                                          st.t_first, st.depth + 2))
+        return out
+
+    def _shrunk(self, level: list[State], b: int) -> list[State]:
+        """The first state's shorter piece (:meth:`_shrink`) when no candidate passed."""
+        for st in level:
+            assert st.t is not None
+            lo1, up1 = self._bounds(st, b)
+            jm = min(st.k + len(lo1), b - 1)
+            if jm <= st.k:
+                continue
+            sh = self._shrink(st.p, st.t, st.k, st.e, jm, lo1, up1)
+            if sh is not None:
+                return [State(sh.end, sh.t_end, sh.j, sh.e_end, st, sh, st.t_first,
+                              st.depth + 1)]
+        return []
 
     def _shrink(
         self, p: FloatArray, t: FloatArray, k: int, e: float, jm: int, lo1: FloatArray,
@@ -446,7 +439,7 @@ class Fitter:
             j = k + max(1, (j - k) // 2)
         return None
 
-    def _bounds(self, st: _State, b: int) -> tuple[FloatArray, FloatArray]:
+    def _bounds(self, st: State, b: int) -> tuple[FloatArray, FloatArray]:
         """The running curvature bounds of the longest piece from ``st`` (asked for by
         the candidates, the closing biarc and the landing biarc: computed once)."""
         if st.bounds is None:
@@ -454,14 +447,14 @@ class Fitter:
             st.bounds = self.band.longest_piece_bounds(st.p, st.t, st.k, b)
         return st.bounds
 
-    def _n_over(self, st: _State) -> int:
+    def _n_over(self, st: State) -> int:
         """Arcs over straight runs in the chain ending at ``st``
         (:meth:`StraightRuns.is_over`), carried along the states: each piece is looked at
         once, not once per candidate."""
         sr = self.straight
         assert sr is not None
-        todo: list[_State] = []
-        node: _State | None = st
+        todo: list[State] = []
+        node: State | None = st
         while node is not None and node.n_over is None:
             todo.append(node)
             node = node.parent
@@ -475,63 +468,9 @@ class Fitter:
 
     # -- ways out of a stuck level ---------------------------------------------
 
-    def _bridge(self, st: _State, b: int, loop: bool) -> _State | None:
-        """Two verified arcs from ``st`` to a sample just ahead, ending along the polyline.
-
-        The end state lies on the polyline with the direction of one of its segments
-        (or their bisector), from which progress is always possible.
-        """
-        assert st.t is not None
-        samples = self.samples
-        for m in range(st.k + 1, min(st.k + 12, b) + 1):
-            if m == b and loop:
-                continue
-            dirs = []
-            for i0, i1 in ((m - 1, m), (m, m + 1)):
-                if 0 <= i0 and i1 <= b:
-                    dv = samples[i1] - samples[i0]
-                    n = float(np.hypot(*dv))
-                    if n > 0.0:
-                        dirs.append(dv / n)
-            if len(dirs) == 2:
-                bis = dirs[0] + dirs[1]
-                nb = float(np.hypot(*bis))
-                if nb > 1e-9:
-                    dirs.append(bis / nb)
-            for t1 in dirs:
-                got = self.band.biarc(st.p, st.t, st.k, st.e, m, t1)
-                if got is None:
-                    continue
-                a1, a2 = got
-                mid = _State(a1.end, a1.t_end, a1.j, 0.0, st, a1, st.t_first, st.depth + 1)
-                return _State(a2.end, a2.t_end, m, 0.0, mid, a2, st.t_first, st.depth + 2)
-        return None
-
-    def _fallback(self, st: _State, b: int, loop: bool) -> tuple[list[Piece], _State | None]:
-        """A filleted-polyline stretch from ``st``: the whole chain, or the state after it."""
-        assert st.t is not None
-        k = st.k
-        m = int(np.searchsorted(self.cum, self.cum[k] + self.FALLBACK_SPAN * self.tol))
-        m = max(m, k + 2)
-        if m >= b - 1:
-            m = b
-        if m == b:
-            mode = "tangent" if loop else "sample"
-        else:
-            mode = "state"
-        pieces, end = fillet_stretch(self.samples, self.tol, st.p, st.t, k, m, mode,
-                                     st.t_first if loop else None)
-        node = st
-        for pc in pieces:
-            node = _State(pc.end, pc.t_end, pc.j, 0.0, node, pc, st.t_first, node.depth + 1)
-        if end is None:
-            return _unwind(node), None
-        ep, et, ee = end
-        return [], _State(ep, et, m, ee, node, None, st.t_first, node.depth, fresh=True)
-
     # -- closing a loop ----------------------------------------------------------
 
-    def _try_close(self, st: _State, b: int, t1: FloatArray) -> list[Piece] | None:
+    def _try_close(self, st: State, b: int, t1: FloatArray) -> list[Piece] | None:
         """A closing biarc from ``(p, t)`` onto sample ``b`` with tangent ``t1``.
 
         A biarc can span about two pieces' worth: it is tried once the rest is within

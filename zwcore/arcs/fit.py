@@ -60,28 +60,18 @@ from typing import Literal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from zwcore.arcs._geometry import rotate
-from zwcore.arcs._lines import Anchor, StraightRuns, refit_along_straight_runs
 from zwcore.arcs._pieces import Piece
-from zwcore.arcs._search import Fitter, Stuck
-from zwcore.arcs._start import free_start
-from zwcore.arcs.verify import densify, deviations
+from zwcore.arcs._prepare import prepare, validate
+from zwcore.arcs._runs import LOOP_SWEEP_MAX_SAMPLES, assemble, sweep_loop_start
+from zwcore.arcs.verify import deviations
 from zwcore.errors import InvalidInputError
 
 FloatArray = NDArray[np.float64]
 
 __all__ = ["ArcChain", "Segment", "chain_tangents", "fit_arcs", "segment_points"]
 
-#: Turns (radians) of the start tangent tried for a corner-free closed curve.
-LOOP_START_TURNS = (-0.015, 0.015, -0.03, 0.03, -0.05, 0.05, -0.07, 0.07)
-#: Loops with more samples than this are fitted from one start tangent only (time).
-LOOP_SWEEP_MAX_SAMPLES = 5_000
-
 #: Default corner angle: turning sharper than this (over the tolerance scale) stays sharp.
 DEFAULT_CORNER_ANGLE_DEG = 30.0
-#: mm; a curve spanning less has no two points a machine tells apart: an error on
-#: ``points``, whatever the tolerance (above it, merged points blame the tolerance)
-MIN_CURVE_SPAN = 1e-6
 
 
 @dataclass(frozen=True)
@@ -204,119 +194,6 @@ def segment_points(seg: Segment, step: float) -> FloatArray:
 
 
 # ---------------------------------------------------------------------------
-# validation and preprocessing
-
-
-def _validate(
-    points: ArrayLike,
-    tolerance: float,
-    corner_angle_deg: float,
-    max_radius: float | None,
-) -> FloatArray:
-    try:
-        pts = np.asarray(points, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise InvalidInputError("points", f"not a numeric (N, 2) array: {exc}") from None
-    if pts.ndim != 2 or pts.shape[1] != 2:
-        raise InvalidInputError("points", f"expected shape (N, 2), got {pts.shape}")
-    if not np.all(np.isfinite(pts)):
-        raise InvalidInputError("points", "contains non-finite values")
-    if not (isinstance(tolerance, int | float) and math.isfinite(tolerance) and tolerance > 0):
-        raise InvalidInputError("tolerance", "must be a finite number > 0")
-    if not (
-        isinstance(corner_angle_deg, int | float)
-        and math.isfinite(corner_angle_deg)
-        and 0 < corner_angle_deg <= 180
-    ):
-        raise InvalidInputError("corner_angle_deg", "must be in (0, 180]")
-    if max_radius is not None and not (
-        isinstance(max_radius, int | float) and math.isfinite(max_radius) and max_radius > 0
-    ):
-        raise InvalidInputError("max_radius", "must be a finite number > 0 or null")
-    return pts
-
-
-def _dedupe(x: FloatArray, closed: bool, eps: float) -> FloatArray:
-    """Drop points closer than ``eps`` to their kept predecessor (and a repeated closing point)."""
-    keep = [0]
-    last = x[0]
-    d = np.hypot(*(np.diff(x, axis=0).T))
-    if np.all(d > eps):
-        out = x
-    else:
-        for i in range(1, len(x)):
-            if math.hypot(x[i, 0] - last[0], x[i, 1] - last[1]) > eps:
-                keep.append(i)
-                last = x[i]
-        out = x[keep]
-    if closed:
-        while len(out) > 1 and math.hypot(*(out[-1] - out[0])) <= eps:
-            out = out[:-1]
-    return out
-
-
-def _interp_polyline(x: FloatArray, s: FloatArray, at: FloatArray) -> FloatArray:
-    return np.stack([np.interp(at, s, x[:, 0]), np.interp(at, s, x[:, 1])], axis=1)
-
-
-def _find_corners(x: FloatArray, closed: bool, tol: float, angle: float) -> list[int]:
-    """Input indices where the curve turns by more than ``angle`` at the tolerance scale."""
-    n = len(x)
-    if n < 3 and not closed:
-        return []
-    d_probe = 3.0 * tol
-    if closed:
-        xx = np.vstack([x, x[:1]])
-        seg = np.hypot(*(np.diff(xx, axis=0).T))
-        total = float(seg.sum())
-        s = np.concatenate([[0.0], np.cumsum(seg)])
-        # three laps so that probes wrap around
-        x3 = np.vstack([xx[:-1], xx[:-1], xx])
-        s3 = np.concatenate([s[:-1] - total, s[:-1], s + total])
-        si = s[:-1]
-        before = _interp_polyline(x3, s3, si - min(d_probe, 0.25 * total))
-        after = _interp_polyline(x3, s3, si + min(d_probe, 0.25 * total))
-        idx = np.arange(n)
-    else:
-        seg = np.hypot(*(np.diff(x, axis=0).T))
-        s = np.concatenate([[0.0], np.cumsum(seg)])
-        si = s[1:-1]
-        before = _interp_polyline(x, s, np.maximum(si - d_probe, 0.0))
-        after = _interp_polyline(x, s, np.minimum(si + d_probe, s[-1]))
-        idx = np.arange(1, n - 1)
-    pc = x[idx]
-    a = pc - before
-    b = after - pc
-    turn = np.abs(np.arctan2(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0], (a * b).sum(axis=1)))
-    # a corner must also stand out of the chord between the probes by a visible amount
-    # (half of what a corner of exactly `angle` shows at full probe length), so curves
-    # that are small at the tolerance scale get no corners from their tiny wiggles
-    chord = after - before
-    clen = np.maximum(np.hypot(chord[:, 0], chord[:, 1]), 1e-300)
-    height = np.abs(chord[:, 0] * a[:, 1] - chord[:, 1] * a[:, 0]) / clen
-    hot = np.flatnonzero((turn > angle) & (height > 0.5 * d_probe * math.sin(0.5 * angle)))
-    if hot.size == 0:
-        return []
-    # one corner per cluster of hot points (closer than two probe lengths): its sharpest point
-    corners: list[int] = []
-    start = 0
-    for m in range(1, hot.size + 1):
-        if m == hot.size or si[hot[m]] - si[hot[m - 1]] > 2.0 * d_probe:
-            grp = hot[start:m]
-            corners.append(int(idx[grp[np.argmax(turn[grp])]]))
-            start = m
-    if closed and len(corners) > 1:
-        # the cluster may wrap around the start of the loop
-        total = float(s[-1])
-        first, last = corners[0], corners[-1]
-        if total - si[last] + si[first] <= 2.0 * d_probe:
-            keep = first if turn[first] >= turn[last] else last
-            corners = [c for c in corners if c not in (first, last)] + [keep]
-            corners.sort()
-    return corners
-
-
-# ---------------------------------------------------------------------------
 # public entry point
 
 
@@ -327,6 +204,7 @@ def fit_arcs(
     closed: bool = False,
     corner_angle_deg: float = DEFAULT_CORNER_ANGLE_DEG,
     max_radius: float | None = None,
+    reserve: float = 0.0,
 ) -> ArcChain:
     """Fit a tangent-continuous chain of arcs and lines to an ordered point curve.
 
@@ -353,13 +231,17 @@ def fit_arcs(
         Arcs of larger radius are not used (such pieces are lines or shorter
         arcs); ``None`` means no cap (lines are still preferred whenever a line
         fits).
+    reserve : float
+        Part of ``tolerance`` kept free for what follows the fit, in ``[0,
+        tolerance)``: the chain is fitted within ``tolerance - reserve`` (for a G-code
+        program within ``tolerance``: :func:`zwcore.arcs.gcode.rounding_budget`).
 
     Returns
     -------
     ArcChain
         Segments in input coordinates with the two-sided deviations measured by
-        dense sampling, the largest tangent kink at smooth junctions and the
-        corner junctions.
+        dense sampling, the largest tangent kink at smooth junctions and the corner
+        junctions (its ``tolerance`` is the one fitted to, ``tolerance - reserve``).
 
     Raises
     ------
@@ -367,133 +249,41 @@ def fit_arcs(
         Bad ``points`` (shape, non-finite, fewer than two distinct), or an
         option out of range.
     """
-    raw = _validate(points, tolerance, corner_angle_deg, max_radius)
-    tol = float(tolerance)
+    raw = validate(points, tolerance, corner_angle_deg, max_radius)
+    if not (isinstance(reserve, int | float) and 0.0 <= reserve < tolerance):
+        raise InvalidInputError(
+            "tolerance", f"must exceed the reserve {reserve:g} mm (the G-code rounding)")
+    tol = float(tolerance) - float(reserve)
     closed = bool(closed)
-    if len(raw) < 2:
-        raise InvalidInputError("points", "need at least two points")
-    origin = raw[0].copy()
-    # work relative to the first point so large coordinates keep their precision
-    x = raw - origin
-    # points a few ulps of the *absolute* coordinates apart are one point: arcs built
-    # between them would not survive the shift back to input coordinates
-    scale = max(float(np.abs(x).max()), float(np.abs(raw).max()))
-    eps = max(1e-9 * tol, 1e-14 * scale)
-    x_all = x
-    x = _dedupe(x, closed, eps)
-    if len(x) < 2:
-        # A curve of measurable size merged only by the tolerance term: the tolerance
-        # is what is out of scale, not the points.
-        span = float(np.ptp(x_all, axis=0).max())
-        if span >= MIN_CURVE_SPAN and len(_dedupe(x_all, closed, 1e-14 * scale)) >= 2:
-            raise InvalidInputError(
-                "tolerance", f"{tol:g} mm is too large for this curve: all its points lie "
-                f"within {1e-9 * tol:g} mm (1e-9 tolerances) of each other")
-        raise InvalidInputError("points", "fewer than two distinct points")
-    corners_in = _find_corners(x, closed, tol, math.radians(corner_angle_deg))
-    poly = np.vstack([x, x[:1]]) if closed else x
-    # densify long polyline segments so junctions can sit between sparse input points
-    seg = np.hypot(*(np.diff(poly, axis=0).T))
-    nsub = np.maximum(np.ceil(seg / (6.0 * tol)).astype(np.int64), 1)
-    samples = densify(poly, 6.0 * tol) if np.any(nsub > 1) else poly
-    sample_of_input = np.concatenate([[0], np.cumsum(nsub)])
-    m_last = len(samples) - 1
-    cs = [int(sample_of_input[c]) for c in corners_in]
-    # a closed curve with corners, whose first point is not one of them, wraps: the run
-    # from the last corner round to the first one passes the first point with a smooth
-    # junction there (the chain starts and ends at the first point)
-    wrap = closed and bool(cs) and cs[0] != 0
-    if closed and cs and not wrap:
-        bounds = [*cs, m_last]
-    elif closed and not cs:
-        bounds = [0, m_last]
-    else:
-        bounds = [0, *cs, m_last]
-    loop = closed and not cs
-
-    def assemble(bridge: bool) -> tuple[list[Piece], list[int], list[int]]:
-        def mk(work: float, anchors: list[Anchor]) -> Fitter:
-            f = Fitter(samples, tol, work, max_radius)
-            f.use_bridge = bridge
-            if anchors:
-                f.straight = StraightRuns(f.band, anchors)
-            return f
-
-        def fit_beam(
-            a: int, b: int, t_start: FloatArray | None, anchors: list[Anchor]
-        ) -> tuple[list[Piece], list[int]]:
-            for work in (0.95, 0.8, 0.6, 0.4):
-                try:
-                    return mk(work, anchors).run(a, b, loop, allow_forced=False,
-                                                 t_start=t_start)
-                except Stuck:
-                    continue
-            # the beam with a filleted-polyline fallback wherever it is stuck: never fails
-            return mk(0.9, anchors).run(a, b, loop, allow_forced=True, t_start=t_start)
-
-        def fit_run(a: int, b: int, t_start: FloatArray | None) -> tuple[list[Piece], list[int]]:
-            # arcs over straight runs (the tangent missed the run) are refitted with those
-            # runs as anchors the chain follows with lines (zwcore.arcs._lines)
-            return refit_along_straight_runs(
-                lambda anchors: fit_beam(a, b, t_start, anchors), samples, a, b, tol,
-                pin_start=t_start is None and not loop, pin_end=not loop,
-                band=mk(0.95, []).band)
-
-        n_runs = len(bounds) - 1
-        results: list[tuple[list[Piece], list[int]] | None] = [None] * n_runs
-        if wrap:
-            last_run = fit_run(bounds[-2], bounds[-1], None)
-            results[-1] = last_run
-            results[0] = fit_run(bounds[0], bounds[1], last_run[0][-1].t_end)
-        for r in range(n_runs):
-            if results[r] is None:
-                results[r] = fit_run(bounds[r], bounds[r + 1], None)
-        pieces: list[Piece] = []
-        corner_j: list[int] = []
-        forced_j: list[int] = []
-        for r, got in enumerate(results):
-            assert got is not None
-            run_pieces, run_forced = got
-            base = len(pieces)
-            forced_j.extend(-1 if f == -1 else base + f for f in run_forced)
-            pieces.extend(run_pieces)
-            if r < n_runs - 1 or (closed and cs and not wrap):
-                corner_j.append(len(pieces) - 1)
-        return pieces, corner_j, forced_j
-
-    pieces, corner_j, forced_j = assemble(True)
+    prep = prepare(raw, tol, closed, corner_angle_deg)
+    samples = prep.samples
+    pieces, corner_j, forced_j, closed_form = assemble(prep, max_radius, True)
     dev_p, dev_c = deviations(samples, pieces, tol)
     lim = tol * (1.0 + 1e-12)
     # (written so that a NaN figure counts as a failure: ``max`` would let it through)
     if not (dev_p <= lim and dev_c <= lim):
         # safety net: a bridged chain that the dense measurement rejects is refitted
         # without bridges (forced corners instead, never a tolerance violation)
-        pieces, corner_j, forced_j = assemble(False)
+        pieces, corner_j, forced_j, closed_form = assemble(prep, max_radius, False)
         dev_p, dev_c = deviations(samples, pieces, tol)
-    if loop and len(pieces) > 2 and m_last <= LOOP_SWEEP_MAX_SAMPLES:
-        # The first point is a junction with a free tangent that the closing biarc must
-        # meet again; the count depends on that tangent in a way no local rule predicts
-        # (the closure lands at a good or a bad place), so a few separate fits from
-        # turned start tangents are tried and the shortest valid chain is kept.
-        fz = Fitter(samples, tol, 0.95, max_radius)
-        t0, _ = free_start(fz.band, samples[0].copy(), 0, m_last)
-        for d in LOOP_START_TURNS:
-            tt = rotate(t0, d)
-            try:
-                alt, _ = Fitter(samples, tol, 0.95, max_radius).run(
-                    0, m_last, True, allow_forced=False, t_start=tt)
-            except Stuck:
-                continue
-            if len(alt) >= len(pieces):
-                continue
-            ap, ac = deviations(samples, alt, tol)
-            if ap <= lim and ac <= lim:
-                pieces, dev_p, dev_c = alt, ap, ac
-                corner_j, forced_j = [], []
+    # (a closed-form loop, a filleted polygon, has no start tangent to sweep)
+    if (prep.loop and not closed_form and len(pieces) > 2
+            and prep.m_last <= LOOP_SWEEP_MAX_SAMPLES):
+        swept = sweep_loop_start(prep, max_radius, pieces, lim)
+        if swept is not None:
+            pieces, dev_p, dev_c = swept
+            corner_j, forced_j = [], []
     n_seg = len(pieces)
     forced_j = [n_seg - 1 if f == -1 else f for f in forced_j]
     all_corners = sorted(set(corner_j) | set(forced_j))
+    return _chain_of(pieces, prep.origin, closed, all_corners, forced_j, dev_p, dev_c, tol)
 
+
+def _chain_of(
+    pieces: list[Piece], origin: FloatArray, closed: bool, all_corners: list[int],
+    forced_j: list[int], dev_p: float, dev_c: float, tol: float,
+) -> ArcChain:
+    """The :class:`ArcChain` of the fitted pieces (local frame about ``origin``)."""
     segments = tuple(_to_segment(pc, origin) for pc in pieces)
     if closed:
         # the loop closes exactly on its first point

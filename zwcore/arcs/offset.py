@@ -197,70 +197,8 @@ def offset_chain(chain: ArcChain, distance: float) -> OffsetResult:
     n = len(segs)
     if d == 0.0 or n == 0:
         return OffsetResult(chain, (), ())
-    corner_set = set(chain.corners)
-    out: list[Segment] = []
-    kinds: list[str] = []  # "seg", "conn" (vanished arc), "round"
-    vanished: list[int] = []
-    src: list[int] = []
-    for i, seg in enumerate(segs):
-        off, s, e = _offset_segment(seg, d)
-        if off is None:
-            vanished.append(i)
-            out.append(Segment("line", s, e))
-            kinds.append("conn")
-        else:
-            out.append(off)
-            kinds.append("seg")
-        src.append(i)
-    # corners of the input: round the outside, trim the inside
-    result: list[Segment] = []
-    rkinds: list[str] = []
-    rsrc: list[int] = []  # input segment of each result segment (-1: rounding arc)
-    n_j = n if chain.closed else n - 1
-    pending_start: dict[int, _Pt] = {}
-    for i in range(n):
-        cur = out[i]
-        if i in pending_start:
-            cur = _with_start(cur, pending_start.pop(i))
-        result.append(cur)
-        rkinds.append(kinds[i])
-        rsrc.append(i)
-        if i >= n_j or i not in corner_set:
-            continue
-        nxt_i = (i + 1) % n
-        a_end = cur.end
-        b_start = out[nxt_i].start
-        if math.hypot(a_end[0] - b_start[0], a_end[1] - b_start[1]) <= 1e-12 * max(1.0, abs(d)):
-            continue
-        ta = segs[i].end_tangent()
-        tb = segs[nxt_i].start_tangent()
-        turn = ta[0] * tb[1] - ta[1] * tb[0]
-        # offset to the left and the path turning right (or vice versa): outer corner
-        outer = (turn < 0) == (d > 0)
-        corner_pt = segs[i].end
-        if outer:
-            result.append(_arc_from(corner_pt, abs(d), a_end, b_start, d < 0, 0.0))
-            rkinds.append("round")
-            rsrc.append(-1)
-        else:
-            cands = _intersections(cur, out[nxt_i])
-            if cands:
-                x = min(cands, key=lambda q: math.hypot(q[0] - a_end[0], q[1] - a_end[1])
-                        + math.hypot(q[0] - b_start[0], q[1] - b_start[1]))
-                result[-1] = _with_end(cur, x)
-                if nxt_i == 0:
-                    result[0] = _with_start(result[0], x)
-                else:
-                    pending_start[nxt_i] = x
-            else:
-                result.append(Segment("line", a_end, b_start))
-                rkinds.append("conn")
-                rsrc.append(-1)
-    if chain.closed and result:
-        # the first segment may have been trimmed at its start after the loop went round
-        last = result[-1]
-        if last.end != result[0].start:
-            result[-1] = _with_end(last, result[0].start)
+    out, kinds, vanished = _offset_all(segs, d)
+    result, rkinds, rsrc = _join_corners(chain, out, kinds, d)
     m = len(result)
     mj = m if chain.closed else m - 1
     kinks = chain_tangents(result, chain.closed)
@@ -284,6 +222,82 @@ def offset_chain(chain: ArcChain, distance: float) -> OffsetResult:
         if kind == "seg" and _runs_backwards(seg, segs[i], out[i]):
             reversed_.append(i)
     return OffsetResult(off_chain, tuple(vanished), tuple(sorted(set(reversed_))))
+
+
+def _offset_all(segs: tuple[Segment, ...], d: float) -> tuple[list[Segment], list[str], list[int]]:
+    """Every segment offset: the segments (a vanished arc's straight connector in its
+    place), their kinds (``"seg"``, ``"conn"``) and the vanished arcs' indices."""
+    out: list[Segment] = []
+    kinds: list[str] = []
+    vanished: list[int] = []
+    for i, seg in enumerate(segs):
+        off, s, e = _offset_segment(seg, d)
+        if off is None:
+            vanished.append(i)
+            out.append(Segment("line", s, e))
+            kinds.append("conn")
+        else:
+            out.append(off)
+            kinds.append("seg")
+    return out, kinds, vanished
+
+
+def _join_corners(
+    chain: ArcChain, out: list[Segment], kinds: list[str], d: float
+) -> tuple[list[Segment], list[str], list[int]]:
+    """The offset segments ``out`` joined at the input's corners: the outside rounded,
+    the inside trimmed. Returns the segments, their kinds (``"seg"``, ``"conn"``,
+    ``"round"``) and their input segment (-1: rounding arc or connector)."""
+    segs = chain.segments
+    n = len(segs)
+    corner_set = set(chain.corners)
+    result: list[Segment] = []
+    rkinds: list[str] = []
+    rsrc: list[int] = []
+    n_j = n if chain.closed else n - 1
+    pending_start: dict[int, _Pt] = {}
+    for i in range(n):
+        cur = out[i]
+        if i in pending_start:
+            cur = _with_start(cur, pending_start.pop(i))
+        result.append(cur)
+        rkinds.append(kinds[i])
+        rsrc.append(i)
+        if i >= n_j or i not in corner_set:
+            continue
+        nxt_i = (i + 1) % n
+        a_end = cur.end
+        b_start = out[nxt_i].start
+        if math.hypot(a_end[0] - b_start[0], a_end[1] - b_start[1]) <= 1e-12 * max(1.0, abs(d)):
+            continue
+        ta = segs[i].end_tangent()
+        tb = segs[nxt_i].start_tangent()
+        turn = ta[0] * tb[1] - ta[1] * tb[0]
+        # offset to the left and the path turning right (or vice versa): outer corner
+        if (turn < 0) == (d > 0):
+            result.append(_arc_from(segs[i].end, abs(d), a_end, b_start, d < 0, 0.0))
+            rkinds.append("round")
+            rsrc.append(-1)
+            continue
+        cands = _intersections(cur, out[nxt_i])
+        if cands:
+            x = min(cands, key=lambda q: math.hypot(q[0] - a_end[0], q[1] - a_end[1])
+                    + math.hypot(q[0] - b_start[0], q[1] - b_start[1]))
+            result[-1] = _with_end(cur, x)
+            if nxt_i == 0:
+                result[0] = _with_start(result[0], x)
+            else:
+                pending_start[nxt_i] = x
+        else:
+            result.append(Segment("line", a_end, b_start))
+            rkinds.append("conn")
+            rsrc.append(-1)
+    if chain.closed and result:
+        # the first segment may have been trimmed at its start after the loop went round
+        last = result[-1]
+        if last.end != result[0].start:
+            result[-1] = _with_end(last, result[0].start)
+    return result, rkinds, rsrc
 
 
 def _runs_backwards(seg: Segment, orig: Segment, untrimmed: Segment) -> bool:

@@ -102,9 +102,12 @@ def deviations(samples: FloatArray, pieces: Sequence[Piece], tol: float) -> tupl
             best = np.minimum(best, point_to_arc_distance(dpoly[hot], pc.p, pc.t, pc.kappa,
                                                           pc.length))
         d_p[hot] = best
-    # chain -> polyline
+    # chain -> polyline (segment figures gathered from 1-D arrays: gathering rows of
+    # the (M, 2) arrays per offset costs more than the arithmetic)
     d_c_max = 0.0
-    a_all, b_all = samples[:-1], samples[1:]
+    ax, ay = samples[:-1, 0].copy(), samples[:-1, 1].copy()
+    abx, aby = samples[1:, 0] - ax, samples[1:, 1] - ay
+    den_all = np.maximum(abx * abx + aby * aby, 1e-300)
     for pc in pieces:
         cpts, sig = _piece_points(pc, step)
         k, j = max(pc.k, 0), min(pc.j, nseg)
@@ -114,13 +117,13 @@ def deviations(samples: FloatArray, pieces: Sequence[Piece], tol: float) -> tupl
             foot = np.maximum.accumulate(_foot_positions(pc, samples[k : j + 1]))
             m = k + np.searchsorted(foot, sig, side="right") - 1
             d = np.full(len(cpts), np.inf)
+            cx, cy = cpts[:, 0], cpts[:, 1]
             for off in range(-3, 4):
                 s = np.clip(m + off, 0, nseg - 1)
-                ab = b_all[s] - a_all[s]
-                den = np.maximum((ab * ab).sum(axis=1), 1e-300)
-                ap = cpts - a_all[s]
-                f = np.clip((ap * ab).sum(axis=1) / den, 0.0, 1.0)
-                np.minimum(d, np.hypot(*(ap - f[:, None] * ab).T), out=d)
+                sx, sy = abx[s], aby[s]
+                apx, apy = cx - ax[s], cy - ay[s]
+                f = np.clip((apx * sx + apy * sy) / den_all[s], 0.0, 1.0)
+                np.minimum(d, np.hypot(apx - f * sx, apy - f * sy), out=d)
             hotc = np.flatnonzero(d > tol)
             if hotc.size:
                 d[hotc] = _dist_all_segments(cpts[hotc], samples)

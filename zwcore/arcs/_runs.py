@@ -1,0 +1,141 @@
+"""The runs of a curve (between corners) fitted one by one and joined into one chain
+(steps 2-6 of :mod:`zwcore.arcs.fit`), and the start-tangent sweep of loops."""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from zwcore.arcs._anchors import StraightRuns
+from zwcore.arcs._geometry import rotate
+from zwcore.arcs._lines import refit_along_straight_runs
+from zwcore.arcs._pieces import Piece, ToleranceBand
+from zwcore.arcs._polygon import polygon_run
+from zwcore.arcs._prepare import Prepared
+from zwcore.arcs._search import Fitter, Stuck
+from zwcore.arcs._start import free_start
+from zwcore.arcs._straight import Anchor
+from zwcore.arcs.verify import deviations
+
+FloatArray = NDArray[np.float64]
+
+__all__ = ["LOOP_START_TURNS", "LOOP_SWEEP_MAX_SAMPLES", "assemble", "sweep_loop_start"]
+
+#: Turns (radians) of the start tangent tried for a corner-free closed curve.
+LOOP_START_TURNS = (-0.015, 0.015, -0.03, 0.03, -0.05, 0.05, -0.07, 0.07)
+#: Loops with more samples than this are fitted from one start tangent only (time).
+LOOP_SWEEP_MAX_SAMPLES = 5_000
+
+RunFit = tuple[list[Piece], list[int]]
+
+
+class _RunFitter:
+    """Fits one run of ``prep`` (samples ``a..b``) with the beam, its retries, its
+    fallback and the refit along straight runs."""
+
+    def __init__(self, prep: Prepared, max_radius: float | None, bridge: bool) -> None:
+        self.prep = prep
+        self.max_radius = max_radius
+        self.bridge = bridge
+        #: runs fitted in closed form (:mod:`zwcore.arcs._polygon`); off: the beam only
+        self.closed_form = bridge and max_radius is None
+        #: every run so far was fitted in closed form
+        self.all_closed_form = True
+        self._band: ToleranceBand | None = None
+
+    def fitter(self, work: float, anchors: list[Anchor]) -> Fitter:
+        f = Fitter(self.prep.samples, self.prep.tol, work, self.max_radius)
+        f.use_bridge = self.bridge
+        if anchors:
+            f.straight = StraightRuns(f.band, anchors)
+        return f
+
+    def beam(self, a: int, b: int, t_start: FloatArray | None, anchors: list[Anchor]) -> RunFit:
+        loop = self.prep.loop
+        for work in (0.95, 0.8, 0.6, 0.4):
+            try:
+                return self.fitter(work, anchors).run(a, b, loop, allow_forced=False,
+                                                      t_start=t_start)
+            except Stuck:
+                continue
+        # the beam with a filleted-polyline fallback wherever it is stuck: never fails
+        return self.fitter(0.9, anchors).run(a, b, loop, allow_forced=True, t_start=t_start)
+
+    def run(self, a: int, b: int, t_start: FloatArray | None) -> RunFit:
+        loop = self.prep.loop
+        if self._band is None:
+            self._band = self.fitter(0.95, []).band
+        if self.closed_form and t_start is None:
+            # a coarse polygon: the filleted polygon (checked densely by fit_arcs; the
+            # refit without closed forms uses the beam)
+            got = polygon_run(self._band, a, b, loop)
+            if got is not None:
+                return got, []
+        self.all_closed_form = False
+        # arcs over straight runs (the tangent missed the run) are refitted with those
+        # runs as anchors the chain follows with lines (zwcore.arcs._lines)
+        return refit_along_straight_runs(
+            lambda anchors: self.beam(a, b, t_start, anchors), self.prep.samples, a, b,
+            self.prep.tol, pin_start=t_start is None and not loop, pin_end=not loop,
+            band=self._band)
+
+
+def assemble(
+    prep: Prepared, max_radius: float | None, bridge: bool
+) -> tuple[list[Piece], list[int], list[int], bool]:
+    """Every run fitted and joined: the pieces, the corner junctions, the forced corners
+    (``-1``: the closing junction) and whether every run was a closed form.
+    ``bridge``: allow biarc bridges and closed forms (off: the beam only)."""
+    fit = _RunFitter(prep, max_radius, bridge)
+    bounds = prep.bounds
+    n_runs = len(bounds) - 1
+    results: list[RunFit | None] = [None] * n_runs
+    if prep.wrap:
+        last_run = fit.run(bounds[-2], bounds[-1], None)
+        results[-1] = last_run
+        results[0] = fit.run(bounds[0], bounds[1], last_run[0][-1].t_end)
+    for r in range(n_runs):
+        if results[r] is None:
+            results[r] = fit.run(bounds[r], bounds[r + 1], None)
+    pieces: list[Piece] = []
+    corner_j: list[int] = []
+    forced_j: list[int] = []
+    for r, got in enumerate(results):
+        assert got is not None
+        run_pieces, run_forced = got
+        base = len(pieces)
+        forced_j.extend(-1 if f == -1 else base + f for f in run_forced)
+        pieces.extend(run_pieces)
+        if r < n_runs - 1 or (prep.closed and prep.cs and not prep.wrap):
+            corner_j.append(len(pieces) - 1)
+    return pieces, corner_j, forced_j, fit.all_closed_form
+
+
+def sweep_loop_start(
+    prep: Prepared, max_radius: float | None, pieces: list[Piece], lim: float
+) -> tuple[list[Piece], float, float] | None:
+    """A shorter valid chain of a loop from a turned start tangent, or None.
+
+    The first point is a junction with a free tangent that the closing biarc must meet
+    again; the count depends on that tangent in a way no local rule predicts (the
+    closure lands at a good or a bad place), so a few separate fits from turned start
+    tangents (:data:`LOOP_START_TURNS`) are tried; returns the shortest with its two
+    deviations (each at most ``lim``) when it is shorter than ``pieces``.
+    """
+    samples, tol, m_last = prep.samples, prep.tol, prep.m_last
+    fz = Fitter(samples, tol, 0.95, max_radius)
+    t0, _ = free_start(fz.band, samples[0].copy(), 0, m_last)
+    best: tuple[list[Piece], float, float] | None = None
+    for d in LOOP_START_TURNS:
+        tt = rotate(t0, d)
+        try:
+            alt, _ = Fitter(samples, tol, 0.95, max_radius).run(
+                0, m_last, True, allow_forced=False, t_start=tt)
+        except Stuck:
+            continue
+        if len(alt) >= len(pieces if best is None else best[0]):
+            continue
+        ap, ac = deviations(samples, alt, tol)
+        if ap <= lim and ac <= lim:
+            best = (alt, ap, ac)
+    return best
