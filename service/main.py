@@ -78,7 +78,10 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         app.state.store = open_store(settings.cache_url, settings.data_dir,
                                      settings.cache_max_bytes, settings.cache_ttl_seconds)
         app.state.pool = ComputePool(settings.workers, settings.max_pending,
-                                     settings.process_workers)
+                                     settings.process_workers,
+                                     timeout=settings.compute_timeout_seconds,
+                                     memory_budget=settings.memory_budget_bytes,
+                                     memory_wait=settings.memory_wait_seconds)
         try:
             yield
         finally:
