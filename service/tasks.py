@@ -14,11 +14,12 @@ import anyio
 import numpy as np
 import orjson
 from fastapi import Request, Response
+from fastapi.responses import StreamingResponse
 
 from service import metrics
 from service.compute import ComputePool
-from service.grids import render_grids
 from service.hashing import task_id as make_task_id
+from service.render import stream_body
 from service.store import TaskStore
 
 JSON = "application/json"
@@ -41,10 +42,20 @@ def not_modified(request: Request, tid: str, stored: bool) -> bool:
     return False
 
 
-def respond(body: bytes, tid: str, encoding: str, cache: str) -> Response:
+#: Results up to this size are rendered in one piece (in a worker thread).
+STREAM_ABOVE_BYTES = 1 << 20
+
+
+async def respond(body: bytes, tid: str, encoding: str, cache: str) -> Response:
+    """The stored body for this client: grids rendered off the event loop, and large
+    results streamed (see :mod:`service.render`)."""
+    headers = {"ETag": _etag(tid), "X-Cache": cache}
+    if len(body) > STREAM_ABOVE_BYTES:
+        return StreamingResponse(stream_body(body, encoding), media_type=JSON, headers=headers)
     if encoding != "float64" and b'"z_b64"' in body:
-        body = orjson.dumps(render_grids(orjson.loads(body), encoding))
-    return Response(body, media_type=JSON, headers={"ETag": _etag(tid), "X-Cache": cache})
+        body = await anyio.to_thread.run_sync(
+            lambda: b"".join(stream_body(body, encoding)))
+    return Response(body, media_type=JSON, headers=headers)
 
 
 def encode_result(tid: str, operation: str, compute: Callable[..., dict[str, Any]],
@@ -84,7 +95,7 @@ async def serve_task(request: Request, store: TaskStore, pool: ComputePool, *, o
     if body is not None:
         metrics.CACHE.labels(label, "hit").inc()
         request.state.cache = "hit"
-        return respond(body, tid, encoding, "hit")
+        return await respond(body, tid, encoding, "hit")
 
     (result, compute_ms), shared = await pool.run_once(
         tid, label, encode_result, tid, operation, compute, args, in_process=in_process)
@@ -94,4 +105,4 @@ async def serve_task(request: Request, store: TaskStore, pool: ComputePool, *, o
     request.state.cache = outcome
     if not shared:
         await anyio.to_thread.run_sync(store.put, tid, result)
-    return respond(result, tid, encoding, outcome)
+    return await respond(result, tid, encoding, outcome)

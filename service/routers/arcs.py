@@ -29,7 +29,7 @@ from zwcore.arcs.gcode import to_gcode
 from zwcore.arcs.offset import offset_chain
 from zwcore.errors import InvalidInputError, LimitExceededError
 
-router = APIRouter(prefix="/v1", tags=["arcs"])
+router = APIRouter(prefix="/v1", tags=["arcs"], route_class=OffLoopRoute)
 
 
 def _segment(s: Segment) -> dict[str, Any]:

@@ -34,4 +34,4 @@ async def get_task(
                       kind="unknown-task", errors=[{"field": "task_id", "reason": "unknown"}])
     request.state.task_id = task_id
     request.state.cache = "hit"
-    return respond(body, task_id, grid_encoding, "hit")
+    return await respond(body, task_id, grid_encoding, "hit")
