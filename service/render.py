@@ -22,7 +22,7 @@ from service.grids import render_grids
 #: Bytes per piece of a stored body sent as it is.
 CHUNK_BYTES = 1 << 20
 #: Heights per piece of a grid sent as rows.
-ROW_BLOCK_VALUES = 1 << 18
+ROW_BLOCK_VALUES = 1 << 16
 _MARK = "\u0000zw-grid-{}\u0000"
 
 
