@@ -22,6 +22,8 @@ from fastapi.routing import APIRoute
 from starlette.requests import Request
 from starlette.responses import Response
 
+_UNPARSED = object()
+
 
 def _is_json(content_type: str | None) -> bool:
     if not content_type:
@@ -47,6 +49,8 @@ def _parse_and_validate(field: Any, body: bytes) -> tuple[Any, list[Any]]:
             return None, [{"type": "json_invalid", "loc": ("body", exc.pos),
                            "msg": "JSON decode error", "input": {},
                            "ctx": {"error": exc.msg}}]
+        except ValueError:  # not UTF-8 at all: FastAPI's own answer, on the loop (fast)
+            return _UNPARSED, []
     validated, errors = field.validate(value, {}, loc=("body",))
     return validated, list(errors or [])
 
@@ -66,9 +70,10 @@ class OffLoopRoute(APIRoute):
                         _parse_and_validate, field, body)
                     if errors:
                         raise RequestValidationError(errors, body=None)
-                    # Starlette's Request.json() returns this cached value; FastAPI
-                    # then takes the model instance as it is.
-                    request._json = value
+                    if value is not _UNPARSED:
+                        # Starlette's Request.json() returns this cached value; FastAPI
+                        # then takes the model instance as it is.
+                        request._json = value
             return await handler(request)
 
         return route

@@ -13,7 +13,7 @@ from pydantic import BaseModel
 from pydantic.json_schema import models_json_schema
 
 import zwcore
-from service import problems
+from service import asynctasks, problems
 from service.compute import ComputePool
 from service.middleware import JsonFormatter, ServiceMiddleware
 from service.routers import (
@@ -85,6 +85,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         try:
             yield
         finally:
+            asynctasks.cancel_all()
             app.state.pool.shutdown()
             app.state.store.close()
 

@@ -5,8 +5,10 @@ from __future__ import annotations
 from typing import Any
 
 from service.schemas.common import ProblemDetails
+from service.schemas.tasks import TaskStatus
 
 _TEXT = {
+    202: "Accepted (Prefer: respond-async): computing in the background; poll Location",
     304: "Not modified: If-None-Match named this task",
     400: "Malformed JSON body",
     401: "Missing API key",
@@ -27,6 +29,11 @@ def responses(*extra: int) -> dict[int | str, dict[str, Any]]:
     for code in codes:
         if code == 304:
             out[code] = {"description": _TEXT[code]}
+            continue
+        if code == 202:
+            out[code] = {"description": _TEXT[code], "model": TaskStatus,
+                         "headers": {"Location": {"description": "/v1/tasks/{task_id}",
+                                                  "schema": {"type": "string"}}}}
             continue
         out[code] = {"description": _TEXT.get(code, "Error"), "model": ProblemDetails,
                      "content": {"application/problem+json": {}}}

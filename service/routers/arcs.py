@@ -29,6 +29,9 @@ from zwcore.arcs.gcode import to_gcode
 from zwcore.arcs.offset import offset_chain
 from zwcore.errors import InvalidInputError, LimitExceededError
 
+#: Estimated peak memory per point (a worker process's fit and its dense check).
+ARC_POINT_BYTES = 4096
+
 router = APIRouter(prefix="/v1", tags=["arcs"], route_class=OffLoopRoute)
 
 
