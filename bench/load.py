@@ -67,7 +67,7 @@ def _surface(rng: random.Random, ny: int, nx: int) -> list[list[float]]:
     return rows
 
 
-LARGE_SHARE = 0.03
+LARGE_SHARE = 0.1
 COARSE_SHARE = 0.3
 LARGE_N = 2048
 

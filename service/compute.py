@@ -190,6 +190,31 @@ class MemoryBudget:
 
 #: A computation estimated to need this much is followed by a malloc_trim.
 TRIM_AFTER_BYTES = 64 << 20
+#: Seconds between the idle trimmer's looks.
+TRIM_PERIOD_SECONDS = 1.0
+_large_work_ended = 0.0  # monotonic time the last large computation or response ended
+
+
+def want_trim() -> None:
+    """Note that large buffers were just freed (a computation, a streamed response)."""
+    global _large_work_ended
+    _large_work_ended = time.monotonic()
+
+
+async def trim_when_idle(pool: ComputePool) -> None:
+    """Trim the heap once the server is quiet after large work.
+
+    The trim right after a computation runs while its result and the response
+    being rendered are still alive; this one runs when nothing computes any more,
+    after those are gone too (a long-running task of the app's lifespan).
+    """
+    trimmed = 0.0
+    while True:
+        await asyncio.sleep(TRIM_PERIOD_SECONDS)
+        ended = _large_work_ended
+        if ended > trimmed and pool.busy == 0 and time.monotonic() - ended >= 0.5:
+            trimmed = ended
+            await asyncio.to_thread(malloc_trim)
 
 
 class ComputePool:
@@ -197,7 +222,7 @@ class ComputePool:
     that work in the threads too) for Python-bound work, each with its own capacity."""
 
     def __init__(self, workers: int, max_pending: int, processes: int = 0, *,
-                 timeout: float = 300.0, memory_budget: int = 1 << 62,
+                 timeout: float = 120.0, memory_budget: int = 1 << 62,
                  memory_wait: float = 10.0) -> None:
         self.workers = workers
         self.processes = processes
@@ -275,6 +300,7 @@ class ComputePool:
             self._release(kind)
             if memory >= TRIM_AFTER_BYTES:
                 malloc_trim()
+                want_trim()
             with contextlib.suppress(RuntimeError):  # the loop is gone: nobody waits
                 loop.call_soon_threadsafe(
                     lambda: asyncio.ensure_future(self.memory.release(memory)))

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import asyncio
 import logging
 import sys
 from collections.abc import AsyncIterator
@@ -14,7 +15,7 @@ from pydantic.json_schema import models_json_schema
 
 import zwcore
 from service import asynctasks, problems
-from service.compute import ComputePool
+from service.compute import ComputePool, trim_when_idle
 from service.middleware import JsonFormatter, ServiceMiddleware
 from service.routers import (
     arcs,
@@ -82,9 +83,11 @@ def create_app(settings: Settings | None = None) -> FastAPI:
                                      timeout=settings.compute_timeout_seconds,
                                      memory_budget=settings.memory_budget_bytes,
                                      memory_wait=settings.memory_wait_seconds)
+        trimmer = asyncio.ensure_future(trim_when_idle(app.state.pool))
         try:
             yield
         finally:
+            trimmer.cancel()
             asynctasks.cancel_all()
             app.state.pool.shutdown()
             app.state.store.close()

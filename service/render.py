@@ -17,6 +17,7 @@ import numpy as np
 import orjson
 import pybase64
 
+from service.compute import TRIM_AFTER_BYTES, want_trim
 from service.grids import render_grids
 
 #: Bytes per piece of a stored body sent as it is.
@@ -59,20 +60,25 @@ def _rows(grid: dict[str, Any]) -> Iterator[bytes]:
 
 def stream_body(body: bytes, encoding: str) -> Iterator[bytes]:
     """The JSON of a stored result for a client that wants ``encoding`` grids."""
-    if encoding == "float64" or b'"z_b64"' not in body:
-        view = memoryview(body)
-        for a in range(0, len(body), CHUNK_BYTES):
-            yield bytes(view[a:a + CHUNK_BYTES])
-        return
-    grids: list[dict[str, Any]] = []
-    skeleton = orjson.dumps(_skeleton(orjson.loads(body), grids))
-    del body
-    for index, grid in enumerate(grids):
-        before, skeleton = skeleton.split(orjson.dumps(_MARK.format(index)), 1)
-        yield before
-        if encoding == "rows":
-            yield from _rows(grid)
-        else:
-            yield orjson.dumps(render_grids(grid, encoding))
-        grids[index] = {}  # its heights are sent: let them go
-    yield skeleton
+    large = len(body) >= TRIM_AFTER_BYTES
+    try:
+        if encoding == "float64" or b'"z_b64"' not in body:
+            view = memoryview(body)
+            for a in range(0, len(body), CHUNK_BYTES):
+                yield bytes(view[a:a + CHUNK_BYTES])
+            return
+        grids: list[dict[str, Any]] = []
+        skeleton = orjson.dumps(_skeleton(orjson.loads(body), grids))
+        del body
+        for index, grid in enumerate(grids):
+            before, skeleton = skeleton.split(orjson.dumps(_MARK.format(index)), 1)
+            yield before
+            if encoding == "rows":
+                yield from _rows(grid)
+            else:
+                yield orjson.dumps(render_grids(grid, encoding))
+            grids[index] = {}  # its heights are sent: let them go
+        yield skeleton
+    finally:
+        if large:
+            want_trim()  # the rendering's buffers are freed: the idle trimmer may run

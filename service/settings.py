@@ -115,11 +115,11 @@ class Settings(BaseSettings):
                              description="Computations queued beyond the pool before shedding.")
     log_level: str = Field("INFO", description="Python logging level.")
     compute_timeout_seconds: float = Field(
-        300.0, gt=0, description="Deadline of one computation, from when it starts: past it "
+        120.0, gt=0, description="Deadline of one computation, from when it starts: past it "
         "the work is stopped (a worker process is terminated and replaced, a thread gets an "
         "exception at its next Python step), its worker freed, and the request answered 503 "
-        "(an asynchronous task: failed). 300 s is ten times the largest grid plan the "
-        "default limits allow on one core.")
+        "(an asynchronous task: failed). 120 s: several times the largest grid plan the "
+        "default limits allow, and within common HTTP client timeouts.")
     memory_budget_bytes: int = Field(
         default_factory=_memory_budget, gt=0, description="Estimated peak memory that the "
         "running computations may add up to (default: 75 % of the cgroup memory limit, or "

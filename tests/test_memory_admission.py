@@ -13,8 +13,10 @@ import pytest
 
 from service.routers import mrr as mrr_router
 from tests.conftest import make_client
-from tests.test_observability import gated  # noqa: F401 - the fixture
-from tests.test_observability import grid
+from tests.test_observability import (
+    gated,  # noqa: F401 - the fixture
+    grid,
+)
 
 PROBLEM = "application/problem+json"
 
