@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import email.message
 import json
-from collections.abc import Awaitable, Callable
+from collections.abc import Callable, Coroutine
 from typing import Any
 
 import anyio
@@ -58,7 +58,7 @@ def _parse_and_validate(field: Any, body: bytes) -> tuple[Any, list[Any]]:
 class OffLoopRoute(APIRoute):
     """An API route whose JSON body is parsed and validated in a worker thread."""
 
-    def get_route_handler(self) -> Callable[[Request], Awaitable[Response]]:
+    def get_route_handler(self) -> Callable[[Request], Coroutine[Any, Any, Response]]:
         handler = super().get_route_handler()
         field = self.body_field
 

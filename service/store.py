@@ -33,9 +33,14 @@ class TaskStore(Protocol):
     def close(self) -> None: ...
 
 
-#: Room kept for SQLite's own growth while one entry is written (its row, index
-#: pages, the write-ahead log), so the bound holds for the whole directory.
-SQLITE_SLACK_BYTES = 256 << 10
+#: SQLite's write-ahead log is checkpointed every this many pages and cut back to
+#: at most WAL_BYTES after each checkpoint; reads write too (access times).
+WAL_PAGES = 256
+WAL_BYTES = WAL_PAGES * 4096
+#: Room kept for SQLite's own files beyond its database pages (the log at its
+#: largest, the shared-memory index, one transaction's growth), so the bound
+#: holds for the whole directory whatever reads happen between writes.
+SQLITE_RESERVE_BYTES = WAL_BYTES + (32 << 10) + (256 << 10)
 
 
 def directory_bytes(directory: Path) -> int:
@@ -76,11 +81,11 @@ class DiskStore:
         self._lock = threading.Lock()
         self._lock_file = directory / "tasks.lock"
         # cull_limit=0: no eviction inside set(); put() evicts first, completely
-        # A short write-ahead log, truncated at each checkpoint: it counts in the bound.
+        # A bounded write-ahead log, cut back at each checkpoint: it counts in the bound.
         self._cache = diskcache.Cache(str(self._dir), size_limit=max_bytes, cull_limit=0,
                                       eviction_policy="least-recently-used",
-                                      sqlite_wal_autocheckpoint=32,
-                                      sqlite_journal_size_limit=128 << 10)
+                                      sqlite_wal_autocheckpoint=WAL_PAGES,
+                                      sqlite_journal_size_limit=WAL_BYTES)
         with self._exclusive():
             removed = self._remove_orphans()
         if removed:
@@ -112,17 +117,23 @@ class DiskStore:
                         removed += 1
         return removed
 
-    def _sqlite_extra(self) -> int:
-        """The write-ahead log and shared-memory files, which volume() does not count."""
-        total = 0
-        for suffix in ("-wal", "-shm"):
-            with contextlib.suppress(FileNotFoundError):
-                total += (self._dir / f"cache.db{suffix}").stat().st_size
-        return total
+    def _db_lag(self) -> int:
+        """Bytes of the database file beyond its live pages: freed pages stay in the
+        file until a checkpoint cuts it back, and volume() does not see them."""
+        try:
+            on_disk = (self._dir / "cache.db").stat().st_size
+        except FileNotFoundError:
+            return 0
+        ((pages,),) = self._cache._sql("PRAGMA page_count").fetchall()
+        return max(0, on_disk - pages * self._cache._page_size)
 
     def _make_room(self, size: int) -> None:
-        target = self._max - size - SQLITE_SLACK_BYTES - self._sqlite_extra()
-        self._cache.reset("size_limit", max(0, target))
+        # volume() counts the database pages and the value files; the log and the
+        # shared-memory index are reserved at their largest, the file's lag measured.
+        target = self._max - size - SQLITE_RESERVE_BYTES - self._db_lag()
+        # cull() evicts down to the size_limit attribute; set here, not persisted
+        # (reset() would write it to the database on every put)
+        self._cache.size_limit = max(0, target)
         self._cache.cull(retry=True)
 
     def get(self, key: str) -> bytes | None:
