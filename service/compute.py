@@ -23,8 +23,10 @@ checks would need hooks in every core planner.)
 
 Admission by memory: each request states its estimated peak memory; while the
 running ones' estimates and it would pass ``ZW_MEMORY_BUDGET_BYTES`` it waits
-(up to ``ZW_MEMORY_WAIT_SECONDS``), then is shed with 503. After a large
-computation, ``malloc_trim`` hands the freed heap back to the system.
+(up to ``ZW_MEMORY_WAIT_SECONDS``), then is shed with 503. Back to baseline:
+glibc arenas are capped at two (mallopt, as ``MALLOC_ARENA_MAX=2``), and
+``malloc_trim`` hands the freed heap back after a large computation and again
+when the server is quiet.
 """
 
 from __future__ import annotations
@@ -134,15 +136,35 @@ def _set_async_exc(thread_id: int, exc: type[BaseException] | None) -> None:
 
 
 _LIBC: Any = None
+_M_ARENA_MAX = -8  # glibc's mallopt parameter number
+#: glibc arenas for the whole process (its default is 8 per core: each thread that
+#: allocates may get its own, and each keeps its freed heap).
+MALLOC_ARENAS = 2
+
+
+def _libc() -> Any:
+    global _LIBC
+    if _LIBC is None:
+        _LIBC = ctypes.CDLL("libc.so.6")
+    return _LIBC
 
 
 def malloc_trim() -> None:
     """Return free heap memory to the system (glibc); a no-op elsewhere."""
-    global _LIBC
     try:
-        if _LIBC is None:
-            _LIBC = ctypes.CDLL("libc.so.6")
-        _LIBC.malloc_trim(0)
+        _libc().malloc_trim(0)
+    except (OSError, AttributeError):  # pragma: no cover - not glibc
+        pass
+
+
+def limit_malloc_arenas(arenas: int = MALLOC_ARENAS) -> None:
+    """``MALLOC_ARENA_MAX`` set from inside (mallopt): arenas created from now on are
+    capped, so call it before the compute threads start. An explicit
+    ``MALLOC_ARENA_MAX`` in the environment is left to glibc."""
+    if "MALLOC_ARENA_MAX" in os.environ:
+        return
+    try:
+        _libc().mallopt(_M_ARENA_MAX, arenas)
     except (OSError, AttributeError):  # pragma: no cover - not glibc
         pass
 
@@ -231,6 +253,7 @@ class ComputePool:
                            "process": (processes or workers) + max_pending}
         self.capacity = sum(self.capacities.values())
         self.memory = MemoryBudget(memory_budget, memory_wait)
+        limit_malloc_arenas()
         self._executor = ThreadPoolExecutor(workers, thread_name_prefix="zw-compute")
         self._process_pool: pebble.ProcessPool | None = None
         self._busy = {"thread": 0, "process": 0}
