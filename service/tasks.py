@@ -49,6 +49,16 @@ def not_modified(request: Request, tid: str, stored: bool) -> bool:
     return False
 
 
+async def response_bytes(response: Response) -> bytes:
+    """The whole body of an answer from :func:`respond`, streamed or not (for routes that
+    re-shape a result, e.g. into a file)."""
+    if isinstance(response, StreamingResponse):
+        chunks = [c if isinstance(c, bytes) else str(c).encode()
+                  async for c in response.body_iterator]
+        return b"".join(chunks)
+    return bytes(response.body)
+
+
 #: Results up to this size are rendered in one piece (in a worker thread).
 STREAM_ABOVE_BYTES = 1 << 20
 
