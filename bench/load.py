@@ -1,15 +1,24 @@
-"""Load test: concurrent clients sending a mix of small requests to a live zwplan server.
+"""Load test: concurrent clients sending a mix of requests to a live zwplan server.
 
     .venv/bin/python bench/load.py            # 30 s, 8 clients, own server
     .venv/bin/python bench/load.py --quick    # 5 s
-    .venv/bin/python bench/load.py --url http://127.0.0.1:8000 --api-key KEY
+    .venv/bin/python bench/load.py --url http://127.0.0.1:8000 --api-key KEY [--pid PID]
 
 Every operation of openapi/openapi.json that has a request generator below
 is exercised (``/v1/mrr`` always; ``/v1/plans/*`` and ``/v1/arcs`` once they
 are in the document), plus ``GET /v1/tasks/{id}`` of earlier results. About
 30 % of the requests repeat an earlier body, so the cache answers them.
-Prints throughput, p50/p99 latency per operation and overall, the error
-count and the cache hit ratio; exits 1 if any request failed.
+The mix holds large work too (issue 14): ``LARGE_SHARE`` of the grid requests
+are 2048² float32 grids (scan-line plans with and without models, MRR, contour
+plans; their names end in ``_2048``), and ``COARSE_SHARE`` of the arc requests
+are coarse polygons (8-16 vertices, 10 mm edges, 12° zigzag turns: the arc
+fitter's slow case; ``fit_arcs_coarse``).
+
+Prints throughput, p50/p99 latency per operation and overall, the errors
+(every non-2xx answer; the 503s among them are sheds), the cache hit ratio,
+and the server's resident memory: at start, its peak (VmHWM) and after the
+burst (VmRSS ``--settle`` seconds after the last request). Exits 1 if any
+request failed with other than a 503 shed.
 """
 
 from __future__ import annotations
@@ -58,6 +67,25 @@ def _surface(rng: random.Random, ny: int, nx: int) -> list[list[float]]:
     return rows
 
 
+LARGE_SHARE = 0.1
+COARSE_SHARE = 0.3
+LARGE_N = 2048
+
+
+def _large_grid(rng: random.Random) -> dict[str, Any]:
+    """A 2048² part as float32 base64 (numpy: a Python loop over 4M nodes is too slow)."""
+    import numpy as np
+    import pybase64
+
+    n = LARGE_N
+    y, x = np.mgrid[0:n, 0:n].astype(np.float32) / n
+    cx, cy, r = rng.uniform(0.3, 0.7), rng.uniform(0.3, 0.7), rng.uniform(0.2, 0.4)
+    z = (10 - rng.uniform(1, 5) * np.exp(-((x - cx) ** 2 + (y - cy) ** 2) / (r * r))
+         + 0.2 * np.sin(rng.uniform(5, 30) * x) * np.cos(rng.uniform(5, 30) * y))
+    return {"x0": 0.0, "y0": 0.0, "dx": 0.05, "dy": 0.05, "shape": [n, n],
+            "dtype": "float32", "z_b64": pybase64.b64encode(z.astype("<f4").tobytes()).decode()}
+
+
 def _grid(rng: random.Random) -> dict[str, Any]:
     ny, nx = rng.randint(8, 32), rng.randint(8, 32)
     return {"x0": 0.0, "y0": 0.0, "dx": 0.5, "dy": 0.5, "z": _surface(rng, ny, nx)}
@@ -77,6 +105,16 @@ def _contour(rng: random.Random) -> dict[str, Any]:
     return {"grid": _grid(rng), "include_models": rng.random() < 0.3}
 
 
+def _coarse_polygon(rng: random.Random) -> dict[str, Any]:
+    n = rng.randint(8, 16)
+    pts, heading = [[0.0, rng.uniform(0, 100)]], rng.uniform(0, 6.28)
+    for i in range(n - 1):
+        heading += math.radians(12) * (1 if (i // 3) % 2 else -1)
+        x, y = pts[-1]
+        pts.append([round(x + 10 * math.cos(heading), 5), round(y + 10 * math.sin(heading), 5)])
+    return {"points": pts, "tolerance": 0.05, "closed": False}
+
+
 def _arcs(rng: random.Random) -> dict[str, Any]:
     n = rng.randint(30, 200)
     a, b = rng.uniform(10, 40), rng.uniform(5, 30)
@@ -94,6 +132,25 @@ GENERATORS: dict[str, Callable[[random.Random], dict[str, Any]]] = {
 }
 
 
+def _large(name: str, rng: random.Random) -> dict[str, Any]:
+    body = GENERATORS[name](rng)
+    body["grid"] = _large_grid(rng)
+    if name == "plan_scanline":
+        body["include_models"] = rng.random() < 0.5
+    return body
+
+
+def generate(name: str, rng: random.Random) -> tuple[str, dict[str, Any]]:
+    """(label, body): the label names the large and coarse variants apart."""
+    if name == "fit_arcs" and rng.random() < COARSE_SHARE:
+        return "fit_arcs_coarse", _coarse_polygon(rng)
+    if name != "fit_arcs" and rng.random() < LARGE_SHARE:
+        body = _large(name, rng)
+        models = "_models" if body.get("include_models") else ""
+        return f"{name}_2048{models}", body
+    return name, GENERATORS[name](rng)
+
+
 def post_operations() -> dict[str, str]:
     """operationId -> path of every POST operation in the document that we can generate."""
     spec = json.loads(SPEC.read_text())
@@ -108,40 +165,46 @@ class Stats:
     cache: Counter[str] = field(default_factory=Counter)
     statuses: Counter[int] = field(default_factory=Counter)
     errors: list[str] = field(default_factory=list)
-    task_ids: list[str] = field(default_factory=list)
+    task_ids: list[tuple[str, bool]] = field(default_factory=list)  # (id, large)
+    error_ops: Counter[str] = field(default_factory=Counter)
 
 
 async def client_loop(http: httpx.AsyncClient, ops: dict[str, str], seed: int, stop_at: float,
-                      stats: Stats, history: list[tuple[str, dict[str, Any]]]) -> None:
+                      stats: Stats, history: list[tuple[str, str, dict[str, Any]]]) -> None:
     rng = random.Random(seed)
     names = sorted(ops)
     while time.monotonic() < stop_at:
         roll = rng.random()
         if roll < TASK_SHARE and stats.task_ids:
-            name, method, url, body = "get_task", "GET", "/v1/tasks/" + rng.choice(
-                stats.task_ids), None
+            tid, large = rng.choice(stats.task_ids)
+            # large results as float32 (as rows one is over a gigabyte of text)
+            name, method, body = ("get_task_2048" if large else "get_task"), "GET", None
+            url = f"/v1/tasks/{tid}" + ("?grid_encoding=float32" if large else "")
         elif roll < TASK_SHARE + REPEAT_SHARE and history:
-            name, body = rng.choice(history)
-            method, url = "POST", ops[name]
+            name, op, body = rng.choice(history)
+            method, url = "POST", ops[op]
         else:
-            name = rng.choice(names)
-            method, url, body = "POST", ops[name], GENERATORS[name](rng)
-            history.append((name, body))
+            op = rng.choice(names)
+            name, body = generate(op, rng)
+            method, url = "POST", ops[op]
+            history.append((name, op, body))
         start = time.perf_counter()
         try:
             r = await http.request(method, url, json=body)
         except httpx.HTTPError as exc:
             stats.errors.append(f"{name}: {type(exc).__name__}: {exc}")
+            stats.error_ops[name] += 1
             continue
         elapsed = time.perf_counter() - start
         stats.statuses[r.status_code] += 1
         if r.status_code != 200:
             stats.errors.append(f"{name}: {r.status_code} {r.text[:200]}")
+            stats.error_ops[name] += 1
             continue
         stats.latencies[name].append(elapsed)
         stats.cache[r.headers.get("x-cache", "none")] += 1
         if method == "POST" and len(stats.task_ids) < 500:
-            stats.task_ids.append(r.json()["task_id"])
+            stats.task_ids.append((r.json()["task_id"], "_2048" in name))
 
 
 def percentile(values: list[float], q: float) -> float:
@@ -153,19 +216,27 @@ def percentile(values: list[float], q: float) -> float:
 def report(stats: Stats, elapsed: float, clients: int) -> str:
     all_lat = [v for vs in stats.latencies.values() for v in vs]
     total = len(all_lat) + len(stats.errors)
+    w = 28
     lines = [f"duration {elapsed:.1f} s, {clients} clients, {total} requests, "
              f"throughput {total / elapsed:.1f} req/s",
-             f"{'operation':<16}{'count':>8}{'p50 ms':>10}{'p99 ms':>10}{'max ms':>10}"]
-    for name in sorted(stats.latencies):
-        vs = stats.latencies[name]
-        lines.append(f"{name:<16}{len(vs):>8}{percentile(vs, 50) * 1e3:>10.1f}"
-                     f"{percentile(vs, 99) * 1e3:>10.1f}{max(vs) * 1e3:>10.1f}")
+             f"{'operation':<{w}}{'count':>7}{'errors':>7}{'p50 ms':>10}{'p99 ms':>10}"
+             f"{'max ms':>10}"]
+    for name in sorted(set(stats.latencies) | set(stats.error_ops)):
+        vs = stats.latencies.get(name) or [math.nan]
+        count = len(stats.latencies.get(name, []))
+        lines.append(f"{name:<{w}}{count:>7}{stats.error_ops[name]:>7}"
+                     f"{percentile(vs, 50) * 1e3:>10.1f}{percentile(vs, 99) * 1e3:>10.1f}"
+                     f"{max(vs) * 1e3:>10.1f}")
     if all_lat:
-        lines.append(f"{'overall':<16}{len(all_lat):>8}{percentile(all_lat, 50) * 1e3:>10.1f}"
+        lines.append(f"{'overall':<{w}}{len(all_lat):>7}{len(stats.errors):>7}"
+                     f"{percentile(all_lat, 50) * 1e3:>10.1f}"
                      f"{percentile(all_lat, 99) * 1e3:>10.1f}{max(all_lat) * 1e3:>10.1f}")
     answered = sum(stats.cache.values())
     hits = stats.cache["hit"] + stats.cache["shared"]
-    lines.append(f"errors {len(stats.errors)}; statuses {dict(sorted(stats.statuses.items()))}")
+    shed = stats.statuses[503]
+    lines.append(f"errors {len(stats.errors)} (503 sheds {shed}, "
+                 f"other {len(stats.errors) - shed}); "
+                 f"statuses {dict(sorted(stats.statuses.items()))}")
     lines.append(f"cache {dict(sorted(stats.cache.items()))}; hit ratio "
                  f"{hits / answered if answered else 0:.2f} (hit + shared over all answers)")
     lines += [f"  error: {e}" for e in stats.errors[:10]]
@@ -176,9 +247,9 @@ async def run(url: str, seconds: float, clients: int, api_key: str | None, seed:
     ops = post_operations()
     headers = {"Authorization": f"Bearer {api_key}"} if api_key else {}
     stats = Stats()
-    history: list[tuple[str, dict[str, Any]]] = []
+    history: list[tuple[str, str, dict[str, Any]]] = []
     limits = httpx.Limits(max_connections=clients, max_keepalive_connections=clients)
-    async with httpx.AsyncClient(base_url=url, headers=headers, timeout=60,
+    async with httpx.AsyncClient(base_url=url, headers=headers, timeout=300,
                                  limits=limits) as http:
         r = await http.get("/readyz")
         r.raise_for_status()
@@ -196,6 +267,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--url", help="an already running server (default: start one)")
     parser.add_argument("--api-key", help="bearer key for --url")
     parser.add_argument("--seed", type=int, default=1)
+    parser.add_argument("--pid", type=int, help="server process id for --url (memory figures)")
+    parser.add_argument("--settle", type=float, default=5.0,
+                        help="seconds idle before the after-burst RSS (default 5)")
     args = parser.parse_args(argv)
     seconds = 5.0 if args.quick else args.seconds
 
@@ -203,15 +277,40 @@ def main(argv: list[str] | None = None) -> int:
     if args.url:
         server = nullcontext(None)
     else:
-        server = live_server({"ZW_MAX_GRID_CELLS": "4096", "ZW_MAX_POINTS": "2000"})
+        server = live_server({"ZW_MAX_GRID_CELLS": str(LARGE_N * LARGE_N),
+                              "ZW_MAX_POINTS": "2000", "ZW_LOG_LEVEL": "WARNING"})
     with server as live:
         url = args.url or live.url
+        pid = args.pid or (live.process.pid if live else None)
         print(f"target {url}; operations {sorted(post_operations())} + get_task")
+        start_rss = _memory(pid)
         start = time.monotonic()
         stats = asyncio.run(run(url, seconds, args.clients, args.api_key, args.seed))
         elapsed = time.monotonic() - start
+        time.sleep(args.settle)
+        end_mem = _memory(pid)
     print(report(stats, elapsed, args.clients))
-    return 1 if stats.errors else 0
+    if pid and start_rss and end_mem:
+        print(f"server RSS: start {start_rss['VmRSS'] / 2**20:.0f} MiB, "
+              f"peak {end_mem['VmHWM'] / 2**20:.0f} MiB, "
+              f"after burst (+{args.settle:g} s idle) {end_mem['VmRSS'] / 2**20:.0f} MiB")
+    return 1 if len(stats.errors) > stats.statuses[503] else 0
+
+
+def _memory(pid: int | None) -> dict[str, int] | None:
+    """VmRSS and VmHWM (peak) of the server process, in bytes (Linux /proc)."""
+    if not pid:
+        return None
+    try:
+        text = Path(f"/proc/{pid}/status").read_text()
+    except OSError:
+        return None
+    out = {}
+    for line in text.splitlines():
+        key, _, value = line.partition(":")
+        if key in ("VmRSS", "VmHWM"):
+            out[key] = int(value.split()[0]) * 1024
+    return out
 
 
 if __name__ == "__main__":

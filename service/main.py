@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import asyncio
 import logging
 import sys
 from collections.abc import AsyncIterator
@@ -14,8 +15,8 @@ from pydantic import BaseModel
 from pydantic.json_schema import models_json_schema
 
 import zwcore
-from service import openapi, problems
-from service.compute import ComputePool
+from service import asynctasks, openapi, problems
+from service.compute import ComputePool, trim_when_idle
 from service.middleware import JsonFormatter, ServiceMiddleware
 from service.routers import (
     arcs,
@@ -85,10 +86,16 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         app.state.store = open_store(settings.cache_url, settings.data_dir,
                                      settings.cache_max_bytes, settings.cache_ttl_seconds)
         app.state.pool = ComputePool(settings.workers, settings.max_pending,
-                                     settings.process_workers)
+                                     settings.process_workers,
+                                     timeout=settings.compute_timeout_seconds,
+                                     memory_budget=settings.memory_budget_bytes,
+                                     memory_wait=settings.memory_wait_seconds)
+        trimmer = asyncio.ensure_future(trim_when_idle(app.state.pool))
         try:
             yield
         finally:
+            trimmer.cancel()
+            asynctasks.cancel_all()
             app.state.pool.shutdown()
             app.state.store.close()
 

@@ -40,6 +40,47 @@ def _cpu_count() -> int:
     return max(1, n)
 
 
+def _cgroup_memory_limit(root: Path = Path("/sys/fs/cgroup")) -> int | None:
+    """Bytes the container may use by its cgroup limit (``docker --memory``, compose
+    ``limits.memory``), or None when unlimited or unknown. cgroup v2, then v1."""
+    for name in ("memory.max", "memory/memory.limit_in_bytes"):
+        try:
+            text = (root / name).read_text().strip()
+        except OSError:
+            continue
+        if text == "max":
+            return None
+        try:
+            value = int(text)
+        except ValueError:
+            continue
+        # cgroup v1 reports "unlimited" as a huge page-rounded number
+        return value if value < 1 << 60 else None
+    return None
+
+
+def _machine_memory() -> int:
+    try:
+        return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (ValueError, OSError, AttributeError):  # pragma: no cover - not POSIX
+        return 8 << 30
+
+
+#: Share of the container's (or machine's) memory that computations may plan to use;
+#: the rest is for the interpreter, the request bodies being parsed and the responses.
+MEMORY_SHARE = 0.75
+
+
+def _memory_budget() -> int:
+    """Default ``ZW_MEMORY_BUDGET_BYTES``: ``MEMORY_SHARE`` of the cgroup memory limit,
+    or of the machine's memory when the container is not limited."""
+    total = _machine_memory()
+    limit = _cgroup_memory_limit()
+    if limit is not None:
+        total = min(total, limit)
+    return int(total * MEMORY_SHARE)
+
+
 class Settings(BaseSettings):
     """Every setting is an environment variable ``ZW_<NAME>`` (see the README)."""
 
@@ -73,6 +114,23 @@ class Settings(BaseSettings):
     max_pending: int = Field(16, ge=0,
                              description="Computations queued beyond the pool before shedding.")
     log_level: str = Field("INFO", description="Python logging level.")
+    compute_timeout_seconds: float = Field(
+        120.0, gt=0, description="Deadline of one computation, from when it starts: past it "
+        "the work is stopped (a worker process is terminated and replaced, a thread gets an "
+        "exception at its next Python step), its worker freed, and the request answered 503 "
+        "(an asynchronous task: failed). 120 s: several times the largest grid plan the "
+        "default limits allow, and within common HTTP client timeouts.")
+    memory_budget_bytes: int = Field(
+        default_factory=_memory_budget, gt=0, description="Estimated peak memory that the "
+        "running computations may add up to (default: 75 % of the cgroup memory limit, or "
+        "of the machine's memory). A request that would pass it waits (see "
+        "memory_wait_seconds), then gets 503 with Retry-After; one that alone exceeds it "
+        "gets 503 at once.")
+    memory_wait_seconds: float = Field(
+        10.0, ge=0, description="How long a request may wait for room in the memory budget.")
+    task_state_ttl_seconds: int = Field(
+        24 * 3600, gt=0, description="How long the state of an asynchronous task (pending, "
+        "running, failed) is kept; a done task's result lives cache_ttl_seconds.")
 
     @field_validator("cache_url")
     @classmethod

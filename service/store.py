@@ -8,9 +8,13 @@ the store reports itself degraded until it answers again.
 
 from __future__ import annotations
 
+import contextlib
+import fcntl
 import logging
+import os
 import threading
 import time
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Protocol
 
@@ -22,22 +26,115 @@ class TaskStore(Protocol):
 
     def get(self, key: str) -> bytes | None: ...
     def put(self, key: str, value: bytes) -> None: ...
+    # Task state documents (asynchronous tasks): small JSON, shared like results.
+    def get_state(self, key: str) -> bytes | None: ...
+    def put_state(self, key: str, value: bytes, ttl_seconds: int) -> None: ...
     def health(self) -> tuple[str, str]: ...  # ("ok" | "degraded" | "down", detail)
     def close(self) -> None: ...
 
 
+#: SQLite's write-ahead log is checkpointed every this many pages and cut back to
+#: at most WAL_BYTES after each checkpoint; reads write too (access times).
+WAL_PAGES = 256
+WAL_BYTES = WAL_PAGES * 4096
+#: Room kept for SQLite's own files beyond its database pages (the log at its
+#: largest, the shared-memory index, one transaction's growth), so the bound
+#: holds for the whole directory whatever reads happen between writes.
+SQLITE_RESERVE_BYTES = WAL_BYTES + (32 << 10) + (256 << 10)
+
+
+def directory_bytes(directory: Path) -> int:
+    """Apparent size of every file under ``directory`` (what the bound is about)."""
+    total = 0
+    for root, _dirs, files in os.walk(directory):
+        for name in files:
+            with contextlib.suppress(FileNotFoundError):
+                total += os.stat(os.path.join(root, name)).st_size
+    return total
+
+
 class DiskStore:
-    """Embedded store: diskcache with a size bound and least-recently-used eviction."""
+    """Embedded store: diskcache with least-recently-used eviction and a hard size bound.
+
+    diskcache evicts at most ``cull_limit`` entries after a write, so large results
+    after many small ones outgrew its limit several times over. Here eviction runs
+    before each write, until the directory (SQLite database, its log and the value
+    files) leaves room for the new entry: the store stays within ``max_bytes`` at
+    every moment, or within one entry of it when that entry alone is larger. Writes
+    are serialised by an ``flock`` on the directory, so several server processes
+    sharing it (uvicorn ``--workers``) keep the bound too.
+
+    diskcache writes a value's file before committing its row: a process killed in
+    between leaves a file no row names. Such a file is never served (reads go
+    through the rows) and is removed when a store opens.
+    """
 
     kind = "embedded"
 
     def __init__(self, directory: Path, max_bytes: int, ttl_seconds: int) -> None:
         import diskcache
 
-        directory.mkdir(parents=True, exist_ok=True)
+        self._dir = directory / "tasks"
+        self._dir.mkdir(parents=True, exist_ok=True)
         self._ttl = ttl_seconds
-        self._cache = diskcache.Cache(str(directory / "tasks"), size_limit=max_bytes,
-                                      eviction_policy="least-recently-used")
+        self._max = max_bytes
+        self._lock = threading.Lock()
+        self._lock_file = directory / "tasks.lock"
+        # cull_limit=0: no eviction inside set(); put() evicts first, completely
+        # A bounded write-ahead log, cut back at each checkpoint: it counts in the bound.
+        self._cache = diskcache.Cache(str(self._dir), size_limit=max_bytes, cull_limit=0,
+                                      eviction_policy="least-recently-used",
+                                      sqlite_wal_autocheckpoint=WAL_PAGES,
+                                      sqlite_journal_size_limit=WAL_BYTES)
+        with self._exclusive():
+            removed = self._remove_orphans()
+        if removed:
+            log.warning("embedded store: removed %d leftover files of interrupted writes",
+                        removed)
+
+    @contextlib.contextmanager
+    def _exclusive(self) -> Iterator[None]:
+        with self._lock, open(self._lock_file, "a+b") as fh:
+            fcntl.flock(fh, fcntl.LOCK_EX)
+            try:
+                yield
+            finally:
+                fcntl.flock(fh, fcntl.LOCK_UN)
+
+    def _remove_orphans(self) -> int:
+        """Delete value files that no row names (leftovers of a killed write)."""
+        named = {row[0] for row in self._cache._sql(
+            "SELECT filename FROM Cache WHERE filename IS NOT NULL").fetchall()}
+        removed = 0
+        for root, _dirs, files in os.walk(self._dir):
+            for name in files:
+                path = Path(root, name)
+                if path.suffix != ".val":
+                    continue  # the database and its log
+                if path.relative_to(self._dir).as_posix() not in named:
+                    with contextlib.suppress(FileNotFoundError):
+                        path.unlink()
+                        removed += 1
+        return removed
+
+    def _db_lag(self) -> int:
+        """Bytes of the database file beyond its live pages: freed pages stay in the
+        file until a checkpoint cuts it back, and volume() does not see them."""
+        try:
+            on_disk = (self._dir / "cache.db").stat().st_size
+        except FileNotFoundError:
+            return 0
+        ((pages,),) = self._cache._sql("PRAGMA page_count").fetchall()
+        return max(0, on_disk - pages * self._cache._page_size)
+
+    def _make_room(self, size: int) -> None:
+        # volume() counts the database pages and the value files; the log and the
+        # shared-memory index are reserved at their largest, the file's lag measured.
+        target = self._max - size - SQLITE_RESERVE_BYTES - self._db_lag()
+        # cull() evicts down to the size_limit attribute; set here, not persisted
+        # (reset() would write it to the database on every put)
+        self._cache.size_limit = max(0, target)
+        self._cache.cull(retry=True)
 
     def get(self, key: str) -> bytes | None:
         # A failing store (disk full, database locked past its timeout, a corrupt
@@ -49,11 +146,22 @@ class DiskStore:
             return None
         return value if isinstance(value, bytes) else None
 
-    def put(self, key: str, value: bytes) -> None:
+    def _put(self, key: str, value: bytes, ttl: int) -> None:
         try:
-            self._cache.set(key, value, expire=self._ttl)
+            with self._exclusive():
+                self._make_room(len(value))
+                self._cache.set(key, value, expire=ttl)
         except Exception as exc:
             log.warning("embedded store write failed: %s", type(exc).__name__)
+
+    def put(self, key: str, value: bytes) -> None:
+        self._put(key, value, self._ttl)
+
+    def get_state(self, key: str) -> bytes | None:
+        return self.get("state:" + key)
+
+    def put_state(self, key: str, value: bytes, ttl_seconds: int) -> None:
+        self._put("state:" + key, value, ttl_seconds)
 
     def health(self) -> tuple[str, str]:
         try:
@@ -113,6 +221,24 @@ class RedisStore:
             return
         try:
             self._redis.set("zw:task:" + key, value, ex=self._ttl)
+        except Exception as exc:
+            self._failed(exc)
+
+    def get_state(self, key: str) -> bytes | None:
+        if not self._available():
+            return None
+        try:
+            value = self._redis.get("zw:state:" + key)
+        except Exception as exc:
+            self._failed(exc)
+            return None
+        return value if isinstance(value, bytes) else None
+
+    def put_state(self, key: str, value: bytes, ttl_seconds: int) -> None:
+        if not self._available():
+            return
+        try:
+            self._redis.set("zw:state:" + key, value, ex=ttl_seconds)
         except Exception as exc:
             self._failed(exc)
 

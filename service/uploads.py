@@ -20,10 +20,10 @@ import anyio
 import numpy as np
 import orjson
 from fastapi import Request, Response
-from fastapi.routing import APIRoute
 from pydantic import BaseModel
 from starlette.datastructures import UploadFile
 
+from service.bodies import OffLoopRoute
 from service.grids import decode_grid, decode_npy, grid_encoding, stored_grid, zmap_from_heights
 from service.problems import Problem
 from service.schemas.common import Grid
@@ -125,8 +125,9 @@ async def _as_json_request(request: Request, model: type[BaseModel]) -> Request:
     return Request(scope, receive)
 
 
-class GridRoute(APIRoute):
-    """A route whose JSON body may also come as ``application/x-npy`` or multipart."""
+class GridRoute(OffLoopRoute):
+    """A route whose JSON body may also come as ``application/x-npy`` or multipart (and
+    is parsed and validated off the event loop: :class:`service.bodies.OffLoopRoute`)."""
 
     def get_route_handler(self) -> Callable[[Request], Coroutine[Any, Any, Response]]:
         handler = super().get_route_handler()

@@ -46,7 +46,7 @@ def access_lines(log: str) -> list[dict[str, Any]]:
 @pytest.fixture(scope="module")
 def server() -> Iterator[LiveServer]:
     with live_server({"ZW_MAX_GRID_CELLS": "4096", "ZW_WORKERS": "2",
-                      "ZW_MAX_PENDING": "3"}) as s:
+                      "ZW_PROCESS_WORKERS": "1", "ZW_MAX_PENDING": "3"}) as s:
         yield s
 
 
@@ -120,7 +120,8 @@ def test_metrics_exposition(server: LiveServer) -> None:
     assert m[("zw_compute_seconds_count", (("operation", "fit_arcs"),))] == 1
     assert m[("zw_cache_total", (("operation", "fit_arcs"), ("outcome", "miss")))] == 1
     assert m[("zw_pool_busy", ())] == 0
-    assert m[("zw_pool_capacity", ())] == 2 + 3  # ZW_WORKERS + ZW_MAX_PENDING
+    # grid work: ZW_WORKERS + ZW_MAX_PENDING; arc fits: ZW_PROCESS_WORKERS + ZW_MAX_PENDING
+    assert m[("zw_pool_capacity", ())] == (2 + 3) + (1 + 3)
     assert ("zw_pool_shed_total", ()) in m
 
 
@@ -143,13 +144,14 @@ def gated(monkeypatch: pytest.MonkeyPatch) -> Iterator[tuple[threading.Event, th
 def test_full_pool_sheds_with_503_and_retry_after(
         tmp_path: Path, gated: tuple[threading.Event, threading.Event]) -> None:
     entered, release = gated
-    with make_client(tmp_path, workers=1, max_pending=0) as client, \
+    with make_client(tmp_path, workers=1, process_workers=1, max_pending=0) as client, \
             ThreadPoolExecutor(2) as threads:
         before = samples(client.get("/metrics").text).get(("zw_pool_shed_total", ()), 0.0)
         first = threads.submit(client.post, "/v1/mrr", json=grid(1.0))
         assert entered.wait(10)
         ready = client.get("/readyz").json()
-        assert (ready["pool_busy"], ready["pool_capacity"]) == (1, 1)
+        # one grid thread (taken) and one arc worker process (free)
+        assert (ready["pool_busy"], ready["pool_capacity"]) == (1, 2)
 
         shed = client.post("/v1/mrr", json=grid(2.0), headers={"X-Request-ID": "shed-1"})
         assert shed.status_code == 503

@@ -7,8 +7,10 @@ from typing import Annotated, Any
 from fastapi import Header
 
 from service.schemas.common import ProblemDetails
+from service.schemas.tasks import TaskStatus
 
 _TEXT = {
+    202: "Accepted (Prefer: respond-async): computing in the background; poll Location",
     304: "Not modified: If-None-Match named this task (no body)",
     400: "Malformed body: not JSON, not UTF-8, nested too deeply, or a bad Content-Length",
     401: "Missing API key (only when the deployment sets ZW_API_KEYS)",
@@ -53,6 +55,11 @@ def responses(*extra: int, conditional: bool = False, etag: dict[str, Any] = ETA
     for code in codes:
         if code == 304:
             out[code] = {"description": _TEXT[code], "headers": {"ETag": etag}}
+            continue
+        if code == 202:
+            out[code] = {"description": _TEXT[code], "model": TaskStatus,
+                         "headers": {"Location": {"description": "/v1/tasks/{task_id}",
+                                                  "schema": {"type": "string"}}}}
             continue
         out[code] = {"description": _TEXT.get(code, "Error"), "model": ProblemDetails,
                      "content": {"application/problem+json": {}}}

@@ -16,18 +16,21 @@ from fastapi.exceptions import RequestValidationError
 from pydantic import Field, ValidationError
 
 from service import cadfiles
-from service.deps import PoolDep, SettingsDep, StoreDep
+from service.deps import PoolDep, PreferAsyncDep, SettingsDep, StoreDep
 from service.problems import Problem
 from service.routers import if_none_match, responses
 from service.schemas.arcs import ArcsRequest, ArcsResult
 from service.schemas.cadfiles import DxfArcsResult, GcodeArcsResult
 from service.settings import Settings
 from service.store import TaskStore
-from service.tasks import serve_task
+from service.tasks import response_bytes, serve_task
 from zwcore.arcs.fit import ArcChain, Segment, fit_arcs
 from zwcore.arcs.gcode import rounding_budget, to_gcode
 from zwcore.arcs.offset import offset_chain
 from zwcore.errors import InvalidInputError, LimitExceededError
+
+#: Estimated peak memory per point (a worker process's fit and its dense check).
+ARC_POINT_BYTES = 4096
 
 router = APIRouter(prefix="/v1", tags=["arcs"])
 
@@ -132,17 +135,18 @@ def _wants(request: Request, media_type: str) -> bool:
     return any(part.split(";")[0].strip().lower() == media_type for part in accept.split(","))
 
 
-def _as_file(response: Response, field: str, media_type: str) -> Response:
+async def _as_file(response: Response, field: str, media_type: str) -> Response:
     if response.status_code != 200:
         return response
-    text = json.loads(bytes(response.body))[field]
+    text = json.loads(await response_bytes(response))[field]
     return Response(text, media_type=media_type, headers={
         k: v for k, v in response.headers.items() if k.lower() in ("etag", "x-cache")})
 
 
 async def _points_arcs(raw: bytes, request: Request, settings: Settings, store: TaskStore,
-                       pool: PoolDep) -> Response:
-    body = _json_body(raw)
+                       pool: PoolDep, respond_async: bool) -> Response:
+    # parsed and validated in a worker thread: the event loop never waits on a large body
+    body = await anyio.to_thread.run_sync(_json_body, raw)
     if len(body.points) > settings.max_points:
         raise LimitExceededError(
             "points", f"{len(body.points)} points exceed the limit of {settings.max_points}")
@@ -158,7 +162,8 @@ async def _points_arcs(raw: bytes, request: Request, settings: Settings, store: 
     response = await serve_task(request, store, pool, operation="fit_arcs", params=params,
                                 arrays={"points": points}, compute=arcs_result,
                                 args=(points, body.model_copy(update={"points": []})),
-                                in_process=True)
+                                in_process=True, respond_async=respond_async,
+                                memory=len(points) * ARC_POINT_BYTES)
     await _keep_input(request, response, store, lambda: _npy(points))
     return response
 
@@ -186,11 +191,11 @@ def _decode_text(raw: bytes) -> str:
 
 @router.post("/arcs", response_model=ArcsAnyResult, operation_id="fit_arcs",
              summary="Fit C1 chains of arcs and lines: a point curve, a G-code program or a DXF",
-             responses=_with_files(responses(413, 415, conditional=True)),
+             responses=_with_files(responses(202, 413, 415, conditional=True)),
              dependencies=[Depends(if_none_match)], openapi_extra=_OPENAPI_EXTRA)
 async def post_arcs(request: Request, settings: SettingsDep, store: StoreDep, pool: PoolDep,
-                    tolerance: Tolerance = None, corner_angle_deg: CornerAngle = None,
-                    max_radius: MaxRadius = None) -> Response:
+                    respond_async: PreferAsyncDep, tolerance: Tolerance = None,
+                    corner_angle_deg: CornerAngle = None, max_radius: MaxRadius = None) -> Response:
     """Fewest arcs and lines within ``tolerance`` of the polyline, both ways, joined
     tangentially except at real corners.
 
@@ -209,7 +214,7 @@ async def post_arcs(request: Request, settings: SettingsDep, store: StoreDep, po
     if kind == "application/json" or kind.endswith("+json"):
         if tolerance is not None or corner_angle_deg is not None or max_radius is not None:
             raise InvalidInputError("query", "with a JSON body, options go in the body")
-        return await _points_arcs(raw, request, settings, store, pool)
+        return await _points_arcs(raw, request, settings, store, pool, respond_async)
     if kind == "application/octet-stream":
         kind = cadfiles.sniff(raw)
     tol = 0.01 if tolerance is None else tolerance
@@ -227,9 +232,10 @@ async def post_arcs(request: Request, settings: SettingsDep, store: StoreDep, po
             params={"tolerance": tol, "corner_angle_deg": corner, "max_radius": max_radius,
                     "program_sha256": hashlib.sha256(text.encode()).hexdigest()},
             arrays=None, compute=cadfiles.gcode_result,
-            args=(text, tol, corner, max_radius, *limits), in_process=True)
+            args=(text, tol, corner, max_radius, *limits), in_process=True,
+            respond_async=respond_async)
         await _keep_input(request, response, store, text.encode)
-        return _as_file(response, "program", "text/plain") if _wants(
+        return await _as_file(response, "program", "text/plain") if _wants(
             request, "text/plain") else response
     if kind in cadfiles.DXF_TYPES:
         if max_radius is not None:
@@ -239,9 +245,9 @@ async def post_arcs(request: Request, settings: SettingsDep, store: StoreDep, po
             params={"tolerance": tol, "corner_angle_deg": corner,
                     "dxf_sha256": hashlib.sha256(raw).hexdigest()},
             arrays=None, compute=cadfiles.dxf_result,
-            args=(raw, tol, corner, *limits), in_process=True)
+            args=(raw, tol, corner, *limits), in_process=True, respond_async=respond_async)
         wanted = next((t for t in cadfiles.DXF_TYPES if _wants(request, t)), None)
-        return _as_file(response, "dxf", wanted) if wanted else response
+        return await _as_file(response, "dxf", wanted) if wanted else response
     raise Problem(415, "Unsupported media type",
                   f"body of type {kind!r}: send application/json (points), text/plain "
                   "(a G-code program) or application/dxf (a DXF drawing)",

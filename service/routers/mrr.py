@@ -7,13 +7,17 @@ from typing import Any
 import numpy as np
 from fastapi import APIRouter, Depends, Request, Response
 
-from service.deps import PoolDep, SettingsDep, StoreDep
+from service.deps import PoolDep, PreferAsyncDep, SettingsDep, StoreDep
 from service.grids import canonical_grid
 from service.routers import if_none_match, responses
 from service.schemas.mrr import MrrRequest, MrrResult
 from service.tasks import serve_task
 from service.uploads import GridRoute, binary_grid_openapi, request_zmap
 from zwcore import ZMap, analyse, at_fine_nodes
+
+# Estimated peak memory per grid node (admission by memory), measured on a 1024² part
+# (with models: 57 B), rounded up.
+MRR_BYTES = 80
 
 router = APIRouter(prefix="/v1", tags=["mrr"], route_class=GridRoute)
 
@@ -67,11 +71,11 @@ def mrr_result(zmap: ZMap, wavelet: str, levels: int | None, include_models: boo
 
 @router.post("/mrr", response_model=MrrResult, operation_id="compute_mrr",
              summary="Multiresolution representation of a z-map",
-             responses=responses(413, 415, conditional=True),
+             responses=responses(202, 413, 415, conditional=True),
              dependencies=[Depends(if_none_match)],
              openapi_extra=binary_grid_openapi(MrrRequest))
 async def compute_mrr(body: MrrRequest, request: Request, settings: SettingsDep,
-                      store: StoreDep, pool: PoolDep) -> Response:
+                      store: StoreDep, pool: PoolDep, respond_async: PreferAsyncDep) -> Response:
     """Lifted (overcut-free) Haar or single-knot MRR: every level contains the part."""
     zmap, encoding = await request_zmap(request, body.grid, body.grid_task, settings, store)
     params = {"grid": [zmap.x0, zmap.y0, zmap.dx, zmap.dy], "wavelet": body.wavelet,
@@ -79,4 +83,5 @@ async def compute_mrr(body: MrrRequest, request: Request, settings: SettingsDep,
     return await serve_task(
         request, store, pool, operation="compute_mrr", params=params, arrays={"z": zmap.z},
         compute=lambda: mrr_result(zmap, body.wavelet, body.levels, body.include_models),
-        encoding=encoding)
+        encoding=encoding, respond_async=respond_async,
+        memory=zmap.z.size * MRR_BYTES)

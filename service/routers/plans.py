@@ -11,7 +11,7 @@ import numpy as np
 from fastapi import APIRouter, Depends, Request, Response
 from pydantic import BaseModel
 
-from service.deps import PoolDep, SettingsDep, StoreDep
+from service.deps import PoolDep, PreferAsyncDep, SettingsDep, StoreDep
 from service.grids import canonical_grid
 from service.routers import if_none_match, responses
 from service.schemas.common import ToolIn
@@ -33,6 +33,12 @@ from zwcore.errors import InvalidInputError, LimitExceededError
 from zwcore.grid.tools import ToolKind
 from zwcore.grid.zmap import MAX_ABS_HEIGHT
 from zwcore.scanline.planner import plan_scanline
+
+# Estimated peak memory per grid node (admission by memory): measured as peak RSS over
+# the baseline of one plan of a 1024² part, including its encoded result, rounded up.
+SCANLINE_BYTES = 40
+SCANLINE_MODELS_BYTES = 120
+CONTOUR_BYTES = 80
 
 router = APIRouter(prefix="/v1/plans", tags=["plans"], route_class=GridRoute)
 
@@ -155,11 +161,12 @@ def contour_result(zmap: ZMap, tools: list[Tool], stock_top: float | None, strat
 
 @router.post("/scanline", response_model=ScanlinePlanResult, operation_id="plan_scanline",
              summary="Scan-line plan: stage models and ball-end-mill sequence",
-             responses=responses(413, 415, conditional=True),
+             responses=responses(202, 413, 415, conditional=True),
              dependencies=[Depends(if_none_match)],
              openapi_extra=binary_grid_openapi(ScanlinePlanRequest))
 async def post_scanline_plan(body: ScanlinePlanRequest, request: Request, settings: SettingsDep,
-                             store: StoreDep, pool: PoolDep) -> Response:
+                             store: StoreDep, pool: PoolDep,
+                             respond_async: PreferAsyncDep) -> Response:
     """Roughing-to-finishing stage models from the lifted single-knot MRR, each with the
     largest ball end mill that fits its concave regions; no stage cuts into the part or
     deeper than its tool's flutes (see ``checks``)."""
@@ -172,16 +179,18 @@ async def post_scanline_plan(body: ScanlinePlanRequest, request: Request, settin
         request, store, pool, operation="plan_scanline", params=params, arrays={"z": zmap.z},
         compute=lambda: scanline_result(zmap, tools, body.tolerance, body.stock_top,
                                         body.include_models),
-        encoding=encoding)
+        encoding=encoding, respond_async=respond_async,
+        memory=zmap.z.size * (SCANLINE_MODELS_BYTES if body.include_models else SCANLINE_BYTES))
 
 
 @router.post("/contour", response_model=ContourPlanResult, operation_id="plan_contour",
              summary="Contour plan: equal-load contour heights and terraced stage models",
-             responses=responses(413, 415, conditional=True),
+             responses=responses(202, 413, 415, conditional=True),
              dependencies=[Depends(if_none_match)],
              openapi_extra=binary_grid_openapi(ContourPlanRequest))
 async def post_contour_plan(body: ContourPlanRequest, request: Request, settings: SettingsDep,
-                            store: StoreDep, pool: PoolDep) -> Response:
+                            store: StoreDep, pool: PoolDep,
+                            respond_async: PreferAsyncDep) -> Response:
     """Per flat end mill, the z-levels of its waterline passes (equal slab volumes) and the
     terraced model it leaves, from the lifted Haar MRR by coefficient editing."""
     zmap, encoding = await request_zmap(request, body.grid, body.grid_task, settings, store)
@@ -195,4 +204,5 @@ async def post_contour_plan(body: ContourPlanRequest, request: Request, settings
         request, store, pool, operation="plan_contour", params=params, arrays={"z": zmap.z},
         compute=lambda: contour_result(zmap, tools, body.stock_top, body.strategy,
                                        body.include_models),
-        encoding=encoding)
+        encoding=encoding, respond_async=respond_async,
+        memory=zmap.z.size * CONTOUR_BYTES)

@@ -9,7 +9,8 @@ import anyio
 import numpy as np
 from fastapi import APIRouter, Depends, Request, Response
 
-from service.deps import PoolDep, SettingsDep, StoreDep
+from service.bodies import OffLoopRoute
+from service.deps import PoolDep, PreferAsyncDep, SettingsDep, StoreDep
 from service.grids import canonical_grid, decode_grid, grid_encoding
 from service.hashing import canonical_bytes
 from service.routers import if_none_match, responses
@@ -21,7 +22,11 @@ from zwcore.errors import InvalidInputError, LimitExceededError
 from zwcore.grid.zmap import Interpolation, stock_top_at_or_above
 from zwcore.sim import rest_regions, simulate_pass, simulation_work
 
-router = APIRouter(prefix="/v1", tags=["simulate"])
+# Estimated peak memory per part node (admission by memory): part, stock, CL and the
+# machined surface with their temporaries; a conservative guess, not measured.
+SIMULATE_BYTES = 160
+
+router = APIRouter(prefix="/v1", tags=["simulate"], route_class=OffLoopRoute)
 
 
 def _aligned(grid: Grid, part: ZMap, max_cells: int, field: str) -> np.ndarray:
@@ -105,10 +110,11 @@ def _digest(grid: np.ndarray | float | None) -> str | None:
 
 @router.post("/simulate", response_model=SimulateResult, operation_id="simulate",
              summary="Cutting simulation: the surface a tool leaves and what it engages",
-             responses=responses(413, conditional=True),
+             responses=responses(202, 413, conditional=True),
              dependencies=[Depends(if_none_match)])
 async def post_simulate(body: SimulateRequest, request: Request, settings: SettingsDep,
-                        store: StoreDep, pool: PoolDep) -> Response:
+                        store: StoreDep, pool: PoolDep,
+                        respond_async: PreferAsyncDep) -> Response:
     """One ball or flat end mill machining a stock over a part, with its tip on a given CL
     grid or, without one, at the drop-cutter height everywhere (the closing). Returns the
     machined surface and its figures: gouge, rest over the part, real depth of cut and the
@@ -127,4 +133,5 @@ async def post_simulate(body: SimulateRequest, request: Request, settings: Setti
         request, store, pool, operation="simulate", params=params, arrays={"z": part.z},
         compute=lambda: simulate_result(part, tool, stock, cl, body.interpolation,
                                         body.tolerance),
-        encoding=grid_encoding(body.grid))
+        encoding=grid_encoding(body.grid), respond_async=respond_async,
+        memory=part.z.size * SIMULATE_BYTES)

@@ -18,7 +18,7 @@ from service.problems import Problem
 from service.routers import MODEL_ETAG, if_none_match, responses
 from service.schemas.common import TASK_ID_PATTERN, GridOut
 from service.schemas.zmaps import ZMapParams, ZMapResult
-from service.tasks import not_modified, serve_task
+from service.tasks import not_modified, response_bytes, serve_task
 from service.uploads import MULTIPART, NPY
 from zwcore.errors import InvalidInputError
 from zwcore.io import rasterise, read_stl, zmap_grid
@@ -141,7 +141,7 @@ async def create_zmap(request: Request, settings: SettingsDep, store: StoreDep, 
         encoding="float64" if as_npy else p.grid_encoding)
     if not as_npy or response.status_code != 200:
         return response
-    result = orjson.loads(bytes(response.body))
+    result = orjson.loads(await response_bytes(response))
     return _npy_response(result["grid"], "float64", result["task_id"],
                          {"X-Task-Id": result["task_id"], "ETag": f'"{result["task_id"]}"',
                           "X-Cache": response.headers.get("x-cache", "")})
