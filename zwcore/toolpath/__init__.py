@@ -6,10 +6,13 @@
 - :mod:`zwcore.toolpath.sweep`: exact swept-tool envelopes on grid nodes;
 - :mod:`zwcore.toolpath.simulate`: the program simulated on the stock, verification figures;
 - :mod:`zwcore.toolpath.scanline_paths`: raster paths of ball-end-mill stages;
+- :mod:`zwcore.toolpath.contour_paths`: rings of flat-end-mill stages, arcs, ramps;
+- :mod:`zwcore.toolpath.plans`: a whole plan's paths, program and verification;
 - private: ``_polyline`` (thinning, lifting out of gouges).
 """
 
 from zwcore.toolpath.parse import ParsedProgram, parse_program
+from zwcore.toolpath.plans import Toolpaths, contour_toolpaths, scanline_toolpaths
 from zwcore.toolpath.program import (
     CuttingData,
     Moves,
@@ -30,10 +33,13 @@ __all__ = [
     "ProgramSettings",
     "StageCheck",
     "StagePath",
+    "Toolpaths",
+    "contour_toolpaths",
     "cutting_data",
     "iter_program",
     "parse_program",
     "program_text",
     "scanline_stage_path",
+    "scanline_toolpaths",
     "simulate_program",
 ]

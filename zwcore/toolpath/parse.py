@@ -61,7 +61,7 @@ class ParsedProgram:
     ended: bool
 
 
-def parse_program(text: str) -> ParsedProgram:  # noqa: C901 - one flat state machine
+def parse_program(text: str) -> ParsedProgram:
     """Read a program.
 
     Raises
@@ -73,8 +73,7 @@ def parse_program(text: str) -> ParsedProgram:  # noqa: C901 - one flat state ma
     mode, feed, selected, active, offset, spindle = 0, np.nan, 0, 0, False, False
     metric = absolute = xy_plane = False
     ended = False
-    rows: list[tuple[int, float, float, float, float, float, float, float, float, float,
-                     int, bool, bool]] = []
+    rows: list[tuple[float, ...]] = []
     for lineno, raw in enumerate(text.splitlines(), 1):
         line = _COMMENT.sub("", raw.upper()).strip()
         if not line or line == "%":
@@ -128,11 +127,11 @@ def parse_program(text: str) -> ParsedProgram:  # noqa: C901 - one flat state ma
         new = [vals.get("X", pos[0]), vals.get("Y", pos[1]), vals.get("Z", pos[2])]
         cx = cy = np.nan
         if mode >= 2:
-            if np.isnan(pos[0]) or np.isnan(pos[1]) or "I" not in vals and "J" not in vals:
+            if np.isnan(pos[0]) or np.isnan(pos[1]) or ("I" not in vals and "J" not in vals):
                 raise InvalidInputError("program", f"line {lineno}: arc without start or I J")
             cx, cy = pos[0] + vals.get("I", 0.0), pos[1] + vals.get("J", 0.0)
-        rows.append((mode, *pos, *new, cx, cy, feed if mode else np.nan, active, offset,
-                     spindle))
+        rows.append((float(mode), *pos, *new, cx, cy, feed if mode else np.nan, float(active),
+                     float(offset), float(spindle)))
         pos = new
     if not rows:
         raise InvalidInputError("program", "no motion blocks")
@@ -147,5 +146,5 @@ def parse_program(text: str) -> ParsedProgram:  # noqa: C901 - one flat state ma
         mismatch = float(np.abs(r0 - r1).max())
     return ParsedProgram(
         motion, start, end, center, arr[:, 9], np.array([r[10] for r in rows], np.int64),
-        np.array([r[11] for r in rows], bool), np.array([r[12] for r in rows], bool),
+        np.array([r[11] for r in rows]) > 0, np.array([r[12] for r in rows]) > 0,
         mismatch, ended)

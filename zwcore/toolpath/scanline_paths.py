@@ -106,7 +106,7 @@ def scanline_stage_path(part: ZMap, stage: ScanlineStage, index: int, cutting: C
     breaks = np.zeros(len(pts) - 1, bool)
     breaks[n_pts + 1::n_pts + 2] = True  # links between lines
     pts, su, fx = refine_against_part(pts, su, fixed.ravel(), breaks, part, tool,
-                                         chord_tolerance, 0.5 * min(part.dx, part.dy))
+                                         chord_tolerance, min(part.dx, part.dy) / 16.0)
     pts[:, :2] = np.round(pts[:, :2], decimals)
     keep = thin(su, pts[:, 2], fx, chord_tolerance)
     pts, max_lift = lift_out_of_part(pts[keep], part, tool, decimals=decimals)

@@ -183,7 +183,7 @@ def simulate_program(prog: ParsedProgram, tools: Mapping[int, Tool], part: ZMap,
         raise InvalidInputError("stock", "must be a number or a grid of the part's shape")
     machined = np.ascontiguousarray(grid, dtype=np.float64).copy()
     stages: list[StageCheck] = []
-    changes = np.flatnonzero(np.diff(prog.tool, prepend=-1) != 0).tolist() + [len(prog.tool)]
+    changes = [*np.flatnonzero(np.diff(prog.tool, prepend=-1) != 0).tolist(), len(prog.tool)]
     for s, (a, b) in enumerate(itertools.pairwise(changes)):
         number = int(prog.tool[a])
         if number not in tools:

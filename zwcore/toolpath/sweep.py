@@ -83,10 +83,10 @@ def _sweep_kernel(x0: float, y0: float, dx: float, dy: float, p0: F64, p1: F64, 
         sx, sy, sz = p0[s, 0], p0[s, 1], p0[s, 2]
         ax, ay, vz = p1[s, 0] - sx, p1[s, 1] - sy, p1[s, 2] - sz
         rr = r[s]
-        k0 = max(0, int(math.ceil((min(sx, sx + ax) - rr - x0) / dx)))
-        k1 = min(nx - 1, int(math.floor((max(sx, sx + ax) + rr - x0) / dx)))
-        i0 = max(0, int(math.ceil((min(sy, sy + ay) - rr - y0) / dy)))
-        i1 = min(ny - 1, int(math.floor((max(sy, sy + ay) + rr - y0) / dy)))
+        k0 = max(0, math.ceil((min(sx, sx + ax) - rr - x0) / dx))
+        k1 = min(nx - 1, math.floor((max(sx, sx + ax) + rr - x0) / dx))
+        i0 = max(0, math.ceil((min(sy, sy + ay) - rr - y0) / dy))
+        i1 = min(ny - 1, math.floor((max(sy, sy + ay) + rr - y0) / dy))
         best_s, best_r = -math.inf, -math.inf
         for i in range(i0, i1 + 1):
             qy = y0 + i * dy
