@@ -96,7 +96,8 @@ def test_program_of_a_plan_without_toolpaths_is_404(client: TestClient) -> None:
 @pytest.mark.parametrize(("tool_field", "value"), [
     ("feed", 0), ("feed", -5), ("plunge_feed", 0), ("spindle_rpm", 0), ("ramp_angle_deg", 0),
     ("ramp_angle_deg", 90), ("ramp_angle_deg", 120), ("tool_number", 0)])
-def test_tool_cutting_fields_out_of_range(client: TestClient, tool_field: str, value: float) -> None:
+def test_tool_cutting_fields_out_of_range(client: TestClient, tool_field: str,
+                                          value: float) -> None:
     tools = [{"id": "B6", "diameter": 6, "flute_length": 12, tool_field: value}]
     r = client.post("/v1/plans/scanline", json={"grid": rows_grid(pocket(9)), "tools": tools,
                                                 "toolpaths": True})

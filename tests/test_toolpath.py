@@ -28,7 +28,6 @@ from zwcore.toolpath import (
 from zwcore.toolpath.program import ARC_CCW, ARC_CW, RAPID
 from zwcore.toolpath.sweep import GridFrame, sweep_moves
 
-
 # ---------------------------------------------------------------- oracles (tests only)
 
 def brute_cl(m: ZMap, tool: Tool) -> np.ndarray:
@@ -223,7 +222,7 @@ def test_scanline_program_on_random_surfaces_never_gouges(seed):
     z = sum(rng.uniform(-3, 3) * np.sin(x / rng.uniform(1, 6) + rng.uniform(0, 6))
             * np.cos(y / rng.uniform(1, 6)) for _ in range(3))
     part = ZMap(z, rng.uniform(-5, 5), rng.uniform(-5, 5), 0.5, 0.5)
-    plan, tp, left, reach = _verify_scanline(part, 0.02)
+    plan, _tp, left, reach = _verify_scanline(part, 0.02)
     assert left.min() >= -1e-9
     if reach.any():
         assert np.percentile(left[reach], 95) <= plan.tolerance
@@ -246,9 +245,11 @@ def _ramp_slopes(prog) -> np.ndarray:
     d = prog.end - prog.start
     xy = np.hypot(d[:, 0], d[:, 1])
     arc = prog.motion >= 2
-    r = np.hypot(prog.start[arc, 0] - prog.center[arc, 0], prog.start[arc, 1] - prog.center[arc, 1])
-    a0 = np.arctan2(prog.start[arc, 1] - prog.center[arc, 1], prog.start[arc, 0] - prog.center[arc, 0])
-    a1 = np.arctan2(prog.end[arc, 1] - prog.center[arc, 1], prog.end[arc, 0] - prog.center[arc, 0])
+    s0 = prog.start[arc, :2] - prog.center[arc]
+    s1 = prog.end[arc, :2] - prog.center[arc]
+    r = np.hypot(s0[:, 0], s0[:, 1])
+    a0 = np.arctan2(s0[:, 1], s0[:, 0])
+    a1 = np.arctan2(s1[:, 1], s1[:, 0])
     sw = np.where(prog.motion[arc] == 3, np.mod(a1 - a0, 2 * np.pi), np.mod(a0 - a1, 2 * np.pi))
     xy[arc] = r * np.where(sw < 1e-12, 2 * np.pi, sw)
     down = (prog.motion > 0) & (d[:, 2] < 0)
@@ -274,7 +275,8 @@ def test_contour_program_on_a_rectangular_pocket():
     # no plunge: every descending feed move within the ramp angle
     assert _ramp_slopes(prog).max() <= math.tan(math.radians(4.0)) * (1 + 1e-3) + 1e-4
     # the pocket floor is machined where the smallest tool's stage model reaches it
-    model = np.repeat(np.repeat(plan.stages[-1].model, plan.stages[-1].scale, 0), plan.stages[-1].scale, 1)[:n, :n]
+    last = plan.stages[-1]
+    model = np.repeat(np.repeat(last.model, last.scale, 0), last.scale, 1)[:n, :n]
     over = chk.machined - model
     assert np.mean(over > 0.05) < 0.01  # only the concave corners a round tool cannot reach
 
