@@ -160,8 +160,9 @@ def scanline_toolpaths(part: ZMap, plan: ScanlinePlan, cl_heights: CLHeights, *,
     data = tool_numbers(tools, cutting)
     settings = ProgramSettings(clearance=clear, rapid_feed=rapid_feed)
     t = time.perf_counter()
+    stock = np.full(part.shape, plan.stock_top)
     stages = [scanline_stage_path(part, st, i, data[st.tool.id], cl_heights, clearance=clear,
-                                  chord_tolerance=CHORD_FRACTION * plan.tolerance)
+                                  chord_tolerance=CHORD_FRACTION * plan.tolerance, stock=stock)
               for i, st in enumerate(plan.stages)]
     timings = [("paths", time.perf_counter() - t)]
     models = [bilinear_at_fine_nodes(st.model, round(st.spacing[0] / part.dx), part.shape)

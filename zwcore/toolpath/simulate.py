@@ -146,7 +146,9 @@ def _stage(stock: F64, part: ZMap, prog: ParsedProgram, a: int, b: int, tool: To
         over_model_max=None if over is None else float(over.max()),
         over_model_p95=None if over is None else float(np.percentile(over, 95)),
         gouge=float(max(0.0, (part.z - stock).max())),
-        rapid_in_material=float(max(0.0, rapid_pen.max())) if len(rapid_pen) else 0.0,
+        # a retract from a cutting position touches the stock it just cut (a tie, not a cut)
+        rapid_in_material=float(rapid_pen.max()) if len(rapid_pen) and rapid_pen.max() > CUT_EPS
+        else 0.0,
         removed_volume=float((before - stock).sum() * part.cell_area),
         air_feed_length=float(lengths[feed & ~met[a:b]].sum()),
         feed_length=float(lengths[feed].sum()), below_part_moves=len(below))
