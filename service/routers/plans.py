@@ -28,7 +28,7 @@ from service.schemas.plans import (
 )
 from service.store import TaskStore
 from service.tasks import serve_task
-from service.toolpaths import cutting, program_key, toolpaths_section
+from service.toolpaths import cutting, node_drop_cutter, program_key, toolpaths_section
 from zwcore import Tool, ZMap, default_tools, tool_library
 from zwcore.contour.planner import plan_contour
 from zwcore.errors import InvalidInputError, LimitExceededError
@@ -123,18 +123,12 @@ class ToolpathJob:
         return toolpaths_section(tp, tid)
 
 
-def _surface_cl(model: ZMap, tool: Tool) -> np.ndarray:
-    """CL heights before the exact lift against the part: the stage model itself (until
-    zwcore.sim's drop-cutter is available; the lift keeps every move off the part)."""
-    return model.z
-
-
 def scanline_result(zmap: ZMap, tools: list[Tool], tolerance: float, stock_top: float | None,
                     include_models: bool, job: ToolpathJob | None = None) -> dict[str, Any]:
     plan = plan_scanline(zmap, tools, tolerance=tolerance, stock_top=stock_top)
     section = None
     if job is not None:
-        tp = scanline_toolpaths(zmap, plan, _surface_cl, cutting=job.cutting,
+        tp = scanline_toolpaths(zmap, plan, node_drop_cutter, cutting=job.cutting,
                                 clearance=job.clearance, rapid_feed=job.rapid_feed,
                                 max_bytes=job.max_bytes)
         section = job.section(tp)

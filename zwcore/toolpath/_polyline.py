@@ -12,7 +12,7 @@ from zwcore.toolpath.sweep import GridFrame, sweep_moves
 F64 = NDArray[np.float64]
 
 #: Rounds of the thinning (each removes up to half of the removable vertices).
-THIN_ROUNDS = 40
+THIN_ROUNDS = 12
 
 
 def _removable(u: F64, z: F64, kept: NDArray[np.int64], tol: float) -> NDArray[np.bool_]:

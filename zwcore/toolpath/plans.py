@@ -21,7 +21,7 @@ from zwcore.errors import InvalidInputError, LimitExceededError
 from zwcore.grid.sampling import bilinear_at_fine_nodes, cells_at_fine_nodes
 from zwcore.grid.tools import Tool
 from zwcore.grid.zmap import ZMap, finite_number
-from zwcore.scanline.results import ScanlinePlan
+from zwcore.scanline.results import ScanlinePlan, ScanlineStage
 from zwcore.toolpath.contour_paths import contour_stage_path
 from zwcore.toolpath.parse import parse_program
 from zwcore.toolpath.program import CuttingData, ProgramSettings, StagePath
@@ -37,6 +37,8 @@ F64 = NDArray[np.float64]
 CLEARANCE_ABOVE_STOCK = 5.0
 #: Scan-line chordal tolerance as a fraction of the plan's tolerance.
 CHORD_FRACTION = 0.25
+#: Gouge a roughing pass's segment may have before it is split, fraction of the ball radius.
+ROUGHING_REFINE = 0.05
 
 
 @dataclass(frozen=True, eq=False)
@@ -93,6 +95,15 @@ def tool_numbers(tools: list[Tool], cutting: Mapping[str, CuttingData] | None
         seen[cd.tool_number] = t.id
         out[t.id] = cd
     return out
+
+
+def _refine_tolerance(plan: ScanlinePlan, stage: ScanlineStage) -> float | None:
+    """Finishing passes (the input's level) follow the part to the chordal tolerance; a
+    roughing pass's lift may leave up to a twentieth of its ball radius (the next stage's
+    stock), which keeps its refinement to a few splits."""
+    if stage.level == plan.depth:
+        return None
+    return max(CHORD_FRACTION * plan.tolerance, ROUGHING_REFINE * stage.tool.radius)
 
 
 def _clearance(clearance: float | None, stock_top: float) -> float:
@@ -162,7 +173,8 @@ def scanline_toolpaths(part: ZMap, plan: ScanlinePlan, cl_heights: CLHeights, *,
     t = time.perf_counter()
     stock = np.full(part.shape, plan.stock_top)
     stages = [scanline_stage_path(part, st, i, data[st.tool.id], cl_heights, clearance=clear,
-                                  chord_tolerance=CHORD_FRACTION * plan.tolerance, stock=stock)
+                                  chord_tolerance=CHORD_FRACTION * plan.tolerance, stock=stock,
+                                  refine_tolerance=_refine_tolerance(plan, st))
               for i, st in enumerate(plan.stages)]
     timings = [("paths", time.perf_counter() - t)]
     models = [bilinear_at_fine_nodes(st.model, round(st.spacing[0] / part.dx), part.shape)

@@ -23,7 +23,7 @@ from numpy.typing import NDArray
 
 from zwcore.grid.tools import Tool
 from zwcore.grid.zmap import ZMap
-from zwcore.scanline.results import ScanlineStage
+from zwcore.scanline.results import ScanLines, ScanlineStage
 from zwcore.toolpath._polyline import lift_out_of_part, refine_against_part, thin
 from zwcore.toolpath.program import RAPID, CuttingData, Moves, StagePath
 from zwcore.toolpath.sweep import GridFrame, sweep_moves
@@ -56,28 +56,36 @@ def _along(line: F64, sx: float, start: float, stop: float) -> tuple[F64, F64]:
 class _Polyline:
     """Builds a path (xy rounded to the output) through the refine, thin and lift steps."""
 
-    def __init__(self, part: ZMap, tool: Tool, along_x: bool, chord: float, decimals: int):
+    def __init__(self, part: ZMap, tool: Tool, along_x: bool, chord: float, decimals: int,
+                 refine: float, min_len: float):
         self.part, self.tool, self.along_x = part, tool, along_x
         self.chord, self.decimals = chord, decimals
+        self.refine, self.min_len = refine, min_len
 
     def points(self, u: F64, v: F64, z: F64, su: F64, fixed: NDArray[np.bool_],
-               breaks: NDArray[np.bool_]) -> tuple[F64, float]:
+               breaks: NDArray[np.bool_]) -> tuple[F64, float, F64]:
         part, dec = self.part, self.decimals
         x, y = (u, v) if self.along_x else (v, u)
         pts = np.column_stack([np.round(part.x0 + x, dec), np.round(part.y0 + y, dec), z])
-        pts, su, fx = refine_against_part(pts, su, fixed, breaks, part, self.tool, self.chord,
-                                          min(part.dx, part.dy) / 16.0)
+        pts, su, fx = refine_against_part(pts, su, fixed, breaks, part, self.tool, self.refine,
+                                          self.min_len)
         pts[:, :2] = np.round(pts[:, :2], dec)
         keep = thin(su, pts[:, 2], fx, self.chord)
-        return lift_out_of_part(pts[keep], part, self.tool, decimals=dec)
+        out, lift = lift_out_of_part(pts[keep], part, self.tool, decimals=dec)
+        return out, lift, su[keep]
 
 
-def _full_lines(cl: F64, rows: F64, sx: float, sy: float, ext: float, poly: _Polyline
-                ) -> tuple[F64, float, int]:
+def _full_lines(cl: F64, rows: F64, sx: float, sy: float, extent: float, ext: float,
+                poly: _Polyline) -> tuple[F64, float, int]:
     """Whole lines, zig-zag, run past both stock edges (links in air beside the stock)."""
     z = _raster(cl, rows)
+    cols = np.arange(z.shape[1]) * sx
+    u_in = np.concatenate([cols[cols < extent], [extent]])
+    k = np.minimum(np.searchsorted(cols, u_in, side="right") - 1, len(cols) - 2)
+    t = (u_in - cols[k]) / sx
+    z = z[:, k] * (1.0 - t) + z[:, k + 1] * t  # the model may be padded past the part
     n_lines, n_pts = z.shape
-    u = np.concatenate([[-ext], np.arange(n_pts) * sx, [(n_pts - 1) * sx + ext]])
+    u = np.concatenate([[-ext], u_in, [extent + ext]])
     z = np.concatenate([z[:, :1], z, z[:, -1:]], axis=1)
     odd = (np.arange(n_lines) % 2 == 1)[:, None]
     u_all = np.where(odd, u[::-1], u)
@@ -89,9 +97,36 @@ def _full_lines(cl: F64, rows: F64, sx: float, sy: float, ext: float, poly: _Pol
     su = (np.where(odd, -u_all, u_all) + (np.arange(n_lines) * (u[-1] - u[0] + 1.0))[:, None])
     breaks = np.zeros(z.size - 1, bool)
     breaks[n_pts + 1::n_pts + 2] = True  # the links between lines
-    pts, lift = poly.points(u_all.ravel(), v_all.ravel(), z_all.ravel(), su.ravel(),
-                            fixed.ravel(), breaks)
+    pts, lift, _ = poly.points(u_all.ravel(), v_all.ravel(), z_all.ravel(), su.ravel(),
+                               fixed.ravel(), breaks)
     return pts, lift, int(z.size)
+
+
+def _extra_segments(cl: F64, lines: ScanLines, extra: NDArray[np.intp], sx: float, sy: float,
+                    poly: _Polyline) -> tuple[list[F64], float, int]:
+    """The extra segments as one polyline (breaks between them) through the refine, thin
+    and lift steps, then split again."""
+    rows = _raster(cl, lines.offset[extra] / sy)
+    us, zs, vs = [], [], []
+    for n, j in enumerate(extra):
+        u, z = _along(rows[n], sx, float(lines.start[j]), float(lines.stop[j]))
+        us.append(u)
+        zs.append(z)
+        vs.append(np.full(len(u), lines.offset[j]))
+    sizes = np.array([len(u) for u in us])
+    u, z, v = np.concatenate(us), np.concatenate(zs), np.concatenate(vs)
+    ends = np.cumsum(sizes)
+    fixed = np.zeros(len(u), bool)
+    fixed[ends - 1] = fixed[ends - sizes] = True
+    breaks = np.zeros(len(u) - 1, bool)
+    breaks[ends[:-1] - 1] = True
+    span = float(u.max() - u.min()) + 1.0
+    su = u + np.repeat(np.arange(len(sizes)), sizes) * span
+    pts, lift, su_kept = poly.points(u, v, z, su, fixed, breaks)
+    # segment n's parameters lie in [n * span + u.min(), (n + 1) * span + u.min())
+    owner = np.floor((su_kept - u.min()) / span).astype(np.int64)
+    cuts = np.searchsorted(owner, np.arange(1, len(sizes)))
+    return np.split(pts, cuts), lift, len(u)
 
 
 def _entry_height(stock: F64, part: ZMap, xy: F64, radius: float) -> float:
@@ -106,8 +141,8 @@ def _entry_height(stock: F64, part: ZMap, xy: F64, radius: float) -> float:
 
 def scanline_stage_path(part: ZMap, stage: ScanlineStage, index: int, cutting: CuttingData,
                         cl_heights: CLHeights, *, clearance: float, chord_tolerance: float,
-                        stock: F64, model: F64 | None = None,
-                        spacing: tuple[float, float] | None = None,
+                        stock: F64, refine_tolerance: float | None = None,
+                        model: F64 | None = None, spacing: tuple[float, float] | None = None,
                         decimals: int = 4) -> StagePath:
     """Tool path of one scan-line stage.
 
@@ -129,6 +164,10 @@ def scanline_stage_path(part: ZMap, stage: ScanlineStage, index: int, cutting: C
     stock : (ny, nx) float64
         The stock before the stage at the part's nodes; lowered in place by the stage's
         moves (extra segments are entered from above the stock they meet).
+    refine_tolerance : float, optional
+        Segments whose gouge against the part exceeds this are split (down to a sixteenth
+        of the part's spacing) before the lift; default ``chord_tolerance``. A roughing
+        stage may take more: what it leaves is the next stage's stock.
     model, spacing : optional
         Another model to compute the path on (e.g. the part itself, for comparisons);
         default: the stage's.
@@ -146,31 +185,34 @@ def scanline_stage_path(part: ZMap, stage: ScanlineStage, index: int, cutting: C
     along_x = stage.scan_direction == "x"
     if not along_x:  # work as if lines ran along x
         cl, sx, sy = cl.T, sy, sx
-    width = (cl.shape[1] - 1) * sx
+    ny, nx = part.shape
+    extent = (nx - 1) * part.dx if along_x else (ny - 1) * part.dy
     lines = stage.lines
-    full = (lines.start <= 1e-9) & (lines.stop >= width - 1e-9)
-    poly = _Polyline(part, tool, along_x, chord_tolerance, decimals)
+    full = (lines.start <= 1e-9) & (lines.stop >= extent - 1e-9)
+    refine = chord_tolerance if refine_tolerance is None else refine_tolerance
+    min_len = min(part.dx, part.dy) / 16.0 if refine_tolerance is None else 0.25 * min(sx, sy)
+    poly = _Polyline(part, tool, along_x, chord_tolerance, decimals, refine, min_len)
     ext = tool.radius + max(part.dx, part.dy)
-    pts, max_lift, n_raw = _full_lines(cl, lines.offset[full] / sy, sx, sy, ext, poly)
+    pts, max_lift, n_raw = _full_lines(cl, lines.offset[full] / sy, sx, sy, extent, ext, poly)
     frame = GridFrame(part.x0, part.y0, part.dx, part.dy, part.shape)
     ball = tool.kind == "ball"
     parts = [Moves.lines(pts[:1], kind=RAPID), Moves.lines(pts[1:])]
     sweep_moves(frame, pts[:-1], pts[1:], tool.radius, ball, stock)
     extra = np.flatnonzero(~full)
-    for j in extra:
-        row = _raster(cl, np.array([lines.offset[j] / sy]))[0]
-        u, z = _along(row, sx, float(lines.start[j]), float(lines.stop[j]))
-        v = np.full(len(u), lines.offset[j])
-        fixed = np.zeros(len(u), bool)
-        seg, lift = poly.points(u, v, z, u.copy(), fixed, np.zeros(len(u) - 1, bool))
-        max_lift = max(max_lift, lift)
-        n_raw += len(u)
-        top = max(_entry_height(stock, part, seg[0, :2], tool.radius), seg[0, 2])
-        air = min(clearance, np.ceil((top + 0.5) * 10 ** decimals) / 10 ** decimals)
-        entry = np.array([[seg[0, 0], seg[0, 1], clearance], [seg[0, 0], seg[0, 1], air]])
-        parts += [Moves.lines(entry, kind=RAPID), Moves.lines(seg, plunge=np.arange(len(seg)) == 0),
-                  Moves.lines(np.array([[seg[-1, 0], seg[-1, 1], clearance]]), kind=RAPID)]
-        sweep_moves(frame, np.vstack([seg[:1], seg[:-1]]), seg, tool.radius, ball, stock)
+    if len(extra):
+        segs, lift, n = _extra_segments(cl, lines, extra, sx, sy, poly)
+        max_lift, n_raw = max(max_lift, lift), n_raw + n
+        # entered from above the stock the whole lines left (later segments only lower it)
+        scale = 10.0 ** decimals
+        for seg in segs:
+            top = max(_entry_height(stock, part, seg[0, :2], tool.radius), seg[0, 2])
+            air = min(clearance, np.ceil((top + 0.5) * scale) / scale)
+            entry = np.array([[seg[0, 0], seg[0, 1], clearance], [seg[0, 0], seg[0, 1], air]])
+            parts += [Moves.lines(entry, kind=RAPID),
+                      Moves.lines(seg, plunge=np.arange(len(seg)) == 0),
+                      Moves.lines(np.array([[seg[-1, 0], seg[-1, 1], clearance]]), kind=RAPID)]
+        cut = np.vstack([np.vstack([g[:1], g[:-1]]) for g in segs])
+        sweep_moves(frame, cut, np.vstack(segs), tool.radius, ball, stock)
     start = np.array([pts[0, 0], pts[0, 1], clearance])
     moves = Moves.concat(parts)
     figures = {"lines": float(full.sum()), "extra_segments": float(len(extra)),

@@ -44,7 +44,7 @@ class GridFrame:
     shape: tuple[int, int]
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, fastmath={"contract", "arcp", "reassoc"})
 def _node_envelope(qx: float, qy: float, x0: float, y0: float, z0: float, ax: float,
                    ay: float, vz: float, r: float, ball: bool) -> float:
     """Lowest tool height over node ``(qx, qy)`` during one move; ``inf`` if not reached."""
@@ -74,7 +74,7 @@ def _node_envelope(qx: float, qy: float, x0: float, y0: float, z0: float, ax: fl
     return z0 + vz * (lo if vz >= 0.0 else hi)
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, fastmath={"contract", "arcp", "reassoc"})
 def _sweep_kernel(x0: float, y0: float, dx: float, dy: float, p0: F64, p1: F64, r: F64,
                   ball: bool, apply: NDArray[np.bool_], stock: F64, ref: F64,
                   over_stock: F64, over_ref: F64) -> None:
@@ -88,9 +88,23 @@ def _sweep_kernel(x0: float, y0: float, dx: float, dy: float, p0: F64, p1: F64, 
         i0 = max(0, math.ceil((min(sy, sy + ay) - rr - y0) / dy))
         i1 = min(ny - 1, math.floor((max(sy, sy + ay) + rr - y0) / dy))
         best_s, best_r = -math.inf, -math.inf
+        ylo, yhi = min(sy, sy + ay), max(sy, sy + ay)
         for i in range(i0, i1 + 1):
             qy = y0 + i * dy
-            for k in range(k0, k1 + 1):
+            # the nodes of this row within R of the move's xy shadow: the part of the move
+            # within R of the row in y, widened by the disc's half-chord at the row
+            dyo = max(0.0, ylo - qy, qy - yhi)
+            if dyo > rr:
+                continue
+            w = math.sqrt(rr * rr - dyo * dyo)
+            ta, tb = 0.0, 1.0
+            if abs(ay) > 1e-12:
+                ta, tb = (qy - rr - sy) / ay, (qy + rr - sy) / ay
+                ta, tb = max(0.0, min(ta, tb)), min(1.0, max(ta, tb))
+            xa, xb = sx + ax * ta, sx + ax * tb
+            ka = max(k0, math.ceil((min(xa, xb) - w - x0) / dx))
+            kb = min(k1, math.floor((max(xa, xb) + w - x0) / dx))
+            for k in range(ka, kb + 1):
                 env = _node_envelope(x0 + k * dx, qy, sx, sy, sz, ax, ay, vz, rr, ball)
                 if env == math.inf:
                     continue
