@@ -74,7 +74,8 @@ def sampled_envelope(frame: GridFrame, p0, p1, r: float, ball: bool, samples: in
         c = (1 - t) * np.asarray(p0) + t * np.asarray(p1)
         d2 = (qx - c[0]) ** 2 + (qy - c[1]) ** 2
         h = c[2] + (r - np.sqrt(np.maximum(r * r - d2, 0.0)) if ball else 0.0)
-        out = np.minimum(out, np.where(d2 <= r * r, h, np.inf))
+        # strictly inside: a node exactly R away touches the tool's side only (a tie)
+        out = np.minimum(out, np.where(d2 < r * r * (1 - 1e-9), h, np.inf))
     return out
 
 
