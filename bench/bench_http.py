@@ -1,6 +1,7 @@
 """End-to-end HTTP timings against a live server, with in-run reference ratios.
 
 - POST /v1/mrr, 2048² float32 z_b64, include_models false, vs pywt.wavedec2 on the same grid;
+  the same call with the grid as an ``application/x-npy`` body;
 - POST /v1/plans/scanline on 513², 1025², 2049² (z_b64, include_models false);
 - POST /v1/plans/contour with four flat end mills on 512², 1024², 2048².
 
@@ -12,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import base64
+import io
 import sys
 import time
 from collections.abc import Callable
@@ -53,8 +55,18 @@ def best(fn: Callable[[int], object], repeat: int) -> float:
     return min(times)
 
 
-def post(client: httpx.Client, url: str, body: bytes, fresh: bool = True) -> dict:
-    r = client.post(url, content=body, headers={"content-type": "application/json"}, timeout=600)
+NPY = "application/x-npy"
+
+
+def npy_body(z: np.ndarray) -> bytes:
+    buf = io.BytesIO()
+    np.save(buf, z, allow_pickle=False)
+    return buf.getvalue()
+
+
+def post(client: httpx.Client, url: str, body: bytes, fresh: bool = True,
+         media: str = "application/json") -> dict:
+    r = client.post(url, content=body, headers={"content-type": media}, timeout=600)
     r.raise_for_status()
     assert not fresh or r.headers["x-cache"] != "hit", "timed a cache hit"
     return r.json()
@@ -117,6 +129,19 @@ def main() -> None:
             print(f"POST /v1/mrr 2048² float32 b64 (haar): {t_http * 1e3:8.1f} ms   "
                   f"pywt.wavedec2 same grid: {t_pywt * 1e3:8.1f} ms   "
                   f"ratio pywt/http = {t_pywt / t_http:5.2f} (target >= 1)")
+            # The same grid as an .npy body (x0, y0, dx, dy in the query): no JSON, no base64.
+            npys = [npy_body(z32 + np.float32(k + repeat + 1)) for k in range(repeat + 1)]
+            query = f"/v1/mrr?x0=0&y0=0&dx={100.0 / (n - 1)!r}&dy={100.0 / (n - 1)!r}"
+            post(client, query, npys[-1], media=NPY)
+            # interleaved, so both see the same load on a shared machine
+            t_npy, t_pywt2 = np.inf, np.inf
+            for k in range(repeat):
+                t_npy = min(t_npy, best(lambda _, k=k: post(client, query, npys[k], media=NPY),
+                                        1))
+                t_pywt2 = min(t_pywt2, best(lambda _: pywt.wavedec2(z32, "haar"), 1))
+            print(f"POST /v1/mrr 2048² float32 .npy  (haar): {t_npy * 1e3:8.1f} ms   "
+                  f"pywt.wavedec2 same grid: {t_pywt2 * 1e3:8.1f} ms   "
+                  f"ratio http/pywt = {t_npy / t_pywt2:5.2f} (target <= 1.0)")
             print("  where the server's time goes, in process, same grid (best of N):")
             for name, ms in mrr_phases(bodies[0], repeat).items():
                 print(f"    {name:34s} {ms:7.1f} ms")

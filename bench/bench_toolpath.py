@@ -7,11 +7,8 @@ measured in the same run.
 2. A 1025² synthetic part: plan + tool paths + program + verification end to end, with
    where the time goes.
 
-The CL heights come from ``CL`` below (the service's node-wise drop-cutter, scipy's
-grey dilation, until ``zwcore.sim``'s drop-cutter is on main; the exact lift against the
-part's nodes runs either way). The full-resolution comparison runs for the stages whose
-ball spans at most ``FULL_RES_MAX_NODES`` nodes in radius (the grey dilation costs the
-footprint per node: the larger balls need zwcore.sim's decomposition).
+The CL heights come from ``zwcore.sim.drop_cutter`` (bilinear) on each stage model; the
+exact lift against the part's nodes follows.
 Run: ``PYTHONPATH=. .venv/bin/python bench/bench_toolpath.py``.
 """
 
@@ -27,17 +24,17 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from bench.bench_scanline_core import synthetic  # noqa: E402
-from service.toolpaths import node_drop_cutter  # noqa: E402
 from zwcore import ZMap, plan_scanline  # noqa: E402
 from zwcore.toolpath import scanline_toolpaths  # noqa: E402
 from zwcore.toolpath.plans import tool_numbers  # noqa: E402
-from zwcore.toolpath.scanline_paths import scanline_stage_path  # noqa: E402
+from zwcore.toolpath.scanline_paths import scanline_stage_path, sim_cl_heights  # noqa: E402
 
-FULL_RES_MAX_NODES = 30
-DATA = ROOT.parent / "shared" / "data" / "mount_rush_zmap_0.1mm.npy"
+DATA = next((p for p in (ROOT.parent / "shared" / "data" / "mount_rush_zmap_0.1mm.npy",
+             Path("/work/shared/data/mount_rush_zmap_0.1mm.npy")) if p.exists()),
+            ROOT.parent / "shared" / "data" / "mount_rush_zmap_0.1mm.npy")
 
 
-CL = node_drop_cutter
+CL = sim_cl_heights
 
 
 def rushmore() -> None:
@@ -86,7 +83,7 @@ def rushmore() -> None:
     print("| --- | --- | --- | --- | --- | --- |")
     t_model = t_full = 0.0
     for i, st in enumerate(plan.stages):
-        if st.level == plan.depth or st.tool.radius / part.dx > FULL_RES_MAX_NODES:
+        if st.level == plan.depth:
             continue
         stock = np.full(part.shape, plan.stock_top)
         t = time.perf_counter()

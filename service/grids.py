@@ -8,6 +8,7 @@ one canonical form (float64 base64) and rendered per request.
 from __future__ import annotations
 
 import binascii
+import io
 from typing import Any
 
 # pybase64 (SIMD) decodes and validates a 2048² float32 upload in ~1.5 ms where the
@@ -134,3 +135,83 @@ def render_grids(node: Any, encoding: str) -> Any:
     if isinstance(node, list):
         return [render_grids(v, encoding) for v in node]
     return node
+
+
+#: Element kinds a binary grid may hold: floats, and integers (heights in whole units).
+_NPY_KINDS = {"f": "floating point", "i": "integer", "u": "unsigned integer"}
+
+
+def decode_npy(data: bytes, max_cells: int, field: str = "grid") -> NDArray[Any]:
+    """Heights from the bytes of one ``.npy`` file (never a pickle: ``allow_pickle=False``).
+
+    The header is read first, so a shape over the limit is refused before its data
+    is looked at.
+
+    Returns
+    -------
+    z : (ny, nx) array of the file's numeric dtype
+
+    Raises
+    ------
+    InvalidInputError
+        Not an ``.npy`` file (a pickle, an ``.npz``, text), object or other non-numeric
+        dtype, not 2-D, fewer than 2 x 2 nodes, truncated data.
+    LimitExceededError
+        More than ``max_cells`` nodes.
+    """
+    if data[:6] != b"\x93NUMPY":
+        what = ("a pickle" if data[:1] == b"\x80" else "an .npz archive" if data[:2] == b"PK"
+                else "empty" if not data else "not an .npy file")
+        raise InvalidInputError(field, f"{what}: send one array as .npy (numpy.save), "
+                                "numeric dtype, shape (ny, nx)")
+    buf = io.BytesIO(data)
+    try:
+        version = np.lib.format.read_magic(buf)
+        if version == (1, 0):
+            shape, _, dtype = np.lib.format.read_array_header_1_0(buf)
+        elif version == (2, 0):
+            shape, _, dtype = np.lib.format.read_array_header_2_0(buf)
+        else:
+            raise ValueError(f".npy format version {version} is not supported; use 1.0 or 2.0")
+    except (ValueError, SyntaxError, EOFError, TypeError) as exc:
+        raise InvalidInputError(field, f"unreadable .npy header ({exc})") from None
+    if dtype.hasobject or dtype.kind not in _NPY_KINDS or dtype.fields is not None:
+        raise InvalidInputError(field, f"dtype {dtype} is not a number type; send float32 or "
+                                "float64 (object arrays and pickles are never loaded)")
+    if len(shape) != 2:
+        raise InvalidInputError(field, f"shape {list(shape)}: a grid is 2-D, (ny, nx)")
+    ny, nx = shape
+    if ny < 2 or nx < 2:
+        raise InvalidInputError(field, f"grid must be at least 2 x 2 nodes, got {[ny, nx]}")
+    if ny * nx > max_cells:
+        raise LimitExceededError(field, f"{ny} x {nx} grid exceeds {max_cells} cells")
+    try:
+        z = np.load(io.BytesIO(data), allow_pickle=False)
+    except (ValueError, EOFError, OSError) as exc:
+        raise InvalidInputError(field, f"unreadable .npy data ({exc})") from None
+    return np.asarray(z)
+
+
+def zmap_from_heights(z: NDArray[Any], grid: Grid, field: str = "grid") -> ZMap:
+    """A z-map of uploaded heights placed by a request grid's ``x0, y0, dx, dy``."""
+    if grid.z is not None or grid.z_b64 is not None or grid.shape is not None:
+        raise InvalidInputError(field, "the heights came as .npy: give only x0, y0, dx, dy")
+    try:
+        return ZMap(z, grid.x0, grid.y0, grid.dx, grid.dy)
+    except InvalidInputError as exc:
+        raise InvalidInputError(field if exc.field == "z" else exc.field, exc.reason) from None
+
+
+def stored_grid(node: dict[str, Any]) -> tuple[NDArray[np.float64], dict[str, Any]]:
+    """Heights and geometry of a grid as cached (:func:`canonical_grid`)."""
+    ny, nx = node["shape"]
+    z = np.frombuffer(pybase64.b64decode(node["z_b64"]), dtype="<f8").reshape(ny, nx)
+    return z, {k: node[k] for k in ("x0", "y0", "dx", "dy", "interpolation")}
+
+
+def npy_bytes(z: NDArray[np.float64], dtype: str = "float64") -> bytes:
+    """A grid as an ``.npy`` file; float32 rounded upward (a model never moves into the part)."""
+    arr = _float32_upward(z).astype("<f4") if dtype == "float32" else z.astype("<f8")
+    buf = io.BytesIO()
+    np.save(buf, np.ascontiguousarray(arr), allow_pickle=False)
+    return buf.getvalue()

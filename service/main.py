@@ -13,7 +13,7 @@ import zwcore
 from service import problems
 from service.compute import ComputePool
 from service.middleware import JsonFormatter, ServiceMiddleware
-from service.routers import arcs, health, mrr, plans, tasks, tools
+from service.routers import arcs, health, mrr, plans, simulate, tasks, tools, zmaps
 from service.security import require_api_key
 from service.settings import Settings, get_settings
 from service.store import open_store
@@ -57,7 +57,9 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.include_router(mrr.router, dependencies=secured)
     app.include_router(plans.router, dependencies=secured)
     app.include_router(arcs.router, dependencies=secured)
+    app.include_router(simulate.router, dependencies=secured)
     app.include_router(tasks.router, dependencies=secured)
+    app.include_router(zmaps.router, dependencies=secured)
     app.include_router(tools.router, dependencies=secured)
     app.include_router(health.router)
     app.add_middleware(ServiceMiddleware, max_body_bytes=settings.max_body_bytes,

@@ -17,6 +17,10 @@ from service.security import api_key_problem
 
 log = logging.getLogger("zwplan.access")
 
+_BINARY_MEDIA = (b"application/x-npy", b"model/stl", b"application/sla",
+                 b"application/vnd.ms-pki.stl", b"model/x.stl-binary", b"model/x.stl-ascii",
+                 b"application/octet-stream")
+
 
 class JsonFormatter(logging.Formatter):
     """One JSON object per log line; extra fields passed as ``extra={"fields": {...}}``."""
@@ -130,7 +134,10 @@ class ServiceMiddleware:
                 body = b"".join(chunks)
                 # Parsed JSON numbers cost ~10x their text in Python objects: bound their
                 # count before any parsing (a comma count is a cheap upper bound).
-                if body.count(b",") >= self.max_json_values:
+                # (binary bodies, .npy or STL, hold commas by chance: not counted)
+                media = headers.get(b"content-type", b"").split(b";")[0].strip().lower()
+                binary = media in _BINARY_MEDIA or media.startswith(b"multipart/")
+                if not binary and body.count(b",") >= self.max_json_values:
                     await reject(413, "Request too large",
                                  f"body holds more than {self.max_json_values} JSON values; "
                                  "send large grids as z_b64")

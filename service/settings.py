@@ -61,6 +61,9 @@ class Settings(BaseSettings):
         2.0e5, gt=0, description="Largest curve length / tolerance for /v1/arcs (work bound).")
     max_contour_slabs: int = Field(
         10_000, gt=0, description="Most contour slabs one contour-plan stage may need (413).")
+    max_simulation_work: int = Field(
+        20_000_000_000, gt=0, description="Largest cutting simulation, grid cells times the "
+        "tool's footprint in nodes (413): a few seconds of one core.")
     max_program_bytes: int = Field(
         256 << 20, gt=0, description="Largest NC program a plan with tool paths may emit (413).")
     workers: int = Field(default_factory=_cpu_count, gt=0, description="Compute pool threads.")

@@ -8,35 +8,14 @@ from typing import Any
 
 import numpy as np
 import pybase64
-from scipy import ndimage
 
 from service.schemas.common import ToolIn
 from zwcore.grid.tools import Tool
-from zwcore.grid.zmap import ZMap
 from zwcore.toolpath import CuttingData, Toolpaths, cutting_data
 
 #: What the service drops the tool onto a stage model with (see docs/toolpaths.md).
-CL_SOURCE = ("node-wise drop-cutter on the stage model (scipy.ndimage.grey_dilation by the "
-             "ball's profile), then every move lifted by its exact gouge against the part's "
-             "nodes (zwcore.toolpath); zwcore.sim's drop-cutter replaces the first step when "
-             "it lands")
-
-
-def node_drop_cutter(model: ZMap, tool: Tool) -> np.ndarray:
-    """Tip heights of a ball dropped onto each node of ``model``, touching its nodes only
-    (a stand-in for ``zwcore.sim.drop_cutter``; the exact lift against the part makes the
-    path safe between nodes). Cost: the ball's footprint in nodes per node."""
-    r = tool.radius
-    ky = min(int(r / model.dy), model.shape[0] - 1)
-    kx = min(int(r / model.dx), model.shape[1] - 1)
-    oy, ox = np.mgrid[-ky:ky + 1, -kx:kx + 1]
-    d2 = (oy * model.dy) ** 2 + (ox * model.dx) ** 2
-    inside = d2 <= r * r
-    profile = np.where(inside, np.sqrt(np.maximum(r * r - d2, 0.0)) - r, 0.0)
-    if tool.kind != "ball":
-        profile = np.zeros_like(profile)
-    return ndimage.grey_dilation(model.z, footprint=inside, structure=profile,
-                                 mode="constant", cval=-1e12)
+CL_SOURCE = ("zwcore.sim.drop_cutter on the stage model (bilinear, conservative), then every "
+             "move lifted by its exact gouge against the part's nodes (zwcore.toolpath)")
 
 
 def program_key(task_id: str) -> str:

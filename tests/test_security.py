@@ -29,10 +29,16 @@ ARC_POINTS = [[10 * math.cos(t / 20 * math.pi), 10 * math.sin(t / 20 * math.pi)]
               for t in range(21)]
 # A valid body for each operation that takes one (by operationId).
 BODIES: dict[str, dict[str, Any]] = {
-    "compute_mrr": {"grid": GRID},
+    "compute_mrr": {"grid": GRID, "include_models": True},  # models: GET .../models/0
     "plan_scanline": {"grid": GRID, "tolerance": 0.1},
     "plan_contour": {"grid": GRID},
     "fit_arcs": {"points": ARC_POINTS, "tolerance": 0.05},
+    "simulate": {"grid": GRID, "tool": {"kind": "ball", "diameter": 2.0, "flute_length": 4.0}},
+}
+# Operations whose body is not JSON: (query, media type, body).
+RAW_BODIES: dict[str, tuple[str, str, bytes]] = {
+    "create_zmap": ("?dx=0.5", "model/stl", b"solid t\nfacet normal 0 0 1\nouter loop\n"
+                    b"vertex 0 0 0\nvertex 1 0 0\nvertex 0 1 1\nendloop\nendfacet\nendsolid t\n"),
 }
 OPEN_PATHS = ("/healthz", "/readyz", "/metrics")
 
@@ -47,7 +53,11 @@ def v1_operations(client: TestClient) -> list[tuple[str, str, dict[str, Any]]]:
 
 def call(client: TestClient, method: str, path: str, op: dict[str, Any],
          headers: dict[str, str], task_id: str) -> httpx.Response:
-    url = path.replace("{task_id}", task_id)
+    url = path.replace("{task_id}", task_id).replace("{index}", "0")
+    if op["operationId"] in RAW_BODIES:
+        query, media, raw = RAW_BODIES[op["operationId"]]
+        return client.request(method, url + query, content=raw,
+                              headers={**headers, "content-type": media})
     if "requestBody" in op:
         assert op["operationId"] in BODIES, f"add a valid body for {op['operationId']}"
         return client.request(method, url, json=BODIES[op["operationId"]], headers=headers)
@@ -85,7 +95,7 @@ def test_every_v1_operation_needs_a_key(keyed: TestClient, task_id: str) -> None
             r = call(keyed, method, path, op, headers, task_id)
             body = assert_problem(r, 401)
             assert r.headers["www-authenticate"] == "Bearer", (path, headers)
-            assert body["instance"] == path.replace("{task_id}", task_id)
+            assert body["instance"] == path.replace("{task_id}", task_id).replace("{index}", "0")
         for wrong in (WRONG, KEYS[0] + "x", KEYS[0][:-1], KEYS[0].upper(), f"{KEYS[0]},{KEYS[1]}"):
             r = call(keyed, method, path, op, {"Authorization": f"Bearer {wrong}"}, task_id)
             assert_problem(r, 403)
@@ -111,11 +121,13 @@ def test_auth_comes_before_body_parsing(keyed: TestClient) -> None:
                               headers={"content-type": "application/json",
                                        "Authorization": f"Bearer {WRONG}"})
             assert_problem(r, 403)
-        # With the key, the same malformed body is the client's 400.
+        # With the key, the same malformed body is the client's 400 (415 where the
+        # operation takes no JSON at all).
         r = keyed.request(method, path, content=b"{not json",
                           headers={"content-type": "application/json",
                                    "Authorization": f"Bearer {KEYS[1]}"})
-        assert_problem(r, 400)
+        json_body = "application/json" in op["requestBody"]["content"]
+        assert_problem(r, 400 if json_body else 415)
 
 
 @pytest.mark.parametrize(("authorization", "status"), [(None, 401), (f"Bearer {WRONG}", 403)])

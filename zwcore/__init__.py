@@ -7,6 +7,8 @@ scikit-image and PyWavelets do). Import layers, bottom up (a test holds them):
 - :mod:`zwcore.errors`: the error family;
 - :mod:`zwcore.grid`: the z-map type, level models on finer grids, tools, curvature;
 - :mod:`zwcore.mrr`: wavelet analysis/synthesis, the fast pyramid, terraces;
+- :mod:`zwcore.sim`: cutting simulation (drop-cutter CL, envelopes, pass figures),
+  beside the MRR;
 - :mod:`zwcore.scanline`, :mod:`zwcore.contour`: the two planners;
 - :mod:`zwcore.arcs`: C1 arc chains, their offsets and NC programs (beside
   the grid stack: it needs only :mod:`zwcore.errors`).
@@ -42,6 +44,7 @@ from zwcore.scanline import (
     plan_scanline,
     scallop_height,
 )
+from zwcore.sim import PassSimulation, closing, drop_cutter, envelope, simulate_pass
 
 __version__ = "0.1.0"
 
@@ -57,6 +60,7 @@ __all__ = [
     "InvalidInputError",
     "LimitExceededError",
     "Multiresolution",
+    "PassSimulation",
     "PlanningError",
     "ScanlineChecks",
     "ScanlinePlan",
@@ -72,13 +76,17 @@ __all__ = [
     "at_fine_nodes",
     "bilinear_at_fine_nodes",
     "cells_at_fine_nodes",
+    "closing",
     "default_tools",
+    "drop_cutter",
+    "envelope",
     "fit_arcs",
     "level_count",
     "offset_chain",
     "plan_contour",
     "plan_scanline",
     "scallop_height",
+    "simulate_pass",
     "synthesis_step",
     "to_gcode",
     "tool_library",

@@ -13,6 +13,7 @@ _TEXT = {
     403: "Invalid API key",
     404: "Not found",
     413: "Body or grid over the configured limits",
+    415: "Unsupported media type: the problem names the types this call takes",
     422: "Invalid request: the problem names each field and why",
     503: "Compute pool saturated; retry after Retry-After seconds",
 }

@@ -4,18 +4,18 @@ from __future__ import annotations
 
 from typing import Any
 
-import anyio
 import numpy as np
 from fastapi import APIRouter, Request, Response
 
 from service.deps import PoolDep, SettingsDep, StoreDep
-from service.grids import canonical_grid, decode_grid, grid_encoding
+from service.grids import canonical_grid
 from service.routers import responses
 from service.schemas.mrr import MrrRequest, MrrResult
 from service.tasks import serve_task
+from service.uploads import GridRoute, binary_grid_openapi, request_zmap
 from zwcore import ZMap, analyse, at_fine_nodes
 
-router = APIRouter(prefix="/v1", tags=["mrr"])
+router = APIRouter(prefix="/v1", tags=["mrr"], route_class=GridRoute)
 
 
 def _haar_margins(mrr_approx: list[np.ndarray], z: np.ndarray) -> list[float]:
@@ -66,14 +66,15 @@ def mrr_result(zmap: ZMap, wavelet: str, levels: int | None, include_models: boo
 
 
 @router.post("/mrr", response_model=MrrResult, operation_id="compute_mrr",
-             summary="Multiresolution representation of a z-map", responses=responses(413))
+             summary="Multiresolution representation of a z-map", responses=responses(413, 415),
+             openapi_extra=binary_grid_openapi(MrrRequest))
 async def compute_mrr(body: MrrRequest, request: Request, settings: SettingsDep,
                       store: StoreDep, pool: PoolDep) -> Response:
     """Lifted (overcut-free) Haar or single-knot MRR: every level contains the part."""
-    zmap = await anyio.to_thread.run_sync(decode_grid, body.grid, settings.max_grid_cells)
+    zmap, encoding = await request_zmap(request, body.grid, body.grid_task, settings, store)
     params = {"grid": [zmap.x0, zmap.y0, zmap.dx, zmap.dy], "wavelet": body.wavelet,
               "levels": body.levels, "include_models": body.include_models}
     return await serve_task(
         request, store, pool, operation="mrr", params=params, arrays={"z": zmap.z},
         compute=lambda: mrr_result(zmap, body.wavelet, body.levels, body.include_models),
-        encoding=grid_encoding(body.grid))
+        encoding=encoding)

@@ -12,7 +12,7 @@ from fastapi import APIRouter, Request, Response
 from pydantic import BaseModel
 
 from service.deps import PoolDep, SettingsDep, StoreDep
-from service.grids import canonical_grid, decode_grid, grid_encoding
+from service.grids import canonical_grid
 from service.hashing import task_id as make_task_id
 from service.routers import responses
 from service.schemas.common import ToolIn
@@ -28,7 +28,8 @@ from service.schemas.plans import (
 )
 from service.store import TaskStore
 from service.tasks import serve_task
-from service.toolpaths import cutting, node_drop_cutter, program_key, toolpaths_section
+from service.toolpaths import cutting, program_key, toolpaths_section
+from service.uploads import GridRoute, binary_grid_openapi, request_zmap
 from zwcore import Tool, ZMap, default_tools, tool_library
 from zwcore.contour.planner import plan_contour
 from zwcore.errors import InvalidInputError, LimitExceededError
@@ -37,7 +38,7 @@ from zwcore.grid.zmap import MAX_ABS_HEIGHT
 from zwcore.scanline.planner import plan_scanline
 from zwcore.toolpath import contour_toolpaths, scanline_toolpaths
 
-router = APIRouter(prefix="/v1/plans", tags=["plans"])
+router = APIRouter(prefix="/v1/plans", tags=["plans"], route_class=GridRoute)
 
 
 def _plain(value: Any) -> Any:
@@ -128,7 +129,7 @@ def scanline_result(zmap: ZMap, tools: list[Tool], tolerance: float, stock_top: 
     plan = plan_scanline(zmap, tools, tolerance=tolerance, stock_top=stock_top)
     section = None
     if job is not None:
-        tp = scanline_toolpaths(zmap, plan, node_drop_cutter, cutting=job.cutting,
+        tp = scanline_toolpaths(zmap, plan, cutting=job.cutting,
                                 clearance=job.clearance, rapid_feed=job.rapid_feed,
                                 max_bytes=job.max_bytes)
         section = job.section(tp)
@@ -200,13 +201,13 @@ def contour_result(zmap: ZMap, tools: list[Tool], stock_top: float | None, strat
 
 @router.post("/scanline", response_model=ScanlinePlanResult, operation_id="plan_scanline",
              summary="Scan-line plan: stage models and ball-end-mill sequence",
-             responses=responses(413))
+             responses=responses(413, 415), openapi_extra=binary_grid_openapi(ScanlinePlanRequest))
 async def post_scanline_plan(body: ScanlinePlanRequest, request: Request, settings: SettingsDep,
                              store: StoreDep, pool: PoolDep) -> Response:
     """Roughing-to-finishing stage models from the lifted single-knot MRR, each with the
     largest ball end mill that fits its concave regions; no stage cuts into the part or
     deeper than its tool's flutes (see ``checks``)."""
-    zmap = await anyio.to_thread.run_sync(decode_grid, body.grid, settings.max_grid_cells)
+    zmap, encoding = await request_zmap(request, body.grid, body.grid_task, settings, store)
     tools = _tools(body.tools, "ball", settings.max_tools)
     params = {"grid": [zmap.x0, zmap.y0, zmap.dx, zmap.dy], "tools": _tool_params(tools),
               "tolerance": body.tolerance, "stock_top": body.stock_top,
@@ -217,17 +218,17 @@ async def post_scanline_plan(body: ScanlinePlanRequest, request: Request, settin
         request, store, pool, operation="plan_scanline", params=params, arrays={"z": zmap.z},
         compute=lambda: scanline_result(zmap, tools, body.tolerance, body.stock_top,
                                         body.include_models, job),
-        encoding=grid_encoding(body.grid))
+        encoding=encoding)
 
 
 @router.post("/contour", response_model=ContourPlanResult, operation_id="plan_contour",
              summary="Contour plan: equal-load contour heights and terraced stage models",
-             responses=responses(413))
+             responses=responses(413, 415), openapi_extra=binary_grid_openapi(ContourPlanRequest))
 async def post_contour_plan(body: ContourPlanRequest, request: Request, settings: SettingsDep,
                             store: StoreDep, pool: PoolDep) -> Response:
     """Per flat end mill, the z-levels of its waterline passes (equal slab volumes) and the
     terraced model it leaves, from the lifted Haar MRR by coefficient editing."""
-    zmap = await anyio.to_thread.run_sync(decode_grid, body.grid, settings.max_grid_cells)
+    zmap, encoding = await request_zmap(request, body.grid, body.grid_task, settings, store)
     tools = _tools(body.tools, "flat", settings.max_tools)
     await anyio.to_thread.run_sync(bound_contour_slabs, zmap, tools, body.tools, body.stock_top,
                                    settings.max_contour_slabs)
@@ -243,4 +244,4 @@ async def post_contour_plan(body: ContourPlanRequest, request: Request, settings
         request, store, pool, operation="plan_contour", params=params, arrays={"z": zmap.z},
         compute=lambda: contour_result(zmap, tools, body.stock_top, body.strategy,
                                        body.include_models, job, body.tolerance, body.stepover),
-        encoding=grid_encoding(body.grid))
+        encoding=encoding)

@@ -45,6 +45,14 @@ class Grid(StrictModel):
     z_b64: str | None = Field(None, description="little-endian row-major heights, base64")
 
 
+#: A task id names a stored result (SHA-256, hex).
+TASK_ID_PATTERN = "^[0-9a-f]{64}$"
+
+GridTask = Annotated[str | None, Field(
+    pattern=TASK_ID_PATTERN, description="instead of grid: the task id of a POST /v1/zmaps "
+    "result (a z-map uploaded once, planned many times)")]
+
+
 class GridOut(BaseModel):
     """A returned grid, in the encoding the request used."""
 

@@ -6,11 +6,12 @@ from typing import Literal
 
 from pydantic import BaseModel, Field, StrictBool, StrictInt
 
-from service.schemas.common import Grid, GridOut, StrictModel
+from service.schemas.common import Grid, GridOut, GridTask, StrictModel
 
 
 class MrrRequest(StrictModel):
-    grid: Grid
+    grid: Grid | None = Field(None, description="the z-map; or grid_task")
+    grid_task: GridTask = None
     wavelet: Literal["haar", "single_knot"] = Field(
         "haar", description="haar: flat cells (contour machining); single_knot: bilinear "
         "(scan-line machining)")

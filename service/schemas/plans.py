@@ -6,7 +6,15 @@ from typing import Literal
 
 from pydantic import BaseModel, Field, StrictBool
 
-from service.schemas.common import FiniteFloat, Grid, GridOut, StrictModel, ToolIn, ToolOut
+from service.schemas.common import (
+    FiniteFloat,
+    Grid,
+    GridOut,
+    GridTask,
+    StrictModel,
+    ToolIn,
+    ToolOut,
+)
 from service.schemas.toolpaths import ToolpathsOut
 
 
@@ -23,7 +31,8 @@ class ToolpathOptions(StrictModel):
 
 
 class ScanlinePlanRequest(ToolpathOptions):
-    grid: Grid
+    grid: Grid | None = Field(None, description="the z-map; or grid_task")
+    grid_task: GridTask = None
     tools: list[ToolIn] | None = Field(
         None, description="ball end mills; default: the shipped library (GET /v1/tools)")
     tolerance: FiniteFloat = Field(
@@ -106,7 +115,8 @@ class ScanlinePlanResult(BaseModel):
 
 
 class ContourPlanRequest(ToolpathOptions):
-    grid: Grid
+    grid: Grid | None = Field(None, description="the z-map; or grid_task")
+    grid_task: GridTask = None
     tools: list[ToolIn] | None = Field(
         None, description="flat end mills; default: the shipped library (GET /v1/tools)")
     stock_top: FiniteFloat | None = Field(

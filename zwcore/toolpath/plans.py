@@ -25,7 +25,7 @@ from zwcore.scanline.results import ScanlinePlan, ScanlineStage
 from zwcore.toolpath.contour_paths import contour_stage_path
 from zwcore.toolpath.parse import parse_program
 from zwcore.toolpath.program import CuttingData, ProgramSettings, StagePath
-from zwcore.toolpath.scanline_paths import CLHeights, scanline_stage_path
+from zwcore.toolpath.scanline_paths import CLHeights, scanline_stage_path, sim_cl_heights
 from zwcore.toolpath.simulate import ProgramCheck, simulate_program
 from zwcore.toolpath.writer import iter_program
 
@@ -141,7 +141,8 @@ def _finish(part: ZMap, stages: list[StagePath], settings: ProgramSettings, stoc
     return Toolpaths(tuple(stages), settings, text, check, tuple(timings))
 
 
-def scanline_toolpaths(part: ZMap, plan: ScanlinePlan, cl_heights: CLHeights, *,
+def scanline_toolpaths(part: ZMap, plan: ScanlinePlan, cl_heights: CLHeights = sim_cl_heights,
+                       *,
                        cutting: Mapping[str, CuttingData] | None = None,
                        clearance: float | None = None, rapid_feed: float = 15_000.0,
                        verify: bool = True, max_bytes: int | None = None,
@@ -154,7 +155,7 @@ def scanline_toolpaths(part: ZMap, plan: ScanlinePlan, cl_heights: CLHeights, *,
         The plan's input.
     plan : ScanlinePlan
     cl_heights : CLHeights
-        Drop-cutter on a stage model (e.g. :func:`zwcore.sim.drop_cutter`).
+        Drop-cutter on a stage model; default :func:`zwcore.sim.drop_cutter` (bilinear).
     cutting : mapping of tool id to CuttingData, optional
     clearance : float, optional
         Default: stock top + 5 mm; must be above the stock top.

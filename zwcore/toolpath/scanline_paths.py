@@ -24,17 +24,24 @@ from numpy.typing import NDArray
 from zwcore.grid.tools import Tool
 from zwcore.grid.zmap import ZMap
 from zwcore.scanline.results import ScanLines, ScanlineStage
+from zwcore.sim import drop_cutter
 from zwcore.toolpath._polyline import lift_out_of_part, refine_against_part, thin
 from zwcore.toolpath.program import RAPID, CuttingData, Moves, StagePath
 from zwcore.toolpath.sweep import GridFrame, sweep_moves
 
-__all__ = ["CLHeights", "scanline_stage_path"]
+__all__ = ["CLHeights", "scanline_stage_path", "sim_cl_heights"]
 
 F64 = NDArray[np.float64]
 
 #: ``cl_heights(model, tool)``: tip heights of ``tool`` dropped onto every node of ``model``
 #: (bilinear surface), an ``(my, mx)`` array, never below the true drop-cutter height.
 CLHeights = Callable[[ZMap, Tool], F64]
+
+
+def sim_cl_heights(model: ZMap, tool: Tool) -> F64:
+    """The default :data:`CLHeights`: :func:`zwcore.sim.drop_cutter` on the bilinear model
+    (never below the true drop-cutter height)."""
+    return drop_cutter(model, tool, "bilinear")
 
 
 def _raster(cl: F64, rows: F64) -> F64:

@@ -1,0 +1,274 @@
+"""Cutting simulation: drop-cutter CL and machined envelope against independent references.
+
+The references sample the continuous surface densely (exact points of the bilinear
+surface, so they bound the true drop-cutter height from below) or use closed forms
+(planes, spheres); none of them uses the code under test.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from zwcore import Tool, ZMap, bilinear_at_fine_nodes
+from zwcore.errors import InvalidInputError
+from zwcore.sim import (
+    closing,
+    depth_of_cut,
+    drop_cutter,
+    envelope,
+    rest_regions,
+    simulate_pass,
+)
+
+
+def h(kind: str, r: float, d: np.ndarray) -> np.ndarray:
+    return r - np.sqrt(np.maximum(r * r - d * d, 0.0)) if kind == "ball" else 0.0 * d
+
+
+def reference_cl(z: np.ndarray, dx: float, r: float, kind: str, m: int = 6) -> np.ndarray:
+    """Tool placed at each node over m x m samples per cell of the bilinear surface: a
+    lower bound of the true drop-cutter height (every sample is a surface point)."""
+    ny, nx = z.shape
+    f = bilinear_at_fine_nodes(z, m, ((ny - 1) * m + 1, (nx - 1) * m + 1))
+    fd = dx / m
+    w = int(np.ceil(r / fd))
+    out = np.empty(z.shape)
+    for i in range(ny):
+        for k in range(nx):
+            i0, i1 = max(0, i * m - w), min(f.shape[0], i * m + w + 1)
+            k0, k1 = max(0, k * m - w), min(f.shape[1], k * m + w + 1)
+            yy = (np.arange(i0, i1) - i * m) * fd
+            xx = (np.arange(k0, k1) - k * m) * fd
+            d = np.hypot(yy[:, None], xx[None, :])
+            out[i, k] = (f[i0:i1, k0:k1] - h(kind, r, d))[d <= r].max()
+    return out
+
+
+def reference_envelope(cl: np.ndarray, dx: float, r: float, kind: str) -> np.ndarray:
+    """Tool tip on every node, lowest tool surface over each node, by a plain loop."""
+    ny, nx = cl.shape
+    w = int(np.floor(r / dx))
+    out = np.full(cl.shape, np.inf)
+    for a in range(-w, w + 1):
+        for b in range(-w, w + 1):
+            d = np.hypot(a * dx, b * dx)
+            if d > r or abs(a) >= ny or abs(b) >= nx:
+                continue
+            src = cl[max(0, -a):ny - max(0, a), max(0, -b):nx - max(0, b)]
+            dst = out[max(0, a):ny - max(0, -a), max(0, b):nx - max(0, -b)]
+            np.minimum(dst, src + h(kind, r, np.array(d)), out=dst)
+    return out
+
+
+@st.composite
+def surfaces(draw: st.DrawFn) -> tuple[np.ndarray, float]:
+    ny, nx = draw(st.integers(3, 11)), draw(st.integers(3, 11))
+    dx = draw(st.sampled_from([0.1, 0.25, 0.5]))
+    seed = draw(st.integers(0, 2**32 - 1))
+    rough = draw(st.sampled_from([0.0, 0.2, 1.0, 4.0]))
+    rng = np.random.default_rng(seed)
+    y, x = np.mgrid[0:ny, 0:nx] * dx
+    z = 2.0 * np.sin(x * rng.uniform(0.2, 2)) * np.cos(y * rng.uniform(0.2, 2))
+    return z + rough * dx * rng.standard_normal((ny, nx)), dx
+
+
+@given(surfaces(), st.sampled_from(["ball", "flat"]), st.floats(0.05, 2.0))
+def test_cl_is_never_below_the_dense_reference_and_the_tool_never_gouges(
+        surf: tuple[np.ndarray, float], kind: str, radius: float) -> None:
+    z, dx = surf
+    part = ZMap(z, dx=dx, dy=dx)
+    tool = Tool("t", kind, 2 * radius, 10.0)
+    cl = drop_cutter(part, tool)
+    ref = reference_cl(z, dx, radius, kind, m=4)
+    assert (cl - ref).min() >= 0.0
+    machined = envelope(cl, tool, dx, dx)
+    assert (machined - z).min() >= 0.0, "the tool at its CL cut below the part"
+    gap = machined - reference_envelope(cl, dx, radius, kind)
+    assert 0.0 <= gap.min() and gap.max() <= 1e-4, "envelope not the tools' lowest surface"
+
+
+@given(st.integers(0, 2**32 - 1), st.sampled_from(["ball", "flat"]), st.floats(0.1, 1.6),
+       st.sampled_from([0.25, 0.5]), st.sampled_from(["cell", "bilinear"]))
+def test_cell_meaning_is_exact_against_a_square_by_square_reference(
+        seed: int, kind: str, r: float, dx: float, meaning: str) -> None:
+    rng = np.random.default_rng(seed)
+    z = rng.uniform(-3, 3, (int(rng.integers(2, 8)), int(rng.integers(2, 9))))
+    tool = Tool("t", kind, 2 * r, 5)
+    cl = drop_cutter(ZMap(z, dx=dx, dy=dx), tool, "cell")
+    ref = np.full(z.shape, -np.inf)
+    for i, k in np.ndindex(z.shape):
+        for j, m in np.ndindex(z.shape):  # nearest point of square (j, m) to node (i, k)
+            d = np.hypot(max(abs(m - k) * dx - dx / 2, 0), max(abs(j - i) * dx - dx / 2, 0))
+            if d <= r:
+                ref[i, k] = max(ref[i, k], z[j, m] - float(h(kind, r, np.array(d))))
+    assert (cl - ref).min() >= 0.0
+    assert (cl - ref).max() <= 3e-5
+    if meaning == "cell":
+        # the envelope over each square: the highest point any tool leaves there
+        env = envelope(cl, tool, dx, dx, "cell")
+        assert (env - z).min() >= 0.0
+
+
+def test_rest_regions_grow_a_seed_by_the_radius_and_box_it() -> None:
+    z = np.zeros((41, 61))
+    surface = z.copy()
+    surface[20, 30] = 1.0
+    part = ZMap(z, x0=10.0, y0=-5.0, dx=0.1, dy=0.1)
+    regions = rest_regions(surface, part, tolerance=0.5, grow_radius=0.75)
+    yy, xx = np.mgrid[0:41, 0:61]
+    disc = np.hypot((yy - 20) * 0.1, (xx - 30) * 0.1) <= 0.75 + 1e-9
+    assert (regions.mask == disc).all() and regions.count == 1
+    box = regions.boxes[0]
+    assert (box.x_min, box.x_max) == pytest.approx((10.0 + 2.3, 10.0 + 3.7))
+    assert (box.y_min, box.y_max) == pytest.approx((-5.0 + 1.3, -5.0 + 2.7))
+    assert box.area == pytest.approx(disc.sum() * 0.01)
+    assert regions.area_fraction == pytest.approx(disc.mean())
+
+
+@pytest.mark.parametrize("slope", [0.0, 0.5, 1.0, 2.0])
+def test_ball_on_a_plane_sits_at_the_closed_form_height(slope: float) -> None:
+    dx, r = 0.1, 3.0
+    y, x = np.mgrid[0:81, 0:81] * dx
+    z = slope * x + 0.3 * y
+    cl = drop_cutter(ZMap(z, dx=dx, dy=dx), Tool("b", "ball", 2 * r, 10))
+    exact = z + r * (np.sqrt(1 + slope**2 + 0.09) - 1)  # ball on a plane of gradient g
+    inner = (slice(35, 46), slice(35, 46))  # the contact point lies inside the grid
+    err = (cl - exact)[inner]
+    assert err.min() >= 0.0
+    assert err.max() <= 0.01
+
+
+def hemisphere(radius: float = 8.0, dx: float = 0.25, half: float = 10.0) -> ZMap:
+    n = round(2 * half / dx) + 1
+    y, x = (np.mgrid[0:n, 0:n] - (n - 1) / 2) * dx
+    r2 = x * x + y * y
+    z = np.where(r2 < radius**2, -np.sqrt(np.maximum(radius**2 - r2, 0.0)), 0.0)
+    return ZMap(z, dx=dx, dy=dx)
+
+
+def test_r8_pocket_ball_sizes() -> None:
+    part = hemisphere()
+    c = (part.shape[0] - 1) // 2
+    # the bilinear rim chords stop even an R 8 ball above the bottom: the dense reference
+    # says how far (a lower bound of the true CL); the simulation may add its rim bound
+    floor_ref = reference_cl(part.z[c - 33:c + 34, c - 33:c + 34], 0.25, 8.0, "ball", m=4)[33, 33]
+    rests = {}
+    for d in (15.0, 16.0, 18.0):
+        rests[d] = closing(part, Tool("b", "ball", d, 40))[c, c] - part.z[c, c]
+    assert floor_ref + 8.0 == pytest.approx(0.50, abs=0.02)
+    assert floor_ref + 8.0 <= rests[16.0] <= floor_ref + 8.0 + 0.15
+    assert rests[15.0] <= 0.02, "a ball inside R 8 with clearance reaches the bottom"
+    # an R 9 ball rests on the rim circle: sqrt(81 - 64) - 9 above the floor at -8
+    assert rests[18.0] >= 8.0 + np.sqrt(81 - 64) - 9 - 1e-9
+
+
+def filleted_pocket(dx: float = 0.1) -> ZMap:
+    """40 x 30 mm pocket, 4 deep, 45° walls blended into the floor by R 3 fillets, sharp
+    in plan at the corners (the surface is the highest of the four wall profiles)."""
+    depth, rho = 4.0, 3.0
+    sc = depth - rho + rho * np.sqrt(2)  # fillet centre, distance from the wall's top edge
+    st_ = sc - rho / np.sqrt(2)
+
+    def wall(s: np.ndarray) -> np.ndarray:
+        arc = -depth + rho - np.sqrt(np.maximum(rho**2 - (s - sc) ** 2, 0.0))
+        return np.where(s <= 0, 0.0, np.where(s <= st_, -s, np.where(s < sc, arc, -depth)))
+
+    y, x = np.mgrid[0:401, 0:501] * dx
+    walls = [wall(x - 5), wall(45 - x), wall(y - 5), wall(35 - y)]
+    return ZMap(np.maximum.reduce(walls), dx=dx, dy=dx)
+
+
+def test_rect_pocket_leaves_rest_only_in_its_corners() -> None:
+    part = filleted_pocket()
+    out = simulate_pass(part, Tool("b", "ball", 4.0, 12), 1.0)
+    assert out.gouge == 0.0
+    regions = rest_regions(out.stock, part, tolerance=0.02)
+    assert regions.count == 4
+    corners = [(5, 5), (45, 5), (5, 35), (45, 35)]
+    for box in regions.boxes:
+        cx, cy = (box.x_min + box.x_max) / 2, (box.y_min + box.y_max) / 2
+        assert min(np.hypot(cx - a, cy - b) for a, b in corners) < 4.0
+        assert box.x_max - box.x_min < 6.0 and box.y_max - box.y_min < 6.0
+
+
+@pytest.mark.parametrize("diameter", [2.0, 6.0, 12.0])
+def test_convex_dome_is_left_as_it_is(diameter: float) -> None:
+    dx = 0.1
+    y, x = (np.mgrid[0:161, 0:161] - 80) * dx
+    z = -(x * x + y * y) / 40.0 + 0.5 * np.sin(x / 3)
+    part = ZMap(z, dx=dx, dy=dx)
+    rest = closing(part, Tool("b", "ball", diameter, 30)) - z
+    inner = slice(70, 91)
+    assert rest.min() >= 0.0
+    assert rest[inner, inner].max() <= 0.005
+
+
+def test_depth_of_cut_is_the_stock_inside_the_cylinder_above_the_tip() -> None:
+    dx = 0.25
+    z = np.zeros((41, 41))
+    z[:, 21:] = -5.0  # a 5 mm step: a ball beside it meets the upper level
+    part = ZMap(z, dx=dx, dy=dx)
+    tool = Tool("b", "ball", 4.0, 3.0)
+    out = simulate_pass(part, tool, 2.0)
+    # a ball centred at the step's foot meets the stock top (2) over its whole cylinder
+    assert out.depth.max == pytest.approx(7.0, abs=1e-4)
+    assert not out.depth.flute_length_ok
+    # a grid stock equal to the part: away from the step the cylinder holds nothing above
+    # the tip; beside it, the 5 mm step the ball rests against (counted: the flutes touch it)
+    none = depth_of_cut(z, out.cl, tool, dx, dx)
+    assert none.per_position[:, 31:].max() == pytest.approx(0.0, abs=1e-4)
+    assert none.per_position[:, :11].max() == pytest.approx(0.0, abs=1e-4)
+    assert none.max <= 5.0 + 1e-4
+
+
+def test_bad_input_names_the_field() -> None:
+    part = ZMap(np.zeros((5, 5)))
+    tool = Tool("b", "ball", 2.0, 4.0)
+    with pytest.raises(InvalidInputError) as e:
+        simulate_pass(part, tool, np.zeros((4, 5)))
+    assert e.value.field == "stock"
+    with pytest.raises(InvalidInputError) as e:
+        simulate_pass(part, tool, np.full((5, 5), -1.0))
+    assert e.value.field == "stock"
+    with pytest.raises(InvalidInputError) as e:
+        simulate_pass(part, tool, 1.0, cl=np.zeros((5, 4)))
+    assert e.value.field == "cl"
+
+
+def test_given_cl_below_the_surface_reports_the_gouge() -> None:
+    z = np.zeros((9, 9))
+    part = ZMap(z, dx=0.5, dy=0.5)
+    out = simulate_pass(part, Tool("f", "flat", 2.0, 4.0), 1.0, cl=np.full((9, 9), -0.3))
+    assert out.gouge == pytest.approx(0.3, abs=1e-4)
+
+
+def test_cl_against_opencamlib_on_a_surface_both_represent_exactly() -> None:
+    """A valley profile z = f(x), piecewise linear between nodes: its bilinear cells are
+    planar, so opencamlib's drop cutter on the triangulated grid is an independent oracle."""
+    ocl = pytest.importorskip("opencamlib")
+    dx, r = 0.1, 1.5
+    x = np.arange(81) * dx
+    f = np.where(x < 3, 3 - x, np.where(x < 4.5, 0.0, 1.5 * (x - 4.5))) + 0.2 * np.sin(3 * x)
+    z = np.tile(f, (41, 1))
+    surf = ocl.STLSurf()
+    for i, k in np.ndindex(40, 80):
+        p = [ocl.Point(float((k + b) * dx), float((i + a) * dx), float(z[i + a, k + b]))
+             for a, b in ((0, 0), (0, 1), (1, 1), (1, 0))]
+        surf.addTriangle(ocl.Triangle(p[0], p[1], p[2]))
+        surf.addTriangle(ocl.Triangle(p[0], p[2], p[3]))
+    cutter = ocl.BallCutter(2 * r, 10.0)  # the batch keeps a pointer: keep it alive
+    bdc = ocl.BatchDropCutter()
+    bdc.setSTL(surf)
+    bdc.setCutter(cutter)
+    nodes = [(20, k) for k in range(15, 66, 2)]  # mid rows: the ball stays over the surface
+    for i, k in nodes:
+        bdc.appendPoint(ocl.CLPoint(k * dx, i * dx, -100.0))
+    bdc.run()
+    oracle = np.array([p.z for p in bdc.getCLPoints()])
+    cl = drop_cutter(ZMap(z, dx=dx, dy=dx), Tool("b", "ball", 2 * r, 10))
+    ours = np.array([cl[i, k] for i, k in nodes])
+    assert (ours - oracle).min() >= -1e-6
+    assert (ours - oracle).max() <= 0.03  # the bound's gap at a 56° wall, dx = R / 15

@@ -1,0 +1,44 @@
+"""Cutting simulation on z-maps: what a ball or flat end mill really reaches and leaves.
+
+- :mod:`zwcore.sim.cutting`: drop-cutter CL surfaces (grey dilation by the tool's
+  profile), machined envelopes (erosion of a CL surface) and their closing, exact or
+  conservative for the surface's meaning;
+- :mod:`zwcore.sim.figures`: one pass simulated over a stock, and the figures a
+  planner needs (gouge, rest material, rest regions, real depth of cut);
+- private: ``_profiles`` (structuring functions), ``_morph`` (the symmetric
+  dilation, linear in the grid).
+"""
+
+from zwcore.sim.cutting import MAX_FOOTPRINT, closing, drop_cutter, envelope, simulation_work
+from zwcore.sim.figures import (
+    MAX_BOXES,
+    DepthOfCut,
+    PassSimulation,
+    RegionBox,
+    RestMaterial,
+    RestRegions,
+    depth_of_cut,
+    gouge,
+    rest_material,
+    rest_regions,
+    simulate_pass,
+)
+
+__all__ = [
+    "MAX_BOXES",
+    "MAX_FOOTPRINT",
+    "DepthOfCut",
+    "PassSimulation",
+    "RegionBox",
+    "RestMaterial",
+    "RestRegions",
+    "closing",
+    "depth_of_cut",
+    "drop_cutter",
+    "envelope",
+    "gouge",
+    "rest_material",
+    "rest_regions",
+    "simulate_pass",
+    "simulation_work",
+]

@@ -1,0 +1,148 @@
+"""Grey dilation by a structuring function symmetric in both axes, exact at the nodes.
+
+``out[i, k] = max over (a, b) of z[i + a, k + b] + s[a, b]`` (nodes off the grid
+hold -inf). The structuring function is mirror-symmetric in ``a`` and in ``b`` (every
+tool profile is), so the four offsets ``(±a, ±b)`` share one value: per column offset
+``b`` one pass folds ``z`` shifted by ``+b`` and ``-b`` (``X_b``), and each ``(a, b)``
+then costs one fold of ``X_b`` shifted by ``±a``, one add and one max: three vector
+passes for four offsets instead of eight. Output rows go in strips sized to stay in
+the CPU cache, which keeps the cost linear in the grid at 2049² as at 513².
+
+Arithmetic runs in float32 when the heights' span allows a rounding bound under
+:data:`FLOAT32_MARGIN`, else in float64; inputs are rounded up and the result is
+raised by the rounding bound, so the result is never below the exact max.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+F64 = NDArray[np.float64]
+
+#: Largest upward rounding (mm) accepted for float32 arithmetic; beyond it float64.
+FLOAT32_MARGIN = 1.0e-5
+
+#: Bytes of one strip array: small enough for the L2 cache of common CPUs.
+_STRIP_BYTES = 1 << 18
+
+
+def _round_up_f32(x: F64) -> NDArray[np.float32]:
+    f = x.astype(np.float32)
+    below = f.astype(np.float64) < x
+    if below.any():
+        f[below] = np.nextafter(f[below], np.float32(np.inf))
+    return f
+
+
+def _dilate_rows(zp: NDArray[np.floating], s: NDArray[np.floating], ny: int, nx: int
+                 ) -> NDArray[np.floating]:
+    """The symmetric dilation of a padded grid (``A`` rows, ``B`` columns of -inf each side)
+    by each of ``V`` structuring functions ``s`` (V, 2A+1, 2B+1), least of the ``V`` results.
+
+    An offset where all ``V`` functions agree is added once into a shared accumulator;
+    only the offsets where they differ cost one add and max per function.
+    """
+    nv = s.shape[0]
+    A, B = (s.shape[1] - 1) // 2, (s.shape[2] - 1) // 2
+    dtype = zp.dtype
+    acc = np.full((nv + 1, ny, nx), -np.inf, dtype=dtype)  # [0]: offsets all share
+    rows = max(8, _STRIP_BYTES // (dtype.itemsize * max(nx, 1)))
+    quarter = s[:, A:, B:]
+    alive = np.isfinite(quarter).any(axis=0)
+    same = (quarter == quarter[:1]).all(axis=0) | ~np.isfinite(quarter).any(axis=0)
+    plan = [(b, [(a, bool(same[a, b])) for a in np.flatnonzero(alive[:, b])])
+            for b in range(B + 1)]
+    for r0 in range(0, ny, rows):
+        r1 = min(ny, r0 + rows)
+        h = r1 - r0
+        band = zp[r0:r1 + 2 * A]
+        X = np.empty((h + 2 * A, nx), dtype=dtype)
+        Y = np.empty((h, nx), dtype=dtype)
+        T = np.empty((h, nx), dtype=dtype)
+        for b, offsets in plan:
+            if not offsets:
+                continue
+            np.maximum(band[:, B + b:B + b + nx], band[:, B - b:B - b + nx], out=X)
+            for a, shared in offsets:
+                np.maximum(X[A + a:A + a + h], X[A - a:A - a + h], out=Y)
+                for v in range(1 if shared else nv):
+                    value = quarter[v, a, b]
+                    if not np.isfinite(value):
+                        continue
+                    np.add(Y, value, out=T)
+                    target = acc[0 if shared else v + 1, r0:r1]
+                    np.maximum(target, T, out=target)
+    return np.min(np.maximum(acc[0], acc[1:]), axis=0)
+
+
+def _dilate_bounded(z: F64, s: F64) -> tuple[F64, float]:
+    """The dilation (least over a stack of functions) and its rounding bound ``delta``:
+    exact <= out <= exact + 2 delta."""
+    s = s[None] if s.ndim == 2 else s
+    if not (np.array_equal(s, s[:, ::-1]) and np.array_equal(s, s[:, :, ::-1])):
+        raise ValueError("structuring function must be mirror-symmetric in both axes")
+    ny, nx = z.shape
+    A, B = (s.shape[1] - 1) // 2, (s.shape[2] - 1) // 2
+    shift = float(z.max())
+    span = float(shift - z.min()) + float(np.abs(s[np.isfinite(s)]).max(initial=0.0))
+    # float32: inputs rounded up (1 ulp) and one rounded add (half an ulp) of values
+    # below the span; float64: the shift back and the subtraction, a few ulps
+    margin32 = 2.0 ** -22 * (span + 1.0)
+    use32 = margin32 <= FLOAT32_MARGIN
+    delta = (margin32 if use32 else 0.0) + 8.0 * float(np.finfo(np.float64).eps) * (
+        abs(shift) + span + 1.0)
+    dtype = np.float32 if use32 else np.float64
+    zp = np.full((ny + 2 * A, nx + 2 * B), -np.inf, dtype=dtype)
+    rel = z - shift
+    if use32:
+        zp[A:A + ny, B:B + nx] = _round_up_f32(rel)
+        sd: NDArray[np.floating] = _round_up_f32(s)
+    else:
+        zp[A:A + ny, B:B + nx] = rel
+        sd = s
+    out = _dilate_rows(zp, sd, ny, nx).astype(np.float64)
+    out += shift + delta
+    return out, delta
+
+
+def dilate(z: F64, s: F64) -> F64:
+    """Grey dilation of ``z`` by the structuring function ``s``, never below the exact value.
+
+    Parameters
+    ----------
+    z : (ny, nx) float64
+        Finite heights; nodes beyond the grid count as -inf (no surface there).
+    s : (2A + 1, 2B + 1) or (V, 2A + 1, 2B + 1) float64
+        ``s[A + a, B + b]`` is added to ``z[i + a, k + b]``; -inf outside the element.
+        Must be symmetric under ``a -> -a`` and ``b -> -b``. A stack of ``V``
+        functions (each an upper bound of the same thing) gives the least of their
+        dilations, cheaper than ``V`` runs where they share values.
+
+    Returns
+    -------
+    (ny, nx) float64
+        ``max over (a, b) of z[i + a, k + b] + s[A + a, B + b]``, raised by rounding
+        by at most about twice :data:`FLOAT32_MARGIN`; -inf where the element meets no node.
+    """
+    return _dilate_bounded(z, s)[0]
+
+
+def erode(z: F64, e: F64) -> F64:
+    """Grey erosion ``min over (a, b) of z[i + a, k + b] + e[A + a, B + b]``, rounded up.
+
+    Parameters
+    ----------
+    z : (ny, nx) float64
+    e : (2A + 1, 2B + 1) float64
+        Additive profile, +inf outside the element, mirror-symmetric.
+
+    Returns
+    -------
+    (ny, nx) float64
+        Never below the exact value (the safe side for a machined surface), above it
+        by at most about twice :data:`FLOAT32_MARGIN`; +inf where the element meets no node.
+    """
+    # min(z + e) = -max(-z - e): the dilation's upward rounding lands downward here
+    out, delta = _dilate_bounded(-z, -e)
+    return -out + 2.0 * delta
