@@ -211,6 +211,8 @@ def scanline_stage_path(part: ZMap, stage: ScanlineStage, index: int, cutting: C
         max_lift, n_raw = max(max_lift, lift), n_raw + n
         # entered from above the stock the whole lines left (later segments only lower it)
         scale = 10.0 ** decimals
+        # up from the last whole line's exit, then from segment to segment at the clearance
+        parts.append(Moves.lines(np.array([[pts[-1, 0], pts[-1, 1], clearance]]), kind=RAPID))
         for seg in segs:
             top = max(_entry_height(stock, part, seg[0, :2], tool.radius), seg[0, 2])
             air = min(clearance, np.ceil((top + 0.5) * scale) / scale)

@@ -30,6 +30,9 @@ F64 = NDArray[np.float64]
 ARC_SAGITTA_FRACTION = 1e-3
 #: Removal below this (mm) is float rounding, not cutting.
 CUT_EPS = 1e-9
+#: A rapid touching the stock by less than this (mm) is a tie (a retract from the position
+#: that just cut there), not a rapid through material.
+TIE_EPS = 1e-6
 
 
 @dataclass(frozen=True)
@@ -147,7 +150,7 @@ def _stage(stock: F64, part: ZMap, prog: ParsedProgram, a: int, b: int, tool: To
         over_model_p95=None if over is None else float(np.percentile(over, 95)),
         gouge=float(max(0.0, (part.z - stock).max())),
         # a retract from a cutting position touches the stock it just cut (a tie, not a cut)
-        rapid_in_material=float(rapid_pen.max()) if len(rapid_pen) and rapid_pen.max() > CUT_EPS
+        rapid_in_material=float(rapid_pen.max()) if len(rapid_pen) and rapid_pen.max() > TIE_EPS
         else 0.0,
         removed_volume=float((before - stock).sum() * part.cell_area),
         air_feed_length=float(lengths[feed & ~met[a:b]].sum()),

@@ -51,16 +51,19 @@ def _node_envelope(qx: float, qy: float, x0: float, y0: float, z0: float, ax: fl
     wx, wy = x0 - qx, y0 - qy
     a = ax * ax + ay * ay
     c = wx * wx + wy * wy
+    # a node exactly R away only touches the tool's side (a tie): it counts as not reached,
+    # the same way for every move, so a retract never "meets" a node its cut left alone
+    reach2 = r * r * (1.0 - 1e-10)
     if a <= 1e-18:  # vertical (or no) move
-        if c > r * r:
+        if c >= reach2:
             return math.inf
         low = z0 + min(vz, 0.0)
         return low + r - math.sqrt(r * r - c) if ball else low
     b = ax * wx + ay * wy
     t0 = -b / a
     dmin2 = max(c - b * b / a, 0.0)
-    w2 = r * r - dmin2
-    if w2 < 0.0:
+    w2 = reach2 - dmin2
+    if w2 <= 0.0:
         return math.inf
     half = math.sqrt(w2 / a)
     lo, hi = max(0.0, t0 - half), min(1.0, t0 + half)
