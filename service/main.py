@@ -6,14 +6,28 @@ import logging
 import sys
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
+from typing import Any
 
 from fastapi import Depends, FastAPI
+from pydantic import BaseModel
+from pydantic.json_schema import models_json_schema
 
 import zwcore
 from service import problems
 from service.compute import ComputePool
 from service.middleware import JsonFormatter, ServiceMiddleware
-from service.routers import arcs, health, mrr, plans, simulate, tasks, tools, zmaps
+from service.routers import (
+    arcs,
+    health,
+    mrr,
+    plans,
+    previews,
+    simulate,
+    tasks,
+    tools,
+    viewer,
+    zmaps,
+)
 from service.security import require_api_key
 from service.settings import Settings, get_settings
 from service.store import open_store
@@ -31,6 +45,28 @@ def _configure_logging(level: str) -> None:
     root.handlers[:] = [handler]
     root.setLevel(level.upper())
     root.propagate = False
+    # ezdxf logs every repair of a broken DXF upload as a warning: noise, not service events
+    logging.getLogger("ezdxf").setLevel(logging.ERROR)
+
+
+def _list_models(app: FastAPI, models: tuple[type[BaseModel], ...]) -> None:
+    """Put request models that no route parameter names (a route reading several media
+    types parses its body itself) into the document's components."""
+    build = app.openapi
+
+    def openapi() -> dict[str, Any]:
+        cached = app.openapi_schema is not None
+        schema = build()
+        if not cached:
+            _, defs = models_json_schema([(m, "validation") for m in models],
+                                         ref_template="#/components/schemas/{model}")
+            components = schema.setdefault("components", {}).setdefault("schemas", {})
+            for name, model_schema in defs.get("$defs", {}).items():
+                components.setdefault(name, model_schema)
+            schema["components"]["schemas"] = dict(sorted(components.items()))
+        return schema
+
+    app.openapi = openapi  # type: ignore[method-assign]
 
 
 def create_app(settings: Settings | None = None) -> FastAPI:
@@ -60,8 +96,11 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.include_router(simulate.router, dependencies=secured)
     app.include_router(tasks.router, dependencies=secured)
     app.include_router(zmaps.router, dependencies=secured)
+    app.include_router(previews.router, dependencies=secured)
     app.include_router(tools.router, dependencies=secured)
     app.include_router(health.router)
+    app.include_router(viewer.router)
+    _list_models(app, arcs.OPENAPI_MODELS)
     app.add_middleware(ServiceMiddleware, max_body_bytes=settings.max_body_bytes,
                        max_json_values=settings.max_json_values,
                        api_keys=settings.api_key_list)

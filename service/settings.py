@@ -55,7 +55,9 @@ class Settings(BaseSettings):
         4_500_000, gt=0, description="Most comma-separated JSON values in a body (parsing cost "
         "bound: larger grids go as z_b64).")
     max_grid_cells: int = Field(4096 * 4096, gt=0, description="Largest z-map (ny * nx).")
-    max_points: int = Field(2_000_000, gt=0, description="Largest point curve for /v1/arcs.")
+    max_points: int = Field(2_000_000, gt=0, description="Largest point curve for /v1/arcs; "
+                            "also the most lines of a G-code program and the most vertices "
+                            "and spline samples of a DXF drawing.")
     max_tools: int = Field(64, gt=0, description="Largest tool library in a plan request.")
     max_arc_resolution: float = Field(
         2.0e5, gt=0, description="Largest curve length / tolerance for /v1/arcs (work bound).")

@@ -50,12 +50,13 @@ def generated(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[Module
     # The generator formats its output with ruff (a test dependency) if it is on PATH;
     # without it, it warns, and this test accepts no warnings.
     env["PATH"] = str(Path(sys.executable).parent) + os.pathsep + env.get("PATH", "")
-    # Binary bodies (.npy grids, STL) are bytes to a client: the generator's documented
-    # override maps their media types onto the one it knows.
+    # Binary bodies (.npy grids, STL, PNG previews) are bytes to a client: the generator's
+    # documented override maps their media types onto the one it knows.
     config = out_dir / "config.json"
     config.write_text(json.dumps({"content_type_overrides": {
         "application/x-npy": "application/octet-stream",
-        "model/stl": "application/octet-stream"}}))
+        "model/stl": "application/octet-stream",
+        "image/png": "application/octet-stream"}}))  # previews
     proc = subprocess.run(
         [sys.executable, "-m", "openapi_python_client", "generate", "--path", str(SPEC_PATH),
          "--output-path", str(out_dir / PACKAGE), "--meta", "none", "--fail-on-warning",

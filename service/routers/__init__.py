@@ -12,6 +12,7 @@ _TEXT = {
     401: "Missing API key",
     403: "Invalid API key",
     404: "Not found",
+    409: "The stored result lacks what the request needs",
     413: "Body or grid over the configured limits",
     415: "Unsupported media type: the problem names the types this call takes",
     422: "Invalid request: the problem names each field and why",
