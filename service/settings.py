@@ -107,6 +107,8 @@ class Settings(BaseSettings):
     max_simulation_work: int = Field(
         20_000_000_000, gt=0, description="Largest cutting simulation, grid cells times the "
         "tool's footprint in nodes (413): a few seconds of one core.")
+    max_program_bytes: int = Field(
+        256 << 20, gt=0, description="Largest NC program a plan with tool paths may emit (413).")
     workers: int = Field(default_factory=_cpu_count, gt=0, description="Compute pool threads.")
     process_workers: int = Field(
         default_factory=_cpu_count, ge=0, description="Worker processes for Python-bound work "

@@ -13,6 +13,7 @@ from pydantic import BaseModel
 
 from service.deps import PoolDep, PreferAsyncDep, SettingsDep, StoreDep
 from service.grids import canonical_grid
+from service.hashing import task_id as make_task_id
 from service.routers import if_none_match, responses
 from service.schemas.common import ToolIn
 from service.schemas.plans import (
@@ -25,7 +26,9 @@ from service.schemas.plans import (
     ScanlinePlanResult,
     ScanlineStageOut,
 )
+from service.store import TaskStore
 from service.tasks import serve_task
+from service.toolpaths import cutting, program_key, toolpaths_section
 from service.uploads import GridRoute, binary_grid_openapi, request_zmap
 from zwcore import Tool, ZMap, default_tools, tool_library
 from zwcore.contour.planner import plan_contour
@@ -33,6 +36,7 @@ from zwcore.errors import InvalidInputError, LimitExceededError
 from zwcore.grid.tools import ToolKind
 from zwcore.grid.zmap import MAX_ABS_HEIGHT
 from zwcore.scanline.planner import plan_scanline
+from zwcore.toolpath import contour_toolpaths, scanline_toolpaths
 
 # Estimated peak memory per grid node (admission by memory): measured as peak RSS over
 # the baseline of one plan of a 1024² part, including its encoded result, rounded up.
@@ -99,9 +103,42 @@ def _tool_params(tools: list[Tool]) -> list[list[Any]]:
     return [[t.id, t.diameter, t.flute_length] for t in tools]
 
 
+class ToolpathJob:
+    """What a plan with ``toolpaths: true`` needs besides the plan: the request's options,
+    the store that keeps the program and the task id it is kept under."""
+
+    def __init__(self, body: Any, tools: list[Tool], store: TaskStore, max_bytes: int,
+                 operation: str, params: dict[str, Any], zmap: ZMap) -> None:
+        self.cutting = cutting(body.tools, tools)
+        self.clearance = body.clearance
+        self.rapid_feed = body.rapid_feed
+        self.store = store
+        self.max_bytes = max_bytes
+        self.params = params
+        self.params["toolpaths"] = {
+            "clearance": body.clearance, "rapid_feed": body.rapid_feed,
+            "cutting": [[t.id, *vars(self.cutting[t.id]).values()] for t in tools]}
+        self.operation = operation
+        self.zmap = zmap
+
+    def task_id(self) -> str:
+        return make_task_id(self.operation, self.params, {"z": self.zmap.z})
+
+    def section(self, tp: Any) -> dict[str, Any]:
+        tid = self.task_id()
+        self.store.put(program_key(tid), tp.program.encode())
+        return toolpaths_section(tp, tid)
+
+
 def scanline_result(zmap: ZMap, tools: list[Tool], tolerance: float, stock_top: float | None,
-                    include_models: bool) -> dict[str, Any]:
+                    include_models: bool, job: ToolpathJob | None = None) -> dict[str, Any]:
     plan = plan_scanline(zmap, tools, tolerance=tolerance, stock_top=stock_top)
+    section = None
+    if job is not None:
+        tp = scanline_toolpaths(zmap, plan, cutting=job.cutting,
+                                clearance=job.clearance, rapid_feed=job.rapid_feed,
+                                max_bytes=job.max_bytes)
+        section = job.section(tp)
 
     def model(stage: Any) -> dict[str, Any]:
         # Single-knot nodes sit on input nodes: the origin is the input's.
@@ -112,7 +149,8 @@ def scanline_result(zmap: ZMap, tools: list[Tool], tolerance: float, stock_top: 
     return {"stock_top": plan.stock_top, "stock_top_source": plan.stock_top_source,
             "tolerance": tolerance, "tool_sequence": list(plan.tool_sequence),
             "stages": _stages(plan.stages, ScanlineStageOut, model if include_models else None),
-            "checks": _pick(plan.checks, ScanlineChecksOut), "notes": list(plan.notes)}
+            "checks": _pick(plan.checks, ScanlineChecksOut), "notes": list(plan.notes),
+            **({"toolpaths": section} if section is not None else {})}
 
 
 def bound_contour_slabs(zmap: ZMap, tools: list[Tool], given: list[ToolIn] | None,
@@ -145,8 +183,15 @@ def bound_contour_slabs(zmap: ZMap, tools: list[Tool], given: list[ToolIn] | Non
 
 
 def contour_result(zmap: ZMap, tools: list[Tool], stock_top: float | None, strategy: str,
-                   include_models: bool) -> dict[str, Any]:
+                   include_models: bool, job: ToolpathJob | None = None,
+                   tolerance: float = 0.05, stepover: float = 0.4) -> dict[str, Any]:
     plan = plan_contour(zmap, tools, stock_top=stock_top, strategy=strategy)
+    section = None
+    if job is not None:
+        tp = contour_toolpaths(zmap, plan, cutting=job.cutting, clearance=job.clearance,
+                               tolerance=tolerance, stepover_fraction=stepover,
+                               rapid_feed=job.rapid_feed, max_bytes=job.max_bytes)
+        section = job.section(tp)
 
     def model(stage: Any) -> dict[str, Any]:
         cx, cy = stage.cell_size
@@ -156,7 +201,8 @@ def contour_result(zmap: ZMap, tools: list[Tool], stock_top: float | None, strat
     return {"stock_top": plan.stock_top, "stock_top_source": plan.stock_top_source,
             "strategy": plan.strategy, "contour_spacings": _plain(plan.contour_spacings),
             "stages": _stages(plan.stages, ContourStageOut, model if include_models else None),
-            "checks": _pick(plan.checks, ContourChecksOut), "notes": list(plan.notes)}
+            "checks": _pick(plan.checks, ContourChecksOut), "notes": list(plan.notes),
+            **({"toolpaths": section} if section is not None else {})}
 
 
 @router.post("/scanline", response_model=ScanlinePlanResult, operation_id="plan_scanline",
@@ -175,10 +221,12 @@ async def post_scanline_plan(body: ScanlinePlanRequest, request: Request, settin
     params = {"grid": [zmap.x0, zmap.y0, zmap.dx, zmap.dy], "tools": _tool_params(tools),
               "tolerance": body.tolerance, "stock_top": body.stock_top,
               "include_models": body.include_models}
+    job = (ToolpathJob(body, tools, store, settings.max_program_bytes, "plan_scanline", params,
+                       zmap) if body.toolpaths else None)
     return await serve_task(
         request, store, pool, operation="plan_scanline", params=params, arrays={"z": zmap.z},
         compute=lambda: scanline_result(zmap, tools, body.tolerance, body.stock_top,
-                                        body.include_models),
+                                        body.include_models, job),
         encoding=encoding, respond_async=respond_async,
         memory=zmap.z.size * (SCANLINE_MODELS_BYTES if body.include_models else SCANLINE_BYTES))
 
@@ -200,9 +248,14 @@ async def post_contour_plan(body: ContourPlanRequest, request: Request, settings
     params = {"grid": [zmap.x0, zmap.y0, zmap.dx, zmap.dy], "tools": _tool_params(tools),
               "stock_top": body.stock_top, "strategy": body.strategy,
               "include_models": body.include_models}
+    job = None
+    if body.toolpaths:
+        params["toolpath_options"] = [body.tolerance, body.stepover]
+        job = ToolpathJob(body, tools, store, settings.max_program_bytes, "plan_contour", params,
+                          zmap)
     return await serve_task(
         request, store, pool, operation="plan_contour", params=params, arrays={"z": zmap.z},
         compute=lambda: contour_result(zmap, tools, body.stock_top, body.strategy,
-                                       body.include_models),
+                                       body.include_models, job, body.tolerance, body.stepover),
         encoding=encoding, respond_async=respond_async,
         memory=zmap.z.size * CONTOUR_BYTES)

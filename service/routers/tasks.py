@@ -3,11 +3,13 @@
 from __future__ import annotations
 
 import re
+from collections.abc import Iterator
 from typing import Annotated, Literal
 
 import anyio
 import orjson
 from fastapi import APIRouter, Depends, Path, Query, Request, Response
+from fastapi.responses import StreamingResponse
 
 from service import asynctasks
 from service.deps import SettingsDep, StoreDep
@@ -15,6 +17,7 @@ from service.problems import PROBLEM_JSON, Problem
 from service.routers import if_none_match, responses
 from service.schemas.tasks import TaskResult, TaskStatus
 from service.tasks import lost_after, not_modified, respond, status_response
+from service.toolpaths import program_key
 
 router = APIRouter(prefix="/v1", tags=["tasks"])
 
@@ -78,3 +81,30 @@ async def get_task_status(store: StoreDep, settings: SettingsDep,
     if state is None:
         raise _unknown(task_id)
     return status_response(state, 200)
+
+
+@router.get("/tasks/{task_id}/program", operation_id="get_program",
+            summary="The NC program of a plan computed with tool paths",
+            response_class=StreamingResponse,
+            responses={200: {"content": {"text/plain": {}},
+                             "description": "the program (ISO 6983 G-code)"},
+                       **responses(404)})
+async def get_program(
+    store: StoreDep,
+    task_id: TaskId,
+) -> StreamingResponse:
+    program = await anyio.to_thread.run_sync(store.get, program_key(task_id))
+    if program is None:
+        known = await anyio.to_thread.run_sync(store.get, task_id)
+        reason = ("the plan was computed without tool paths (send toolpaths: true)"
+                  if known is not None else "no stored result for this task")
+        raise Problem(404, "Not found", f"no NC program for task {task_id}: {reason}",
+                      kind="no-program", errors=[{"field": "task_id", "reason": reason}])
+
+    def chunks() -> Iterator[bytes]:
+        for start in range(0, len(program), 1 << 20):
+            yield program[start:start + (1 << 20)]
+
+    name = f"zwplan-{task_id[:12]}.nc"
+    return StreamingResponse(chunks(), media_type="text/plain; charset=utf-8", headers={
+        "Content-Disposition": f'attachment; filename="{name}"', "ETag": f'"{task_id}.nc"'})

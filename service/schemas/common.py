@@ -85,6 +85,15 @@ class ToolIn(StrictModel):
     # (scallop heights, guard margins) lose their meaning in float64.
     diameter: FiniteFloat = Field(ge=0.01, le=1000, description="mm")
     flute_length: FiniteFloat = Field(ge=0.01, le=1000, description="length of cut, mm")
+    # cutting data, used when a plan asks for tool paths (defaults: zwcore.toolpath)
+    tool_number: StrictInt | None = Field(None, ge=1, le=9999, description="T and H word; "
+                                          "default: the tool's place in the sequence")
+    spindle_rpm: FiniteFloat | None = Field(None, gt=0, le=200_000, description="rev/min")
+    feed: FiniteFloat | None = Field(None, gt=0, le=100_000, description="cutting feed, mm/min")
+    plunge_feed: FiniteFloat | None = Field(None, gt=0, le=100_000,
+                                            description="ramp and plunge feed, mm/min")
+    ramp_angle_deg: FiniteFloat | None = Field(None, gt=0, lt=90,
+                                               description="steepest ramp entry, degrees")
 
 
 class ToolOut(BaseModel):

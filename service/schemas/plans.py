@@ -15,9 +15,22 @@ from service.schemas.common import (
     ToolIn,
     ToolOut,
 )
+from service.schemas.toolpaths import ToolpathsOut
 
 
-class ScanlinePlanRequest(StrictModel):
+class ToolpathOptions(StrictModel):
+    """Request fields shared by the plans for tool paths and the NC program."""
+
+    toolpaths: StrictBool = Field(
+        False, description="also compute tool paths, the NC program (GET "
+        "/v1/tasks/{task_id}/program) and its verification by simulation")
+    clearance: FiniteFloat | None = Field(
+        None, description="safe height of rapids, mm; above the stock top (default: +5 mm)")
+    rapid_feed: FiniteFloat = Field(15_000.0, gt=0, le=200_000,
+                                    description="rapid rate for the time estimate, mm/min")
+
+
+class ScanlinePlanRequest(ToolpathOptions):
     grid: Grid | None = Field(None, description="the z-map; or grid_task")
     grid_task: GridTask = None
     tools: list[ToolIn] | None = Field(
@@ -98,9 +111,10 @@ class ScanlinePlanResult(BaseModel):
     stages: list[ScanlineStageOut]
     checks: ScanlineChecksOut
     notes: list[str]
+    toolpaths: ToolpathsOut | None = None
 
 
-class ContourPlanRequest(StrictModel):
+class ContourPlanRequest(ToolpathOptions):
     grid: Grid | None = Field(None, description="the z-map; or grid_task")
     grid_task: GridTask = None
     tools: list[ToolIn] | None = Field(
@@ -111,6 +125,10 @@ class ContourPlanRequest(StrictModel):
         "uniform_load", description="uniform_load: equal slab volumes (the seed's method); "
         "even_step: equal spacings")
     include_models: StrictBool = Field(False, description="return each stage's terraced model")
+    tolerance: FiniteFloat = Field(0.05, ge=1e-4, le=10.0,
+                                   description="arc fit tolerance of the tool paths, mm")
+    stepover: FiniteFloat = Field(0.4, gt=0, le=0.5,
+                                  description="clearing ring distance, fraction of the diameter")
 
 
 class ContourStageOut(BaseModel):
@@ -154,3 +172,4 @@ class ContourPlanResult(BaseModel):
     stages: list[ContourStageOut]
     checks: ContourChecksOut
     notes: list[str]
+    toolpaths: ToolpathsOut | None = None

@@ -1,0 +1,136 @@
+"""Tool paths and NC programs (issue 12): Mount Rushmore and a 1025² part, times and ratios
+measured in the same run.
+
+1. Mount Rushmore (../shared/data, 0.1 mm): scan-line paths of every stage, the program
+   written, parsed back and simulated; each roughing stage's path computed on its stage
+   model and on the full-resolution part (same lines, same guarantee against the part).
+2. A 1025² synthetic part: plan + tool paths + program + verification end to end, with
+   where the time goes.
+
+The CL heights come from ``zwcore.sim.drop_cutter`` (bilinear) on each stage model; the
+exact lift against the part's nodes follows.
+Run: ``PYTHONPATH=. .venv/bin/python bench/bench_toolpath.py``.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from bench.bench_scanline_core import synthetic  # noqa: E402
+from zwcore import ZMap, plan_scanline  # noqa: E402
+from zwcore.toolpath import scanline_toolpaths  # noqa: E402
+from zwcore.toolpath.plans import tool_numbers  # noqa: E402
+from zwcore.toolpath.scanline_paths import scanline_stage_path, sim_cl_heights  # noqa: E402
+
+DATA = next((p for p in (ROOT.parent / "shared" / "data" / "mount_rush_zmap_0.1mm.npy",
+             Path("/work/shared/data/mount_rush_zmap_0.1mm.npy")) if p.exists()),
+            ROOT.parent / "shared" / "data" / "mount_rush_zmap_0.1mm.npy")
+
+
+CL = sim_cl_heights
+
+
+def rushmore() -> None:
+    z = np.load(DATA).astype(np.float64)
+    part = ZMap(z, x0=-40.958, y0=-24.696, dx=0.1, dy=0.1)
+    t = time.perf_counter()
+    plan = plan_scanline(part)
+    t_plan = time.perf_counter() - t
+    print(f"Mount Rushmore {z.shape}: plan {t_plan:.2f} s, {len(plan.stages)} stages, "
+          f"tolerance {plan.tolerance}")
+    t = time.perf_counter()
+    tp = scanline_toolpaths(part, plan, CL)
+    total = time.perf_counter() - t
+    timings = dict(tp.timings)
+    chk = tp.check
+    assert chk is not None
+    print(f"tool paths + program + verification: {total:.2f} s "
+          + ", ".join(f"{k} {v:.2f} s" for k, v in tp.timings))
+    print(f"program {len(tp.program) / 1e6:.1f} MB, {tp.program.count(chr(10))} blocks, "
+          f"length {tp.length / 1000:.1f} m, time estimate {tp.time_min:.0f} min")
+    print(f"verification: gouge {chk.gouge:.2e} mm, moves below part {chk.below_part_moves}, "
+          f"rapids in material {chk.rapid_in_material:.2e} mm, final over part max "
+          f"{chk.final_over_part_max:.3f} / p95 {chk.final_over_part_p95:.4f} mm")
+    print("| stage | tool | level | lines | extra | points | feed m | air m | rapid m | "
+          "min | over model p95 mm |")
+    print("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |")
+    merged = iter(chk.stages)
+    sc = None
+    for i, (st, p, fig) in enumerate(zip(plan.stages, tp.stages, tp.stage_figures(),
+                                         strict=True)):
+        if i == 0 or tp.stages[i - 1].cutting.tool_number != p.cutting.tool_number:
+            sc = next(merged)
+        assert sc is not None
+        print(f"| {i} | {st.tool.id} | {st.level} | {p.figures['lines']:.0f} | "
+              f"{p.figures['extra_segments']:.0f} | {p.figures['points']:.0f} | "
+              f"{fig['feed_length'] / 1000:.2f} | {sc.air_feed_length / 1000:.2f} | "
+              f"{fig['rapid_length'] / 1000:.2f} | {fig['time_min']:.1f} | "
+              f"{sc.over_model_p95 if sc.over_model_p95 is not None else float('nan'):.3f} |")
+    print(f"paths of all stages: {timings['paths']:.2f} s; simulation of the program: "
+          f"{timings['simulate']:.2f} s (parse {timings['parse']:.2f} s)")
+
+    # roughing stages: on their stage model vs on the full-resolution part, same run
+    data = tool_numbers(list(dict.fromkeys(s.tool for s in plan.stages)), None)
+    print("| roughing stage | tool | model spacing mm | on stage model s | on the part s "
+          "| ratio |")
+    print("| --- | --- | --- | --- | --- | --- |")
+    t_model = t_full = 0.0
+    for i, st in enumerate(plan.stages):
+        if st.level == plan.depth:
+            continue
+        stock = np.full(part.shape, plan.stock_top)
+        t = time.perf_counter()
+        scanline_stage_path(part, st, i, data[st.tool.id], CL, clearance=plan.stock_top + 5,
+                            chord_tolerance=0.25 * plan.tolerance, stock=stock)
+        a = time.perf_counter() - t
+        stock = np.full(part.shape, plan.stock_top)
+        t = time.perf_counter()
+        scanline_stage_path(part, st, i, data[st.tool.id], CL, clearance=plan.stock_top + 5,
+                            chord_tolerance=0.25 * plan.tolerance, stock=stock, model=part.z,
+                            spacing=(part.dx, part.dy))
+        b = time.perf_counter() - t
+        t_model += a
+        t_full += b
+        print(f"| {i} | {st.tool.id} | {st.spacing[0]:g} | {a:.3f} | {b:.3f} | {b / a:.1f} |")
+    print(f"roughing stages together: {t_model:.2f} s on stage models, {t_full:.2f} s on the "
+          f"part: {t_full / t_model:.1f}x")
+
+
+def end_to_end_1025() -> None:
+    part = synthetic(1025)
+    t0 = time.perf_counter()
+    plan = plan_scanline(part)
+    t_plan = time.perf_counter() - t0
+    tp = scanline_toolpaths(part, plan, CL)
+    total = time.perf_counter() - t0
+    chk = tp.check
+    assert chk is not None
+    print(f"\n1025² part: plan + tool paths + program + verification {total:.2f} s "
+          f"(target <= 10 s): plan {t_plan:.2f} s, "
+          + ", ".join(f"{k} {v:.2f} s" for k, v in tp.timings))
+    print(f"  {len(plan.stages)} stages, program {len(tp.program) / 1e6:.1f} MB, gouge "
+          f"{chk.gouge:.2e}, rapids in material {chk.rapid_in_material:.2e}, final over part "
+          f"p95 {chk.final_over_part_p95:.4f} mm")
+
+
+def main() -> None:
+    # compile the swept-tool kernel outside the timings (numba caches it on disk)
+    from zwcore.toolpath.sweep import GridFrame, sweep_moves
+    sweep_moves(GridFrame(0, 0, 1, 1, (2, 2)), np.zeros((1, 3)), np.ones((1, 3)), 1.0, True,
+                np.zeros((2, 2)))
+    if DATA.exists():
+        rushmore()
+    else:
+        print(f"no data at {DATA}: Mount Rushmore skipped")
+    end_to_end_1025()
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,228 @@
+"""Tool paths and the NC program of a whole plan, verified by simulating the program.
+
+:func:`scanline_toolpaths` and :func:`contour_toolpaths` build every stage's path, write
+the program (:mod:`zwcore.toolpath.writer`), read it back with the independent parser
+(:mod:`zwcore.toolpath.parse`) and simulate it on the stock at the part's resolution
+(:mod:`zwcore.toolpath.simulate`).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from zwcore.contour.results import ContourPlan
+from zwcore.errors import InvalidInputError, LimitExceededError
+from zwcore.grid.sampling import bilinear_at_fine_nodes, cells_at_fine_nodes
+from zwcore.grid.tools import Tool
+from zwcore.grid.zmap import ZMap, finite_number
+from zwcore.scanline.results import ScanlinePlan, ScanlineStage
+from zwcore.toolpath.contour_paths import contour_stage_path
+from zwcore.toolpath.parse import parse_program
+from zwcore.toolpath.program import CuttingData, ProgramSettings, StagePath
+from zwcore.toolpath.scanline_paths import CLHeights, scanline_stage_path, sim_cl_heights
+from zwcore.toolpath.simulate import ProgramCheck, simulate_program
+from zwcore.toolpath.writer import iter_program
+
+__all__ = ["Toolpaths", "contour_toolpaths", "scanline_toolpaths", "tool_numbers"]
+
+F64 = NDArray[np.float64]
+
+#: Default height of the clearance plane above the stock top, mm.
+CLEARANCE_ABOVE_STOCK = 5.0
+#: Scan-line chordal tolerance as a fraction of the plan's tolerance.
+CHORD_FRACTION = 0.25
+#: Gouge a roughing pass's segment may have before it is split, fraction of the ball radius.
+ROUGHING_REFINE = 0.05
+
+
+@dataclass(frozen=True, eq=False)
+class Toolpaths:
+    """A plan's tool paths, program and verification.
+
+    Attributes
+    ----------
+    stages : tuple of StagePath
+    settings : ProgramSettings
+    program : str
+        The NC program.
+    check : ProgramCheck or None
+        The program parsed back and simulated (``None`` when not verified).
+    timings : tuple of (str, float)
+        Seconds per phase (paths, program, parse, simulate).
+    """
+
+    stages: tuple[StagePath, ...]
+    settings: ProgramSettings
+    program: str = field(repr=False)
+    check: ProgramCheck | None
+    timings: tuple[tuple[str, float], ...]
+
+    def stage_figures(self) -> list[dict[str, float]]:
+        """Per stage: path lengths by kind, the time estimate (min) and the path's figures."""
+        out = []
+        for p in self.stages:
+            ln = p.lengths()
+            out.append({**{f"{k}_length": v for k, v in ln.items()},
+                        "time_min": p.time_min(self.settings.rapid_feed), **p.figures})
+        return out
+
+    @property
+    def time_min(self) -> float:
+        return sum(p.time_min(self.settings.rapid_feed) for p in self.stages)
+
+    @property
+    def length(self) -> float:
+        return sum(sum(p.lengths().values()) for p in self.stages)
+
+
+def tool_numbers(tools: list[Tool], cutting: Mapping[str, CuttingData] | None
+                 ) -> dict[str, CuttingData]:
+    """Cutting data per tool id: as given, else defaults with ``tool_number`` the tool's
+    1-based position in the sequence; numbers must be unique."""
+    out: dict[str, CuttingData] = {}
+    seen: dict[int, str] = {}
+    for n, t in enumerate(tools, 1):
+        cd = (cutting or {}).get(t.id) or CuttingData(tool_number=n)
+        if cd.tool_number in seen and seen[cd.tool_number] != t.id:
+            raise InvalidInputError("tools", f"tool_number {cd.tool_number} is given to both "
+                                    f"{seen[cd.tool_number]} and {t.id}")
+        seen[cd.tool_number] = t.id
+        out[t.id] = cd
+    return out
+
+
+def _refine_tolerance(plan: ScanlinePlan, stage: ScanlineStage) -> float | None:
+    """Finishing passes (the input's level) follow the part to the chordal tolerance; a
+    roughing pass's lift may leave up to a twentieth of its ball radius (the next stage's
+    stock), which keeps its refinement to a few splits."""
+    if stage.level == plan.depth:
+        return None
+    return max(CHORD_FRACTION * plan.tolerance, ROUGHING_REFINE * stage.tool.radius)
+
+
+def _clearance(clearance: float | None, stock_top: float) -> float:
+    if clearance is None:
+        return stock_top + CLEARANCE_ABOVE_STOCK
+    c = finite_number(clearance, "clearance")
+    if c <= stock_top:
+        raise InvalidInputError("clearance", f"must be above the stock top ({stock_top:g} mm), "
+                                f"got {c:g}")
+    return c
+
+
+def _finish(part: ZMap, stages: list[StagePath], settings: ProgramSettings, stock_top: float,
+            tolerance: float, models: list[F64 | None], verify: bool, max_bytes: int | None,
+            reach: NDArray[np.bool_] | None, timings: list[tuple[str, float]]) -> Toolpaths:
+    t = time.perf_counter()
+    chunks, size = [], 0
+    for chunk in iter_program(stages, settings):
+        size += len(chunk)
+        if max_bytes is not None and size > max_bytes:
+            raise LimitExceededError("program", f"the NC program exceeds {max_bytes} bytes")
+        chunks.append(chunk)
+    text = "".join(chunks)
+    timings.append(("program", time.perf_counter() - t))
+    check = None
+    if verify:
+        t = time.perf_counter()
+        prog = parse_program(text)
+        timings.append(("parse", time.perf_counter() - t))
+        t = time.perf_counter()
+        table = {p.cutting.tool_number: p.tool for p in stages}
+        check = simulate_program(prog, table, part, stock_top, tolerance=tolerance,
+                                 stage_models=models, reach=reach)
+        timings.append(("simulate", time.perf_counter() - t))
+    return Toolpaths(tuple(stages), settings, text, check, tuple(timings))
+
+
+def scanline_toolpaths(part: ZMap, plan: ScanlinePlan, cl_heights: CLHeights = sim_cl_heights,
+                       *,
+                       cutting: Mapping[str, CuttingData] | None = None,
+                       clearance: float | None = None, rapid_feed: float = 15_000.0,
+                       verify: bool = True, max_bytes: int | None = None,
+                       reach: NDArray[np.bool_] | None = None) -> Toolpaths:
+    """Scan-line paths of every stage of a plan, the program and its simulation.
+
+    Parameters
+    ----------
+    part : ZMap
+        The plan's input.
+    plan : ScanlinePlan
+    cl_heights : CLHeights
+        Drop-cutter on a stage model; default :func:`zwcore.sim.drop_cutter` (bilinear).
+    cutting : mapping of tool id to CuttingData, optional
+    clearance : float, optional
+        Default: stock top + 5 mm; must be above the stock top.
+    rapid_feed : float
+    verify : bool
+        Parse and simulate the program.
+    max_bytes : int, optional
+        Largest program (:class:`~zwcore.errors.LimitExceededError` beyond it).
+    reach : (ny, nx) bool, optional
+        Where the finishing tolerance applies.
+    """
+    clear = _clearance(clearance, plan.stock_top)
+    tools = list(dict.fromkeys(s.tool for s in plan.stages))
+    data = tool_numbers(tools, cutting)
+    settings = ProgramSettings(clearance=clear, rapid_feed=rapid_feed)
+    t = time.perf_counter()
+    stock = np.full(part.shape, plan.stock_top)
+    stages = [scanline_stage_path(part, st, i, data[st.tool.id], cl_heights, clearance=clear,
+                                  chord_tolerance=CHORD_FRACTION * plan.tolerance, stock=stock,
+                                  refine_tolerance=_refine_tolerance(plan, st))
+              for i, st in enumerate(plan.stages)]
+    timings = [("paths", time.perf_counter() - t)]
+    models = [bilinear_at_fine_nodes(st.model, round(st.spacing[0] / part.dx), part.shape)
+              for st in plan.stages]
+    return _finish(part, stages, settings, plan.stock_top, plan.tolerance,
+                   _merge_models(stages, models), verify, max_bytes, reach, timings)
+
+
+def _merge_models(stages: list[StagePath], models: list[F64]) -> list[F64 | None]:
+    """The model after each tool stretch (consecutive stages with the same tool number form
+    one stretch in the parsed program: its last model)."""
+    out: list[F64 | None] = []
+    for i, (p, m) in enumerate(zip(stages, models, strict=True)):
+        if i + 1 < len(stages) and stages[i + 1].cutting.tool_number == p.cutting.tool_number:
+            continue
+        out.append(m)
+    return out
+
+
+def contour_toolpaths(part: ZMap, plan: ContourPlan, *,
+                      cutting: Mapping[str, CuttingData] | None = None,
+                      clearance: float | None = None, tolerance: float = 0.05,
+                      stepover_fraction: float = 0.4, rapid_feed: float = 15_000.0,
+                      verify: bool = True, max_bytes: int | None = None) -> Toolpaths:
+    """Contour paths of every stage of a plan, the program and its simulation.
+
+    Parameters
+    ----------
+    tolerance : float
+        Arc fit tolerance, mm (the check's finishing tolerance too).
+    stepover_fraction : float
+        Clearing ring distance as a fraction of the tool diameter, in (0, 0.5] so that
+        rings are less than a radius apart.
+    """
+    if not (math.isfinite(stepover_fraction) and 0.0 < stepover_fraction <= 0.5):
+        raise InvalidInputError("stepover", f"must lie in (0, 0.5] of the diameter, got "
+                                f"{stepover_fraction!r}")
+    clear = _clearance(clearance, plan.stock_top)
+    tools = list(dict.fromkeys(s.tool for s in plan.stages))
+    data = tool_numbers(tools, cutting)
+    settings = ProgramSettings(clearance=clear, rapid_feed=rapid_feed)
+    t = time.perf_counter()
+    stages = [contour_stage_path(part, st, i, data[st.tool.id], clearance=clear,
+                                 tolerance=tolerance,
+                                 stepover=stepover_fraction * st.tool.diameter)
+              for i, st in enumerate(plan.stages)]
+    timings = [("paths", time.perf_counter() - t)]
+    models = [cells_at_fine_nodes(st.model, st.scale, part.shape) for st in plan.stages]
+    return _finish(part, stages, settings, plan.stock_top, tolerance,
+                   _merge_models(stages, models), verify, max_bytes, None, timings)

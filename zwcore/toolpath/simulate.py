@@ -1,0 +1,208 @@
+"""Simulation of a parsed NC program on a stock z-map, and the verification figures.
+
+Every move of :class:`~zwcore.toolpath.parse.ParsedProgram` is swept with the active tool
+(ball or flat, looked up by tool number) on the stock grid at the part's resolution, in
+program order: lines exactly on the nodes (:func:`~zwcore.toolpath.sweep.sweep_moves`),
+arcs as chords with the radius grown by their sagitta (conservative). Each rapid is checked
+against the stock as the earlier moves left it.
+"""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from zwcore.errors import InvalidInputError
+from zwcore.grid.tools import Tool
+from zwcore.grid.zmap import ZMap
+from zwcore.toolpath.parse import ParsedProgram
+from zwcore.toolpath.sweep import GridFrame, arc_chords, sweep_moves
+
+__all__ = ["ProgramCheck", "StageCheck", "simulate_program"]
+
+F64 = NDArray[np.float64]
+
+#: Largest arc-to-chord distance in the simulation, as a fraction of the grid step.
+ARC_SAGITTA_FRACTION = 1e-3
+#: Removal below this (mm) is float rounding, not cutting.
+CUT_EPS = 1e-9
+#: A rapid touching the stock by less than this (mm) is a tie (a retract from the position
+#: that just cut there), not a rapid through material.
+TIE_EPS = 1e-6
+
+
+@dataclass(frozen=True)
+class StageCheck:
+    """Figures of one tool's stretch of the program.
+
+    Attributes
+    ----------
+    tool_number : int
+    moves : int
+    over_model_max : float or None
+        Largest simulated stock minus the stage model after the stage (``None`` without
+        a model), mm.
+    over_model_p95 : float or None
+    gouge : float
+        Largest part minus simulated stock after the stage (> 0: cut into the part), mm.
+    rapid_in_material : float
+        Deepest a rapid of the stage went into the stock it met, mm (must be 0).
+    removed_volume : float
+        mm³ (node area times the height removed).
+    air_feed_length : float
+        Length of feed moves that met no material (stock as the earlier moves left it), mm.
+    feed_length : float
+    below_part_moves : int
+        Moves whose sweep reaches below the part at some node.
+    """
+
+    tool_number: int
+    moves: int
+    over_model_max: float | None
+    over_model_p95: float | None
+    gouge: float
+    rapid_in_material: float
+    removed_volume: float
+    air_feed_length: float
+    feed_length: float
+    below_part_moves: int
+
+
+@dataclass(frozen=True, eq=False)
+class ProgramCheck:
+    """Verification of a program by simulation.
+
+    Attributes
+    ----------
+    gouge : float
+        ``max(part - machined)`` over the nodes, mm; 0 (to float rounding) when no move cut
+        into the part.
+    below_part_moves : int
+        Moves whose sweep reaches below the part at some node.
+    final_over_part_max, final_over_part_p95 : float
+        Machined minus part over the nodes (or over ``reach`` when given), mm.
+    within_tolerance : bool
+        ``final_over_part_max <= tolerance`` (over ``reach`` when given).
+    rapid_in_material : float
+        Deepest any rapid went into the stock it met, mm (0: rapids run in air).
+    arc_radius_mismatch : float
+        From the parser, mm.
+    stages : tuple of StageCheck
+    machined : (ny, nx) float64
+        The simulated stock after the program.
+    """
+
+    gouge: float
+    below_part_moves: int
+    final_over_part_max: float
+    final_over_part_p95: float
+    within_tolerance: bool
+    rapid_in_material: float
+    arc_radius_mismatch: float
+    stages: tuple[StageCheck, ...]
+    machined: F64 = field(repr=False)
+
+
+def _as_segments(prog: ParsedProgram, a: int, b: int, sagitta: float
+                 ) -> tuple[F64, F64, F64, NDArray[np.int64]]:
+    """Straight pieces of moves ``a..b-1`` in program order: ``p0, p1, radius growth,
+    owner move``; arcs become chords, moves from an unknown position are left out."""
+    idx = np.arange(a, b)
+    idx = idx[np.isfinite(prog.start[idx]).all(axis=1) & np.isfinite(prog.end[idx]).all(axis=1)]
+    arcs = idx[prog.motion[idx] >= 2]
+    if not len(arcs):
+        return prog.start[idx], prog.end[idx], np.zeros(len(idx)), idx
+    c0, c1, g, o = arc_chords(prog.start[arcs], prog.end[arcs], prog.center[arcs],
+                              prog.motion[arcs] == 3, sagitta)
+    lines = idx[prog.motion[idx] < 2]
+    owner = np.concatenate([lines, arcs[o]])
+    p0 = np.concatenate([prog.start[lines], c0])
+    p1 = np.concatenate([prog.end[lines], c1])
+    grow = np.concatenate([np.zeros(len(lines)), g])
+    order = np.argsort(owner, kind="stable")  # program order; an arc's chords stay in order
+    return p0[order], p1[order], grow[order], owner[order]
+
+
+def _stage(stock: F64, part: ZMap, prog: ParsedProgram, a: int, b: int, tool: Tool,
+           model: F64 | None) -> StageCheck:
+    """Run moves ``a..b-1`` of one tool on ``stock`` (in place) and measure them."""
+    before = stock.copy()
+    frame = GridFrame(part.x0, part.y0, part.dx, part.dy, part.shape)
+    p0, p1, grow, owner = _as_segments(prog, a, b, ARC_SAGITTA_FRACTION * min(part.dx, part.dy))
+    rapid = prog.motion[owner] == 0
+    over_stock, over_part = sweep_moves(frame, p0, p1, tool.radius + grow, tool.kind == "ball",
+                                        stock, ref=part.z, apply=~rapid)
+    met = np.zeros(len(prog.motion), bool)
+    met[owner[over_stock > CUT_EPS]] = True
+    below = np.unique(owner[over_part > CUT_EPS])
+    lengths = np.linalg.norm(prog.end[a:b] - prog.start[a:b], axis=1)
+    lengths = np.where(np.isfinite(lengths), lengths, 0.0)
+    feed = prog.motion[a:b] != 0
+    rapid_pen = over_stock[rapid]
+    over = None if model is None else stock - model
+    return StageCheck(
+        tool_number=int(prog.tool[a]), moves=b - a,
+        over_model_max=None if over is None else float(over.max()),
+        over_model_p95=None if over is None else float(np.percentile(over, 95)),
+        gouge=float(max(0.0, (part.z - stock).max())),
+        # a retract from a cutting position touches the stock it just cut (a tie, not a cut)
+        rapid_in_material=float(rapid_pen.max()) if len(rapid_pen) and rapid_pen.max() > TIE_EPS
+        else 0.0,
+        removed_volume=float((before - stock).sum() * part.cell_area),
+        air_feed_length=float(lengths[feed & ~met[a:b]].sum()),
+        feed_length=float(lengths[feed].sum()), below_part_moves=len(below))
+
+
+def simulate_program(prog: ParsedProgram, tools: Mapping[int, Tool], part: ZMap,
+                     stock: F64 | float, *, tolerance: float,
+                     stage_models: Sequence[F64 | None] | None = None,
+                     reach: NDArray[np.bool_] | None = None) -> ProgramCheck:
+    """Simulate a parsed program and measure it against the part and the stage models.
+
+    Parameters
+    ----------
+    prog : ParsedProgram
+    tools : mapping of int to Tool
+        Tool by tool number (every number the program activates).
+    part : ZMap
+        The part, ``(ny, nx)``; the simulation runs on its nodes.
+    stock : float or (ny, nx) float64
+        Stock before the program (flat top or a grid).
+    tolerance : float
+        Finishing tolerance for ``within_tolerance``.
+    stage_models : sequence of (ny, nx) float64 or None, optional
+        Per tool change, in order: the stage model at the part's nodes.
+    reach : (ny, nx) bool, optional
+        Where the finishing tolerance applies (where the smallest tool reaches).
+
+    Returns
+    -------
+    ProgramCheck
+    """
+    grid = np.broadcast_to(np.asarray(stock, np.float64), part.shape)
+    if grid.shape != part.shape:
+        raise InvalidInputError("stock", "must be a number or a grid of the part's shape")
+    machined = np.ascontiguousarray(grid, dtype=np.float64).copy()
+    stages: list[StageCheck] = []
+    changes = [*np.flatnonzero(np.diff(prog.tool, prepend=-1) != 0).tolist(), len(prog.tool)]
+    for s, (a, b) in enumerate(itertools.pairwise(changes)):
+        number = int(prog.tool[a])
+        if number not in tools:
+            raise InvalidInputError("tools", f"the program uses T{number}, not in the tool table")
+        model = stage_models[s] if stage_models is not None and s < len(stage_models) else None
+        stages.append(_stage(machined, part, prog, a, b, tools[number], model))
+    left = machined - part.z
+    region = left if reach is None else left[reach]
+    fmax = float(region.max()) if region.size else 0.0
+    return ProgramCheck(
+        gouge=float(max(0.0, -left.min())),
+        below_part_moves=sum(x.below_part_moves for x in stages),
+        final_over_part_max=fmax,
+        final_over_part_p95=float(np.percentile(region, 95)) if region.size else 0.0,
+        within_tolerance=fmax <= tolerance,
+        rapid_in_material=max((x.rapid_in_material for x in stages), default=0.0),
+        arc_radius_mismatch=prog.arc_radius_mismatch, stages=tuple(stages), machined=machined)
