@@ -16,8 +16,9 @@
 """
 
 from zwcore.arcs.fit import ArcChain, Segment, chain_tangents, fit_arcs
-from zwcore.arcs.gcode import to_gcode
+from zwcore.arcs.gcode import segment_blocks, to_gcode
 from zwcore.arcs.offset import OffsetResult, offset_chain
 
 __all__ = ["ArcChain", "OffsetResult", "Segment", "chain_tangents", "fit_arcs", "offset_chain",
+           "segment_blocks",
            "to_gcode"]

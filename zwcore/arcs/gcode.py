@@ -19,8 +19,9 @@ of the input, both ways (0.0004 mm at 4 decimals).
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
-from zwcore.arcs.fit import ArcChain
+from zwcore.arcs.fit import ArcChain, Segment
 from zwcore.errors import InvalidInputError
 
 __all__ = ["rounding_budget", "to_gcode"]
@@ -38,6 +39,38 @@ def _fmt(v: float, decimals: int) -> str:
     if s.startswith("-") and float(s) == 0.0:
         s = s[1:]
     return s
+
+
+def segment_blocks(segments: Sequence[Segment], start: tuple[float, float], decimals: int,
+                   feed_word: str = "") -> list[str]:
+    """G01/G02/G03 blocks for ``segments`` from ``start`` (the control's position).
+
+    End points are rounded to ``decimals``; I, J are taken from the rounded start the
+    control sees, so start and end radii agree. Moves that round to nothing are left
+    out (a full circle is kept). ``feed_word`` goes on the first block only (modal).
+    """
+    res = 10.0 ** (-decimals)
+    cx, cy = round(start[0], decimals), round(start[1], decimals)
+    out: list[str] = []
+    for seg in segments:
+        ex, ey = round(seg.end[0], decimals), round(seg.end[1], decimals)
+        moved = abs(ex - cx) > 0.5 * res or abs(ey - cy) > 0.5 * res
+        if seg.kind == "line" or seg.center is None:
+            if not moved:
+                continue
+            out.append(f"G01 X{_fmt(ex, decimals)} Y{_fmt(ey, decimals)}{feed_word}")
+        else:
+            full = seg.sweep is not None and abs(seg.sweep) > math.pi and not moved
+            if not moved and not full:
+                continue
+            i = round(seg.center[0] - cx, decimals)
+            j = round(seg.center[1] - cy, decimals)
+            out.append(f"{'G03' if seg.ccw else 'G02'} X{_fmt(ex, decimals)} "
+                       f"Y{_fmt(ey, decimals)} I{_fmt(i, decimals)} J{_fmt(j, decimals)}"
+                       f"{feed_word}")
+        feed_word = ""
+        cx, cy = ex, ey
+    return out
 
 
 def to_gcode(
@@ -81,7 +114,6 @@ def to_gcode(
         raise InvalidInputError("feed", "must be a finite number > 0 (mm/min)")
     if not (isinstance(decimals, int) and 4 <= decimals <= 8):
         raise InvalidInputError("decimals", "must be an integer in 4..8")
-    res = 10.0 ** (-decimals)
     lines = [
         f"(zwplan arc chain: {chain.n_arcs} arcs, {chain.n_lines} lines,"
         f" closed={'yes' if chain.closed else 'no'})",
@@ -93,27 +125,7 @@ def to_gcode(
     cx, cy = round(x0, decimals), round(y0, decimals)
     if rapid_to_start:
         lines.append(f"G00 X{_fmt(cx, decimals)} Y{_fmt(cy, decimals)}")
-    feed_word = f" F{_fmt(feed, 1)}"
-    for seg in chain.segments:
-        ex, ey = round(seg.end[0], decimals), round(seg.end[1], decimals)
-        moved = abs(ex - cx) > 0.5 * res or abs(ey - cy) > 0.5 * res
-        if seg.kind == "line" or seg.center is None:
-            if not moved:
-                continue
-            lines.append(f"G01 X{_fmt(ex, decimals)} Y{_fmt(ey, decimals)}{feed_word}")
-        else:
-            full = seg.sweep is not None and abs(seg.sweep) > math.pi and not moved
-            if not moved and not full:
-                continue
-            i = round(seg.center[0] - cx, decimals)
-            j = round(seg.center[1] - cy, decimals)
-            code = "G03" if seg.ccw else "G02"
-            lines.append(
-                f"{code} X{_fmt(ex, decimals)} Y{_fmt(ey, decimals)}"
-                f" I{_fmt(i, decimals)} J{_fmt(j, decimals)}{feed_word}"
-            )
-        feed_word = ""  # modal: only on the first cutting move
-        cx, cy = ex, ey
+    lines += segment_blocks(chain.segments, (x0, y0), decimals, f" F{_fmt(feed, 1)}")
     if program_end:
         lines.append("M30")
     return "\n".join(lines) + "\n"

@@ -29,6 +29,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from zwcore.arcs.fit import Segment, fit_arcs
+from zwcore.arcs.gcode import segment_blocks
 from zwcore.errors import InvalidInputError, LimitExceededError
 
 __all__ = ["GcodeRun", "RewrittenProgram", "program_runs", "rewrite_program"]
@@ -207,39 +208,6 @@ def _apply(words: list[tuple[str, str]], gs: list[float], state: _State) -> None
         state.pos[2] = None  # a canned cycle ends at the R plane or the initial level
 
 
-def _fmt(v: float, decimals: int) -> str:
-    s = f"{v:.{decimals}f}"
-    return s[1:] if s.startswith("-") and float(s) == 0.0 else s
-
-
-def _emit(segments: tuple[Segment, ...], start: tuple[float, float], decimals: int,
-          feed_word: str) -> list[str]:
-    """Blocks for a chain starting at ``start`` (the control's current position)."""
-    res = 10.0 ** (-decimals)
-    cx, cy = round(start[0], decimals), round(start[1], decimals)
-    out: list[str] = []
-    for seg in segments:
-        ex, ey = round(seg.end[0], decimals), round(seg.end[1], decimals)
-        moved = abs(ex - cx) > 0.5 * res or abs(ey - cy) > 0.5 * res
-        if seg.kind == "line" or seg.center is None:
-            if not moved:
-                continue
-            out.append(f"G01 X{_fmt(ex, decimals)} Y{_fmt(ey, decimals)}{feed_word}")
-        else:
-            full = seg.sweep is not None and abs(seg.sweep) > math.pi and not moved
-            if not moved and not full:
-                continue
-            # I, J from the rounded start the control sees: start and end radii agree
-            i = round(seg.center[0] - cx, decimals)
-            j = round(seg.center[1] - cy, decimals)
-            out.append(f"{'G03' if seg.ccw else 'G02'} X{_fmt(ex, decimals)} "
-                       f"Y{_fmt(ey, decimals)} I{_fmt(i, decimals)} J{_fmt(j, decimals)}"
-                       f"{feed_word}")
-        feed_word = ""
-        cx, cy = ex, ey
-    return out
-
-
 def _fit_run(run: _OpenRun, tolerance: float, corner_angle_deg: float,
              max_radius: float | None) -> tuple[GcodeRun, list[str] | None]:
     pts = np.array([run.start, *run.ends], dtype=np.float64)
@@ -255,7 +223,7 @@ def _fit_run(run: _OpenRun, tolerance: float, corner_angle_deg: float,
     except InvalidInputError:  # e.g. every move of the run has zero length
         return keep, None
     decimals = min(max(4, run.decimals), 8)
-    blocks = _emit(chain.segments, run.start, decimals, run.feed_word)
+    blocks = segment_blocks(chain.segments, run.start, decimals, run.feed_word)
     if len(blocks) >= n:
         return keep, None
     if chain.segments and chain.segments[-1].kind == "arc":
