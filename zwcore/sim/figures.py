@@ -226,6 +226,17 @@ def depth_of_cut(stock: F64 | float, cl: F64, tool: Tool, dx: float, dy: float,
                       flute_length_ok=mx <= tool.flute_length)
 
 
+def _grid_on_part(values: object, part: ZMap, field: str) -> F64:
+    """``values`` as a finite float64 grid on the part's nodes (else an error on ``field``)."""
+    grid = np.asarray(values, dtype=np.float64)
+    if grid.shape != part.shape:
+        raise InvalidInputError(field, f"grid of shape {list(grid.shape)}; the part's is "
+                                f"{list(part.shape)}")
+    if not np.isfinite(grid).all():
+        raise InvalidInputError(field, "heights must be finite")
+    return grid
+
+
 def _stock_grid(stock: F64 | float, part: ZMap) -> F64:
     if np.ndim(stock) == 0:
         top = finite_number(stock, "stock")
@@ -233,12 +244,7 @@ def _stock_grid(stock: F64 | float, part: ZMap) -> F64:
             raise InvalidInputError("stock", f"flat stock top {top!r} lies below the part's "
                                     f"highest point {float(part.z.max())!r}")
         return np.full(part.shape, top)
-    grid = np.asarray(stock, dtype=np.float64)
-    if grid.shape != part.shape:
-        raise InvalidInputError("stock", f"grid of shape {list(grid.shape)}; the part's is "
-                                f"{list(part.shape)}")
-    if not np.isfinite(grid).all():
-        raise InvalidInputError("stock", "heights must be finite")
+    grid = _grid_on_part(stock, part, "stock")
     below = grid < part.z
     if below.any():
         i, k = np.argwhere(below)[0]
@@ -279,12 +285,7 @@ def simulate_pass(part: ZMap, tool: Tool, stock: F64 | float, *, cl: F64 | None 
     if cl is None:
         positions = drop_cutter(part, tool, interpolation)
     else:
-        positions = np.asarray(cl, dtype=np.float64)
-        if positions.shape != part.shape:
-            raise InvalidInputError("cl", f"grid of shape {list(positions.shape)}; the part's "
-                                    f"is {list(part.shape)}")
-        if not np.isfinite(positions).all():
-            raise InvalidInputError("cl", "heights must be finite")
+        positions = _grid_on_part(cl, part, "cl")
     env = envelope(positions, tool, part.dx, part.dy, interpolation)
     after = np.minimum(previous, env)
     return PassSimulation(
