@@ -22,15 +22,11 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from zwcore.arcs import _kernels
 from zwcore.arcs._biarc import junction, last_on_first_arc
-from zwcore.arcs._checks import foot_positions, portion_bounds, samples_within, segments_within
 from zwcore.arcs._geometry import (
-    arc_point,
-    arc_points,
-    circle_gap,
     kappa_bounds,
     local_uv,
-    points_to_segments_distance,
     rotate1,
 )
 
@@ -98,50 +94,14 @@ class ToleranceBand:
 
     # -- feasibility scans -------------------------------------------------
 
-    def curvature_intervals(
-        self, ps: FloatArray, ts: FloatArray, k: int, hi: int
-    ) -> tuple[FloatArray, FloatArray]:
-        """Running curvature bounds ``(C, hi-k)`` for samples ``k+1..hi``.
-
-        The junctions ``ps, ts`` ``(C, 2)`` stand for sample ``k``. Column ``i``
-        bounds the curvatures that keep samples ``k+1..k+1+i`` in the band; pieces
-        stop being feasible at the first column with ``lo > up``.
-        """
-        pts = self.samples[k + 1 : hi + 1]
-        u, v = local_uv(ps[:, None, :], ts[:, None, :], pts[None, :, :])
-        lo, up = kappa_bounds(u, v, self.work_tol)
-        return np.maximum.accumulate(lo, axis=1), np.minimum.accumulate(up, axis=1)
-
-    def reach(self, ps: FloatArray, ts: FloatArray, k: int, b: int, w0: int) -> NDArray[np.int64]:
+    def reach(self, ps: FloatArray, ts: FloatArray, k: int, b: int) -> NDArray[np.int64]:
         """Last sample index each junction ``(C,)`` at sample ``k`` covers with one piece.
 
-        Interval test only (no verification); ``w0`` is the initial scan window.
+        Interval test only (no verification), every sample scanned.
         """
-        c = len(ps)
-        out = np.full(c, b, dtype=np.int64)
-        todo = np.arange(c)
-        w = max(w0, 32)
-        lo_i = k
-        while todo.size and lo_i < b:
-            hi = min(b, k + w)
-            # keep memory bounded: at most ~4e6 entries per block
-            step = max(1, int(4e6 // max(hi - k, 1)))
-            done_now = []
-            for s0 in range(0, todo.size, step):
-                sub = todo[s0 : s0 + step]
-                lo_c, up_c = self.curvature_intervals(ps[sub], ts[sub], k, hi)
-                bad = lo_c > up_c
-                anyb = bad.any(axis=1)
-                first = np.argmax(bad, axis=1)
-                out[sub[anyb]] = k + first[anyb]
-                done_now.append(sub[anyb])
-            done = np.concatenate(done_now) if done_now else np.zeros(0, dtype=np.int64)
-            todo = np.setdiff1d(todo, done)
-            if hi == b:
-                break
-            w *= 2
-            lo_i = hi
-        return out
+        ks = np.full(len(ps), k, dtype=np.int64)
+        return _kernels.reach_lines(self.samples, np.ascontiguousarray(ps),
+                                    np.ascontiguousarray(ts), ks, b, 1, self.work_tol)[0]
 
     def reach_with_lines(
         self, ps: FloatArray, ts: FloatArray, ks: NDArray[np.int64], b: int
@@ -150,52 +110,16 @@ class ToleranceBand:
 
         Junction ``c`` starts at ``ps[c]`` with tangent ``ts[c]`` standing for sample
         ``ks[c]``. The figures only rank candidates (every piece is verified on all
-        samples), so densely sampled curves are scanned at :attr:`reach_stride`:
-        the work no longer grows with the sampling density.
+        samples), so densely sampled curves are scanned at :attr:`reach_stride`: the
+        work no longer grows with the sampling density. Each junction scans the samples
+        of the grid ``k0+1, k0+1+stride, ...`` (``k0 = ks.min()``) after its own sample
+        and stops where its curvature interval empties; a line is reported while the
+        arc scan still runs (beyond, a line never reaches further than the arcs: a line
+        is one of the circles).
         """
-        c = len(ps)
-        reach = np.full(c, b, dtype=np.int64)
-        lreach = np.full(c, b, dtype=np.int64)
-        if c == 0:
-            return reach, lreach
-        k0 = int(ks.min())
-        stride = self.reach_stride
-        wt = self.work_tol
-        # each junction scans the samples of the grid k0+1, k0+1+stride, ... after its
-        # own sample, window after window, carrying its running bounds (no rescans)
-        pos = k0 + 1 + stride * ((ks - k0 - 1) // stride + 1)
-        lo_run = np.full(c, -np.inf)
-        up_run = np.full(c, np.inf)
-        ltodo = np.ones(c, dtype=bool)
-        todo = np.flatnonzero(pos <= b)
-        w = 64
-        while todo.size:
-            n = max(16, min(max(1, w // stride), int(3e6 // todo.size)))
-            cols = pos[todo, None] + stride * np.arange(n)[None, :]
-            valid = cols <= b
-            u, v = local_uv(ps[todo, None, :], ts[todo, None, :],
-                            self.samples[np.minimum(cols, b)])
-            lo, up = kappa_bounds(u, v, wt)
-            lo = np.maximum(lo_run[todo, None],
-                            np.maximum.accumulate(np.where(valid, lo, -np.inf), axis=1))
-            up = np.minimum(up_run[todo, None],
-                            np.minimum.accumulate(np.where(valid, up, np.inf), axis=1))
-            bad = lo > up
-            anyb = bad.any(axis=1)
-            reach[todo[anyb]] = cols[anyb, np.argmax(bad[anyb], axis=1)] - 1
-            lb = ((np.abs(v) > wt) | (u < -wt)) & valid
-            lsel = lb.any(axis=1) & ltodo[todo]
-            lreach[todo[lsel]] = cols[lsel, np.argmax(lb[lsel], axis=1)] - 1
-            ltodo[todo[lsel]] = False
-            lo_run[todo] = lo[:, -1]
-            up_run[todo] = up[:, -1]
-            pos[todo] += stride * n
-            todo = todo[~anyb & (pos[todo] <= b)]
-            w *= 2
-        # lines are only reported while the arc scan was still running; beyond, a line
-        # never reaches further than the arcs (a line is one of the circles)
-        lreach = np.minimum(lreach, reach)
-        return reach, lreach
+        return _kernels.reach_lines(self.samples, np.ascontiguousarray(ps),
+                                    np.ascontiguousarray(ts), np.asarray(ks, dtype=np.int64),
+                                    b, self.reach_stride, self.work_tol)
 
     def line_reach(self, p: FloatArray, ths: FloatArray, k: int, b: int) -> tuple[int, float]:
         """Longest straight piece from ``p`` (at sample ``k``) over directions ``ths``.
@@ -223,20 +147,11 @@ class ToleranceBand:
     ) -> tuple[FloatArray, FloatArray]:
         """Running curvature bounds of the longest feasible piece from ``(p, t)``.
 
-        Scans samples ``k+1..b`` in growing windows and cuts the bounds where they
-        become empty: ``len(lo)`` samples after ``k`` are reachable.
+        Scans samples ``k+1..b`` and cuts the bounds where they become empty:
+        ``len(lo)`` samples after ``k`` are reachable.
         """
-        w = 64
-        while True:
-            hi = min(b, k + w)
-            lo_c, up_c = self.curvature_intervals(p[None, :], t[None, :], k, hi)
-            lo1, up1 = lo_c[0], up_c[0]
-            bad = np.flatnonzero(lo1 > up1)
-            if bad.size:
-                return lo1[: bad[0]], up1[: bad[0]]
-            if hi == b:
-                return lo1, up1
-            w *= 4
+        return _kernels.piece_bounds(self.samples, float(p[0]), float(p[1]), float(t[0]),
+                                     float(t[1]), k, b, self.work_tol)
 
     # -- candidate curvatures ----------------------------------------------
 
@@ -267,26 +182,6 @@ class ToleranceBand:
 
     # -- verification ------------------------------------------------------
 
-    def _arc_near_polyline(
-        self, p: FloatArray, t: FloatArray, kappa: float, s0: float, s1: float, a: int, b: int
-    ) -> bool:
-        """Dense check of the arc portion ``[s0, s1]`` against polyline segments ``a..b``."""
-        if s1 <= s0:
-            return True
-        n = math.ceil((s1 - s0) / self.dense_step) + 1
-        if n > 4000:
-            return False
-        step = (s1 - s0) / (n - 1)
-        pts = arc_points(p, t, kappa, np.linspace(s0, s1, n))
-        a = max(a, 0)
-        b = min(b, len(self.samples) - 1)
-        if b <= a:
-            d = np.hypot(pts[:, 0] - self.samples[a, 0], pts[:, 1] - self.samples[a, 1])
-        else:
-            d = points_to_segments_distance(pts, self.samples[a:b], self.samples[a + 1 : b + 1])
-            d = d.min(axis=1)
-        return bool(d.max() <= self.tol - 0.5 * step)
-
     def verify(
         self, p: FloatArray, t: FloatArray, kappa: float, k: int, j: int, e_k: float,
         sig_end: float | None = None, dense_first: bool = False,
@@ -300,48 +195,22 @@ class ToleranceBand:
 
         Returns ``(length, end, e_end)``, or None when a bound exceeds ``tol``. All
         bounds are conservative: a piece that passes is within ``tol`` of the
-        polyline both ways over its extent.
+        polyline both ways over its extent. The bounds: every sample to the piece,
+        the interiors of the polyline segments to the arc (the farthest point of a
+        segment from a circle is an end or the point nearest the centre), and the
+        arc's portions between consecutive foot points to the polyline (the larger
+        end distance plus the portion's sagitta plus the jitter of the foot points);
+        the part of the arc past the last foot point, and with ``dense_first`` the
+        first portion, are measured densely at :attr:`dense_step`
+        (:func:`zwcore.arcs._kernels.verify_piece`).
         """
-        tol = self.tol
-        pts = self.samples[k : j + 1]
-        u, v = local_uv(p, t, pts)
-        g = np.abs(circle_gap(u, v, kappa))
-        sig = foot_positions(u, v, kappa)
-        given_end = sig_end is not None
-        if sig_end is None:
-            sig_end = float(sig[-1])
-        if not sig_end > 0.0 or abs(kappa * sig_end) > 2.0 * math.pi + 1e-9:
+        ok, length, ex, ey, e_end = _kernels.verify_piece(
+            self.samples, float(p[0]), float(p[1]), float(t[0]), float(t[1]), float(kappa),
+            k, j, float(e_k), 0.0 if sig_end is None else float(sig_end),
+            sig_end is not None, dense_first, self.tol, self.dense_step)
+        if not ok:
             return None
-        end = arc_point(p, t, kappa, sig_end)
-        de = np.hypot(pts[:, 0] - end[0], pts[:, 1] - end[1])
-        if not samples_within(u, v, g, sig, sig_end, de, tol):
-            return None
-        if kappa != 0.0 and len(pts) > 1 and not segments_within(
-                u, v, sig, sig_end, p, t, end, kappa, tol, dense_first):
-            return None
-        bound, dphi, phi_c = portion_bounds(pts, sig, sig_end, g, de, e_k, kappa)
-        if dphi.size:
-            mask = dphi > 0.0
-            if dense_first:
-                first = np.flatnonzero(mask)
-                if first.size:
-                    f0 = int(first[0])
-                    mask[f0] = False
-                    if not self._arc_near_polyline(
-                        p, t, kappa, 0.0, float(phi_c[f0 + 1]), k - 1, k + f0 + 2
-                    ):
-                        return None
-            if np.any(bound[mask] > tol):
-                return None
-        tail0 = float(phi_c[-1])
-        if given_end:
-            if tail0 < sig_end and not self._arc_near_polyline(
-                p, t, kappa, tail0, sig_end, j - 1, j + 2
-            ):
-                return None
-        elif tail0 < sig_end * (1.0 - 1e-12):
-            return None
-        return sig_end, end, float(g[-1])
+        return length, np.array([ex, ey]), e_end
 
     def make_piece(
         self, p: FloatArray, t: FloatArray, kappa: float, k: int, j: int,

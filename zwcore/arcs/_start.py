@@ -42,7 +42,7 @@ def free_start(band: ToleranceBand, p: FloatArray, k: int, b: int) -> tuple[Floa
     for _ in range(3):
         ths = best_th + np.linspace(-span, span, n)
         ts = np.stack([np.cos(ths), np.sin(ths)], axis=1)
-        r = band.reach(np.repeat(p[None, :], n, axis=0), ts, k, b, 64)
+        r = band.reach(np.repeat(p[None, :], n, axis=0), ts, k, b)
         top = np.flatnonzero(r == r.max())
         # the middle of the best range: robust to the grid and to noise
         mid = int(top[len(top) // 2])

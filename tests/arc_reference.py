@@ -1,0 +1,316 @@
+"""Plain-numpy reference of the compiled arc kernels (``zwcore/arcs/_kernels.py``,
+``zwcore/arcs/_dense.py``): the formulation the fit used before they were compiled, kept
+for the property tests in ``tests/test_arc_kernels.py``.
+
+The conservative two-sided bounds of :meth:`zwcore.arcs._pieces.ToleranceBand.verify`:
+
+A piece starts at ``p`` with unit tangent ``t`` and signed curvature ``kappa``; the
+samples it stands for are given in its local frame (``u`` along ``t``, ``v`` to the
+left). Each function bounds one part of the two-sided distance: the samples to the
+piece, the polyline segments' interiors to the piece, and the piece's portions between
+consecutive foot points to the polyline.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+from numpy.typing import NDArray
+
+from zwcore.arcs._geometry import (
+    arc_point,
+    arc_points,
+    circle_gap,
+    kappa_bounds,
+    local_uv,
+    point_to_arc_distance,
+    points_to_segments_distance,
+    sagitta,
+    unwrap,
+)
+from zwcore.arcs._pieces import Piece
+from zwcore.arcs.verify import _densify_idx
+
+FloatArray = NDArray[np.float64]
+
+__all__ = ["deviations", "foot_positions", "longest_piece_bounds", "portion_bounds",
+           "reach_with_lines", "samples_within", "segments_within", "verify"]
+
+
+def foot_positions(u: FloatArray, v: FloatArray, kappa: float) -> FloatArray:
+    """Arc-length position ``(n,)`` of each sample's foot point on the piece (the first
+    sample, the piece's start, at 0)."""
+    if kappa != 0.0:
+        phi = np.arctan2(kappa * u, 1.0 - kappa * v)
+        phi[0] = 0.0
+        return unwrap(phi) / kappa
+    sig = u.copy()
+    sig[0] = 0.0
+    return sig
+
+
+def samples_within(
+    u: FloatArray, v: FloatArray, g: FloatArray, sig: FloatArray, sig_end: float,
+    de: FloatArray, tol: float,
+) -> bool:
+    """True when every sample after the first is within ``tol`` of the piece: its gap
+    ``g`` to the circle, or its distance to the start (foot before it) or to the end
+    (``de``, foot after it)."""
+    q = np.hypot(u, v)
+    before = sig < 0.0
+    after = sig > sig_end
+    d = np.where(before, q, np.where(after, de, g))
+    return not (d.size > 1 and d[1:].max() > tol)
+
+
+def segments_within(
+    u: FloatArray, v: FloatArray, sig: FloatArray, sig_end: float, p: FloatArray,
+    t: FloatArray, end: FloatArray, kappa: float, tol: float, dense_first: bool,
+) -> bool:
+    """True when the interiors of the polyline segments are within ``tol`` of the arc
+    (``kappa != 0``): the farthest point from a circle on a segment is an end point or
+    the point closest to the centre. The piece starts at ``p`` along ``t`` and ends at
+    ``end``; ``dense_first`` skips the first segment (checked densely by the caller)."""
+    du = np.diff(u)
+    dv = np.diff(v)
+    den = du * du + dv * dv
+    den = np.where(den > 0.0, den, 1.0)
+    ts = np.clip((-u[:-1] * du + (1.0 / kappa - v[:-1]) * dv) / den, 0.0, 1.0)
+    xu = u[:-1] + ts * du
+    xv = v[:-1] + ts * dv
+    gx = np.abs(circle_gap(xu, xv, kappa))
+    inside = (sig[:-1] >= 0.0) & (sig[1:] <= sig_end)
+    xe = np.hypot(
+        xu - (end[0] - p[0]) * t[0] - (end[1] - p[1]) * t[1],
+        xv - (end[1] - p[1]) * t[0] + (end[0] - p[0]) * t[1],
+    )
+    dx = np.where(inside, gx, np.maximum(gx, np.minimum(np.hypot(xu, xv), xe)))
+    if dense_first:
+        dx[0] = 0.0
+    return not dx.max() > tol
+
+
+def portion_bounds(
+    pts: FloatArray, sig: FloatArray, sig_end: float, g: FloatArray, de: FloatArray,
+    e_k: float, kappa: float,
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Bounds on the distance of the arc portions between consecutive (running-max) foot
+    points to the polyline.
+
+    Returns ``(bound, dphi, phi_c)``: the bound per portion ``(n-1,)``, the portions'
+    lengths (0: empty) and the clipped running foot positions ``(n,)``. ``e_k`` is the
+    distance of the first sample from the piece's start.
+    """
+    run = np.maximum.accumulate(sig)
+    phi_c = np.clip(run, 0.0, sig_end)
+    idx = np.arange(len(sig))
+    arg = np.maximum.accumulate(np.where(sig >= run, idx, 0))
+    e_at = np.where(sig <= sig_end, g, de)
+    e_at[0] = e_k
+    dphi = np.diff(phi_c)
+    a_idx = arg[:-1]
+    jit = np.hypot(pts[a_idx, 0] - pts[:-1, 0], pts[a_idx, 1] - pts[:-1, 1])
+    bound = np.maximum(e_at[a_idx], e_at[1:]) + sagitta(kappa, dphi) + jit
+    return bound, dphi, phi_c
+
+
+def arc_near_polyline(samples: FloatArray, tol: float, dense_step: float, p: FloatArray,
+                      t: FloatArray, kappa: float, s0: float, s1: float, a: int,
+                      b: int) -> bool:
+    """Dense check of the arc portion ``[s0, s1]`` against polyline segments ``a..b``."""
+    if s1 <= s0:
+        return True
+    n = math.ceil((s1 - s0) / dense_step) + 1
+    if n > 4000:
+        return False
+    step = (s1 - s0) / (n - 1)
+    pts = arc_points(p, t, kappa, np.linspace(s0, s1, n))
+    a = max(a, 0)
+    b = min(b, len(samples) - 1)
+    if b <= a:
+        d = np.hypot(pts[:, 0] - samples[a, 0], pts[:, 1] - samples[a, 1])
+    else:
+        d = points_to_segments_distance(pts, samples[a:b], samples[a + 1 : b + 1]).min(axis=1)
+    return bool(d.max() <= tol - 0.5 * step)
+
+
+def verify(samples: FloatArray, tol: float, dense_step: float, p: FloatArray,
+           t: FloatArray, kappa: float, k: int, j: int, e_k: float,
+           sig_end: float | None = None, dense_first: bool = False,
+           ) -> tuple[float, FloatArray, float] | None:
+    """:meth:`zwcore.arcs._pieces.ToleranceBand.verify` in numpy."""
+    pts = samples[k : j + 1]
+    u, v = local_uv(p, t, pts)
+    g = np.abs(circle_gap(u, v, kappa))
+    sig = foot_positions(u, v, kappa)
+    given_end = sig_end is not None
+    if sig_end is None:
+        sig_end = float(sig[-1])
+    if not sig_end > 0.0 or abs(kappa * sig_end) > 2.0 * math.pi + 1e-9:
+        return None
+    end = arc_point(p, t, kappa, sig_end)
+    de = np.hypot(pts[:, 0] - end[0], pts[:, 1] - end[1])
+    if not samples_within(u, v, g, sig, sig_end, de, tol):
+        return None
+    if kappa != 0.0 and len(pts) > 1 and not segments_within(
+            u, v, sig, sig_end, p, t, end, kappa, tol, dense_first):
+        return None
+    bound, dphi, phi_c = portion_bounds(pts, sig, sig_end, g, de, e_k, kappa)
+    if dphi.size:
+        mask = dphi > 0.0
+        if dense_first:
+            first = np.flatnonzero(mask)
+            if first.size:
+                f0 = int(first[0])
+                mask[f0] = False
+                if not arc_near_polyline(samples, tol, dense_step, p, t, kappa, 0.0,
+                                         float(phi_c[f0 + 1]), k - 1, k + f0 + 2):
+                    return None
+        if np.any(bound[mask] > tol):
+            return None
+    tail0 = float(phi_c[-1])
+    if given_end:
+        if tail0 < sig_end and not arc_near_polyline(samples, tol, dense_step, p, t, kappa,
+                                                     tail0, sig_end, j - 1, j + 2):
+            return None
+    elif tail0 < sig_end * (1.0 - 1e-12):
+        return None
+    return sig_end, end, float(g[-1])
+
+
+def reach_with_lines(samples: FloatArray, wt: float, stride: int, ps: FloatArray,
+                     ts: FloatArray, ks: NDArray[np.int64], b: int,
+                     ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """:meth:`zwcore.arcs._pieces.ToleranceBand.reach_with_lines` in numpy (windows of
+    junctions and samples)."""
+    c = len(ps)
+    reach = np.full(c, b, dtype=np.int64)
+    lreach = np.full(c, b, dtype=np.int64)
+    if c == 0:
+        return reach, lreach
+    k0 = int(ks.min())
+    pos = k0 + 1 + stride * ((ks - k0 - 1) // stride + 1)
+    lo_run = np.full(c, -np.inf)
+    up_run = np.full(c, np.inf)
+    ltodo = np.ones(c, dtype=bool)
+    todo = np.flatnonzero(pos <= b)
+    w = 64
+    while todo.size:
+        n = max(16, min(max(1, w // stride), int(3e6 // todo.size)))
+        cols = pos[todo, None] + stride * np.arange(n)[None, :]
+        valid = cols <= b
+        u, v = local_uv(ps[todo, None, :], ts[todo, None, :], samples[np.minimum(cols, b)])
+        lo, up = kappa_bounds(u, v, wt)
+        lo = np.maximum(lo_run[todo, None],
+                        np.maximum.accumulate(np.where(valid, lo, -np.inf), axis=1))
+        up = np.minimum(up_run[todo, None],
+                        np.minimum.accumulate(np.where(valid, up, np.inf), axis=1))
+        bad = lo > up
+        anyb = bad.any(axis=1)
+        reach[todo[anyb]] = cols[anyb, np.argmax(bad[anyb], axis=1)] - 1
+        lb = ((np.abs(v) > wt) | (u < -wt)) & valid
+        lsel = lb.any(axis=1) & ltodo[todo]
+        lreach[todo[lsel]] = cols[lsel, np.argmax(lb[lsel], axis=1)] - 1
+        ltodo[todo[lsel]] = False
+        lo_run[todo] = lo[:, -1]
+        up_run[todo] = up[:, -1]
+        pos[todo] += stride * n
+        todo = todo[~anyb & (pos[todo] <= b)]
+        w *= 2
+    return reach, np.minimum(lreach, reach)
+
+
+def longest_piece_bounds(samples: FloatArray, wt: float, p: FloatArray, t: FloatArray,
+                         k: int, b: int) -> tuple[FloatArray, FloatArray]:
+    """:meth:`zwcore.arcs._pieces.ToleranceBand.longest_piece_bounds` in numpy."""
+    u, v = local_uv(p, t, samples[k + 1 : b + 1])
+    lo, up = kappa_bounds(u, v, wt)
+    lo = np.maximum.accumulate(lo)
+    up = np.minimum.accumulate(up)
+    bad = np.flatnonzero(lo > up)
+    n = int(bad[0]) if bad.size else len(lo)
+    return lo[:n], up[:n]
+
+
+def _piece_points(pc: Piece, step: float) -> tuple[FloatArray, FloatArray]:
+    n = max(math.ceil(pc.length / step), 1) + 1
+    sig = np.linspace(0.0, pc.length, n)
+    pts = arc_points(pc.p, pc.t, pc.kappa, sig)
+    pts[-1] = pc.end
+    return pts, sig
+
+
+def _foot_positions(pc: Piece, pts: FloatArray) -> FloatArray:
+    """Arc-length positions along ``pc`` of ``pts`` (unwrapped from the first)."""
+    u, v = local_uv(pc.p, pc.t, pts)
+    if pc.kappa == 0.0:
+        return u
+    phi = np.arctan2(pc.kappa * u, 1.0 - pc.kappa * v)
+    phi[0] = 0.0
+    return np.asarray(np.unwrap(phi) / pc.kappa)
+
+
+def _dist_all_segments(pts: FloatArray, poly: FloatArray) -> FloatArray:
+    out = np.full(len(pts), np.inf)
+    a, b = poly[:-1], poly[1:]
+    chunk = max(1, int(2e6 // max(len(a), 1)))
+    for i in range(0, len(pts), chunk):
+        out[i : i + chunk] = points_to_segments_distance(pts[i : i + chunk], a, b).min(axis=1)
+    return out
+
+
+def deviations(samples: FloatArray, pieces: Sequence[Piece], tol: float) -> tuple[float, float]:
+    """:func:`zwcore.arcs.verify.deviations` in numpy: the dense two-sided deviation
+    ``(polyline -> chain, chain -> polyline)``.
+
+    ``samples`` is the polyline the pieces were fitted to (piece ``k``/``j`` index it).
+    """
+    nseg = len(samples) - 1
+    length = float(np.hypot(*(np.diff(samples, axis=0).T)).sum())
+    total = length + sum(pc.length for pc in pieces)
+    step = max(tol / 20.0, total / 2e6)
+    # polyline -> chain
+    dpoly, sid = _densify_idx(samples, step)
+    d_p = np.full(len(dpoly), np.inf)
+    for pc in pieces:
+        lo = int(np.searchsorted(sid, max(pc.k - 2, 0), side="left"))
+        hi = int(np.searchsorted(sid, min(pc.j + 2, nseg), side="right"))
+        if hi > lo:
+            dd = point_to_arc_distance(dpoly[lo:hi], pc.p, pc.t, pc.kappa, pc.length)
+            np.minimum(d_p[lo:hi], dd, out=d_p[lo:hi])
+    hot = np.flatnonzero(d_p > tol)
+    if hot.size:
+        best = np.full(hot.size, np.inf)
+        for pc in pieces:
+            best = np.minimum(best, point_to_arc_distance(dpoly[hot], pc.p, pc.t, pc.kappa,
+                                                          pc.length))
+        d_p[hot] = best
+    # chain -> polyline (segment figures gathered from 1-D arrays: gathering rows of
+    # the (M, 2) arrays per offset costs more than the arithmetic)
+    d_c_max = 0.0
+    ax, ay = samples[:-1, 0].copy(), samples[:-1, 1].copy()
+    abx, aby = samples[1:, 0] - ax, samples[1:, 1] - ay
+    den_all = np.maximum(abx * abx + aby * aby, 1e-300)
+    for pc in pieces:
+        cpts, sig = _piece_points(pc, step)
+        k, j = max(pc.k, 0), min(pc.j, nseg)
+        if nseg == 0:
+            d = np.hypot(*(cpts - samples[0]).T)
+        else:
+            foot = np.maximum.accumulate(_foot_positions(pc, samples[k : j + 1]))
+            m = k + np.searchsorted(foot, sig, side="right") - 1
+            d = np.full(len(cpts), np.inf)
+            cx, cy = cpts[:, 0], cpts[:, 1]
+            for off in range(-3, 4):
+                s = np.clip(m + off, 0, nseg - 1)
+                sx, sy = abx[s], aby[s]
+                apx, apy = cx - ax[s], cy - ay[s]
+                f = np.clip((apx * sx + apy * sy) / den_all[s], 0.0, 1.0)
+                np.minimum(d, np.hypot(apx - f * sx, apy - f * sy), out=d)
+            hotc = np.flatnonzero(d > tol)
+            if hotc.size:
+                d[hotc] = _dist_all_segments(cpts[hotc], samples)
+        d_c_max = max(d_c_max, float(d.max()))
+    return float(d_p.max()), d_c_max

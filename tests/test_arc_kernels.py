@@ -1,0 +1,134 @@
+"""The compiled kernels of the arc fit against their plain-numpy reference
+(``tests/arc_reference.py``, the formulation the fit used before they were compiled).
+
+Scans (reach, running curvature bounds) do the same exact arithmetic, so they must agree
+exactly. The verification and the dense deviation use transcendental functions whose
+last bits differ between numpy's vector loops and libm: a kernel's accept must be a
+reference accept at a hair more tolerance, a kernel's reject a reference reject at a hair
+less, and the figures must agree to rounding.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from hypothesis import HealthCheck, assume, given, settings
+from hypothesis import strategies as st
+
+from tests import arc_reference as ref
+from zwcore.arcs import _kernels
+from zwcore.arcs._geometry import arc_point
+from zwcore.arcs._pieces import Piece, ToleranceBand
+from zwcore.arcs._prepare import prepare
+from zwcore.arcs._runs import assemble
+from zwcore.arcs.verify import deviations
+
+HAIR = 1e-9
+
+
+@st.composite
+def wavy_curves(draw: st.DrawFn) -> tuple[np.ndarray, float]:
+    """A sampled curve (a sum of two waves, with noise) and a tolerance."""
+    n = draw(st.integers(8, 160))
+    step = draw(st.floats(0.02, 1.0))
+    amp = draw(st.floats(0.0, 5.0))
+    wave = draw(st.floats(0.5, 40.0))
+    noise = draw(st.floats(0.0, 0.05))
+    tol = draw(st.floats(0.005, 0.3))
+    seed = draw(st.integers(0, 2**31))
+    rng = np.random.default_rng(seed)
+    x = np.arange(n) * step
+    y = amp * np.sin(x / wave * 2 * math.pi) + 0.3 * amp * np.sin(x / (0.37 * wave))
+    pts = np.stack([x, y], 1) + rng.uniform(-noise, noise, (n, 2))
+    return pts, tol
+
+
+@st.composite
+def junctions(draw: st.DrawFn) -> tuple[np.ndarray, float, np.ndarray, np.ndarray, int]:
+    """A curve, a tolerance and a junction (point near a sample, tangent near the
+    polyline's) at sample ``k``."""
+    pts, tol = draw(wavy_curves())
+    k = draw(st.integers(0, len(pts) - 3))
+    d = pts[k + 1] - pts[k]
+    th = math.atan2(d[1], d[0]) + draw(st.floats(-0.3, 0.3))
+    off = draw(st.floats(-1.0, 1.0)) * tol
+    t = np.array([math.cos(th), math.sin(th)])
+    p = pts[k] + off * np.array([-t[1], t[0]])
+    return pts, tol, p, t, k
+
+
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(junctions(), st.floats(0.5, 1.0), st.integers(1, 5))
+def test_reach_scans_equal_the_reference(case, work, stride):
+    pts, tol, p, t, k = case
+    wt = work * tol
+    b = len(pts) - 1
+    # several junctions at different samples, as the beam ranks them
+    ps = np.array([p, pts[min(k + 1, b)], pts[min(k + 2, b)]])
+    ts = np.array([t, t, t])
+    ks = np.array([k, min(k + 1, b), min(k + 2, b)], dtype=np.int64)
+    got = _kernels.reach_lines(pts, ps, ts, ks, b, stride, wt)
+    want = ref.reach_with_lines(pts, wt, stride, ps, ts, ks, b)
+    np.testing.assert_array_equal(got[0], want[0])
+    np.testing.assert_array_equal(got[1], want[1])
+    lo, up = _kernels.piece_bounds(pts, p[0], p[1], t[0], t[1], k, b, wt)
+    lo_r, up_r = ref.longest_piece_bounds(pts, wt, p, t, k, b)
+    np.testing.assert_array_equal(lo, lo_r)
+    np.testing.assert_array_equal(up, up_r)
+
+
+@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(junctions(), st.floats(0.0, 1.0), st.floats(0.0, 1.0), st.booleans(), st.booleans(),
+       st.floats(0.9, 1.1))
+def test_verify_agrees_with_the_reference(case, fj, fk, given_end, dense_first, stretch):
+    pts, tol, p, t, k = case
+    b = len(pts) - 1
+    lo, up = ref.longest_piece_bounds(pts, tol, p, t, k, b)
+    assume(len(lo) >= 1)
+    # a piece inside the feasible interval of its end sample (passes often), or a bit
+    # outside it (fails often)
+    j = k + 1 + int(fj * (len(lo) - 1))
+    lo_j, up_j = max(lo[j - k - 1], -1e3), min(up[j - k - 1], 1e3)
+    kappa = lo_j + (fk * 1.2 - 0.1) * (up_j - lo_j)
+    e_k = float(np.hypot(*(pts[k] - p)))
+    sig_end = None
+    if given_end:
+        u = float((pts[j] - p) @ t)
+        sig_end = max(u, 1e-6) * stretch
+    band = ToleranceBand(pts, tol, 1.0, None)
+    got = band.verify(p, t, kappa, k, j, e_k, sig_end=sig_end, dense_first=dense_first)
+    args = (p, t, kappa, k, j, e_k, sig_end, dense_first)
+    if got is None:
+        assert ref.verify(pts, tol * (1 - HAIR), band.dense_step, *args) is None
+    else:
+        want = ref.verify(pts, tol * (1 + HAIR), band.dense_step, *args)
+        assert want is not None
+        assert math.isclose(got[0], want[0], rel_tol=1e-12, abs_tol=1e-12)
+        np.testing.assert_allclose(got[1], want[1], rtol=0, atol=1e-11)
+        assert math.isclose(got[2], want[2], rel_tol=1e-9, abs_tol=1e-12)
+
+
+def _pieces(pts: np.ndarray, tol: float, closed: bool) -> tuple[np.ndarray, list[Piece]]:
+    prep = prepare(pts, tol, closed, math.radians(30.0))
+    pieces = assemble(prep, None, True)[0]
+    return prep.samples, pieces
+
+
+@settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(wavy_curves(), st.booleans(), st.floats(-1.0, 1.0))
+def test_dense_deviations_agree_with_the_reference(case, closed, bend):
+    pts, tol = case
+    samples, pieces = _pieces(pts - pts[0], tol, closed)
+    if bend:
+        # a spoilt chain (curvatures changed): the measure must see the violation too
+        spoilt = []
+        for pc in pieces:
+            kap = pc.kappa * (1.0 + 0.2 * bend) + 0.02 * bend / tol
+            end = arc_point(pc.p, pc.t, kap, pc.length)
+            spoilt.append(Piece(pc.p, pc.t, kap, pc.length, pc.k, pc.j, end, pc.t_end,
+                                pc.e_end))
+        pieces = spoilt
+    got = deviations(samples, pieces, tol)
+    want = ref.deviations(samples, pieces, tol)
+    np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-12)
