@@ -27,6 +27,7 @@ from zwcore.arcs._geometry import (
     local_uv,
     point_to_arc_distance,
     points_to_segments_distance,
+    rotate1,
     sagitta,
     unwrap,
 )
@@ -35,8 +36,19 @@ from zwcore.arcs.verify import _densify_idx
 
 FloatArray = NDArray[np.float64]
 
-__all__ = ["deviations", "foot_positions", "longest_piece_bounds", "portion_bounds",
-           "reach_with_lines", "samples_within", "segments_within", "verify"]
+__all__ = [
+    "biarc",
+    "deviations",
+    "foot_positions",
+    "junction",
+    "last_on_first_arc",
+    "longest_piece_bounds",
+    "portion_bounds",
+    "reach_with_lines",
+    "samples_within",
+    "segments_within",
+    "verify",
+]
 
 
 def foot_positions(u: FloatArray, v: FloatArray, kappa: float) -> FloatArray:
@@ -314,3 +326,134 @@ def deviations(samples: FloatArray, pieces: Sequence[Piece], tol: float) -> tupl
                 d[hotc] = _dist_all_segments(cpts[hotc], samples)
         d_c_max = max(d_c_max, float(d.max()))
     return float(d_p.max()), d_c_max
+
+
+def junction(
+    p0: FloatArray, t0: FloatArray, p1: FloatArray, t1: FloatArray, f: float
+) -> FloatArray | None:
+    """The junction of the biarc from ``(p0, t0)`` to ``(p1, t1)`` whose first tangent
+    leg is ``f`` chords long, or None when that biarc does not exist."""
+    vv = p1 - p0
+    dist2 = float(vv @ vv)
+    dist = math.sqrt(dist2)
+    vt0 = float(vv @ t0)
+    vt1 = float(vv @ t1)
+    t01 = float(t0 @ t1)
+    d1 = f * dist
+    den = vt1 - d1 * (t01 - 1.0)
+    if abs(den) < 1e-300:
+        return None
+    d2 = (0.5 * dist2 - d1 * vt0) / den
+    if not (d2 > 0.0 and math.isfinite(d2)):
+        return None
+    p0x, p0y, t0x, t0y = float(p0[0]), float(p0[1]), float(t0[0]), float(t0[1])
+    p1x, p1y, t1x, t1y = float(p1[0]), float(p1[1]), float(t1[0]), float(t1[1])
+    # (per coordinate: numpy's overhead on two elements dominates)
+    return np.array([
+        (d2 * (p0x + d1 * t0x) + d1 * (p1x - d2 * t1x)) / (d1 + d2),
+        (d2 * (p0y + d1 * t0y) + d1 * (p1y - d2 * t1y)) / (d1 + d2)])
+
+
+def last_on_first_arc(
+    uu: FloatArray, vv: FloatArray, k1: float, s1: float, k: int, b: int
+) -> int:
+    """The last sample (in ``k..b-1``) whose foot point lies on the first arc (curvature
+    ``k1``, length ``s1``); ``uu, vv`` are samples ``k..b`` in the start frame."""
+    if k1 != 0.0:
+        ph = np.arctan2(k1 * uu, 1.0 - k1 * vv)
+        ph[0] = 0.0
+        sg = unwrap(ph) / k1
+    else:
+        sg = uu
+    over = np.flatnonzero(sg > s1)
+    m = k + (int(over[0]) - 1 if over.size else b - k - 1)
+    return min(max(m, k), b - 1)
+
+
+def _arc_through(kmin: float, kcap: float, p: FloatArray, t: FloatArray, q: FloatArray,
+                 dist: float) -> tuple[float, float] | None:
+    """:meth:`zwcore.arcs._pieces.ToleranceBand.arc_through` (radii ``1/kcap..1/kmin``)."""
+    dx = float(q[0] - p[0])
+    dy = float(q[1] - p[1])
+    u = dx * float(t[0]) + dy * float(t[1])
+    v = dy * float(t[0]) - dx * float(t[1])
+    q2 = u * u + v * v
+    if q2 <= 0.0:
+        return None
+    k = 2.0 * v / q2
+    if abs(k) < 1e-15 * max(1.0 / dist, 1.0):
+        k = 0.0
+    length = u if k == 0.0 else math.atan2(k * u, 1.0 - k * v) / k
+    if not length > 0.0 or not (k == 0.0 or kmin <= abs(k) <= kcap):
+        return None
+    return k, length
+
+
+def biarc(samples: FloatArray, tol: float, dense_step: float, kmin: float, kcap: float,
+          p0: FloatArray, t0: FloatArray, k: int, e: float, b: int, t1: FloatArray,
+          p1: FloatArray | None, splits: tuple[float, ...]) -> list[Piece] | None:
+    """:meth:`zwcore.arcs._pieces.ToleranceBand.biarc` in numpy (with :func:`verify`)."""
+
+    def _verify(p, t, kappa, k, j, e_k, sig_end=None,  # type: ignore[no-untyped-def]
+                dense_first=False):
+        return verify(samples, tol, dense_step, p, t, kappa, k, j, e_k, sig_end, dense_first)
+
+    def _make_piece(p, t, kappa, k, j, verified):  # type: ignore[no-untyped-def]
+        length, end, e_end = verified
+        return Piece(p, t, kappa, length, k, j, end, rotate1(t, kappa * length), e_end)
+
+    at_sample = p1 is None
+    p1 = samples[b] if p1 is None else p1
+    vv = p1 - p0
+    dist2 = float(vv @ vv)
+    if dist2 <= 0.0:
+        return None
+    dist = math.sqrt(dist2)
+    # the samples in the start frame, and the curvatures that keep samples k+1..i
+    # within (a hair more than) tol of the first arc's circle: a first arc outside
+    # them fails verification, so it is not verified (most tried splits end there)
+    uu, vv2 = local_uv(p0, t0, samples[k : b + 1])
+    lo_t, up_t = kappa_bounds(uu[1:], vv2[1:], tol * (1.0 + 1e-6))
+    lo_t = np.maximum.accumulate(lo_t)
+    up_t = np.minimum.accumulate(up_t)
+    for f in splits:
+        jn = junction(p0, t0, p1, t1, f)
+        if jn is None:
+            continue
+        first = _arc_through(kmin, kcap, p0, t0, jn, dist)
+        if first is None:
+            continue
+        k1, s1 = first
+        tj = rotate1(t0, k1 * s1)
+        # None also when the junction fell on the end point: no second arc.
+        second = _arc_through(kmin, kcap, jn, tj, p1, dist)
+        if second is None:
+            continue
+        k2, s2 = second
+        te = rotate1(tj, k2 * s2)
+        if abs(te[0] * t1[1] - te[1] * t1[0]) > 1e-9 or te @ t1 < 0:
+            continue
+        # split the samples: those whose foot point lies on the first arc
+        m = last_on_first_arc(uu, vv2, k1, s1, k, b)
+        if m > k and not lo_t[m - k - 1] <= k1 <= up_t[m - k - 1]:
+            continue
+        r1 = _verify(p0, t0, k1, k, m, e, sig_end=s1)
+        if r1 is None:
+            continue
+        # the second arc starts at the junction, which stands for sample m
+        e_m = float(np.hypot(*(samples[m] - jn)))
+        r2 = _verify(jn, tj, k2, m, b, e_m, sig_end=s2, dense_first=True)
+        if r2 is None:
+            continue
+        a1 = _make_piece(p0, t0, k1, k, m, r1)
+        a1.end = jn
+        a1.t_end = tj
+        a2 = _make_piece(jn, tj, k2, m, b, r2)
+        a2.end = p1.copy()
+        a2.t_end = t1.copy()
+        if not at_sample:
+            a2.e_end = float(np.hypot(*(samples[b] - p1)))
+        return [a1, a2]
+    return None
+
+

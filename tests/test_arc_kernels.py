@@ -13,16 +13,22 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
 from tests import arc_reference as ref
 from zwcore.arcs import _kernels
-from zwcore.arcs._geometry import arc_point
+from zwcore.arcs._geometry import (
+    arc_point,
+    arc_points,
+    point_to_arc_distance,
+    points_to_segments_distance,
+)
 from zwcore.arcs._pieces import Piece, ToleranceBand
 from zwcore.arcs._prepare import prepare
 from zwcore.arcs._runs import assemble
-from zwcore.arcs.verify import deviations
+from zwcore.arcs.verify import densify, deviations
 
 HAIR = 1e-9
 
@@ -132,3 +138,76 @@ def test_dense_deviations_agree_with_the_reference(case, closed, bend):
     got = deviations(samples, pieces, tol)
     want = ref.deviations(samples, pieces, tol)
     np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-12)
+
+
+def _within_two_sided(pieces: list[Piece], covered: np.ndarray, near: np.ndarray,
+                      tol: float) -> bool:
+    """Brute force: every dense point of the polyline ``covered`` within ``tol`` of the
+    pieces and every dense point of the pieces within ``tol`` of the polyline ``near``
+    (``covered`` and a little around it), with a hair for the sampling."""
+    step = tol / 50.0
+    chain = []
+    for pc in pieces:
+        n = max(math.ceil(pc.length / step), 1) + 1
+        chain.append(arc_points(pc.p, pc.t, pc.kappa, np.linspace(0.0, pc.length, n)))
+    cpts = np.vstack(chain)
+    d_c = points_to_segments_distance(cpts, near[:-1], near[1:]).min(axis=1)
+    dense = densify(covered, step)
+    d_p = np.min([point_to_arc_distance(dense, pc.p, pc.t, pc.kappa, pc.length)
+                  for pc in pieces], axis=0)
+    return bool(d_c.max() <= tol + step and d_p.max() <= tol + step)
+
+
+def test_biarc_second_arc_gets_its_start_distance():
+    """The second arc of a biarc starts at the junction, which stands for sample m: its
+    check uses that sample's distance from the junction (the numpy reference does), and
+    the pair is within the tolerance both ways."""
+    th = np.linspace(0, 1.5, 40)
+    s = np.stack([20 * np.cos(th), 20 * np.sin(th)], 1)
+    s[:, 1] += 0.05 * np.sin(7 * th)
+    band = ToleranceBand(s, 0.1, 0.95, None)
+    t0 = np.array([0.0, 1.0])
+    t1 = np.array([-math.sin(1.2), math.cos(1.2)])
+    got = band.biarc(s[0].copy(), t0, 0, 0.0, 30, t1)
+    want = ref.biarc(s, 0.1, band.dense_step, band.kmin, band.kcap, s[0].copy(), t0, 0, 0.0,
+                     30, t1, None, band.BIARC_SPLITS)
+    assert got is not None and want is not None
+    for a, b in zip(got, want, strict=True):
+        assert (a.k, a.j) == (b.k, b.j)
+        assert a.kappa == pytest.approx(b.kappa, rel=1e-12)
+        assert a.e_end == pytest.approx(b.e_end, rel=1e-9, abs=1e-12)
+    assert _within_two_sided(got, s[: got[1].j + 1], s, 0.1)
+
+
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(junctions(), st.integers(2, 40), st.floats(-0.3, 0.3), st.booleans())
+def test_biarc_agrees_with_the_reference(case, ahead, turn, off_sample):
+    pts, tol, p, t, k = case
+    b = min(k + ahead, len(pts) - 1)
+    assume(b > k + 1)
+    d = pts[b] - pts[b - 1]
+    th = math.atan2(d[1], d[0]) + turn
+    t1 = np.array([math.cos(th), math.sin(th)])
+    p1 = pts[b] + 0.3 * tol * np.array([-t1[1], t1[0]]) if off_sample else None
+    band = ToleranceBand(pts, tol, 0.95, None)
+    e = float(np.hypot(*(pts[k] - p)))
+    got = band.biarc(p, t, k, e, b, t1, p1)
+
+    def reference(scale: float) -> list[Piece] | None:
+        return ref.biarc(pts, tol * scale, band.dense_step, band.kmin, band.kcap, p, t, k, e,
+                         b, t1, p1, band.BIARC_SPLITS)
+
+    if got is None:
+        assert reference(1 - HAIR) is None
+        return
+    want = reference(1 + HAIR)
+    assert want is not None
+    if [(a.k, a.j) for a in want] == [(a.k, a.j) for a in got]:
+        for a, b_ in zip(got, want, strict=True):
+            assert a.kappa == pytest.approx(b_.kappa, rel=1e-9, abs=1e-12)
+            assert a.length == pytest.approx(b_.length, rel=1e-9, abs=1e-12)
+            np.testing.assert_allclose(a.end, b_.end, rtol=0, atol=1e-9)
+    # the pair itself, measured by brute force (the start stands for sample k at
+    # distance e, the end for sample b)
+    near = pts[max(k - 1, 0) : b + 2]
+    assert _within_two_sided(got, pts[k : b + 1], near, tol)

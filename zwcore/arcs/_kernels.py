@@ -25,26 +25,26 @@ from numpy.typing import NDArray
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 
-__all__ = ["piece_bounds", "reach_lines", "verify_piece"]
+__all__ = ["arc_near_polyline", "foot_positions", "piece_bounds", "reach_lines", "verify_piece"]
 
 _TWO_PI = 2.0 * math.pi
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def sinc(x: float) -> float:
     """``numpy.sinc`` of one number (the same figures)."""
     y = math.pi * (x if x != 0.0 else 1.0e-20)
     return math.sin(y) / y
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def circle_gap1(u: float, v: float, kappa: float) -> float:
     """:func:`zwcore.arcs._geometry.circle_gap` of one point."""
     w = kappa * (u * u + v * v) - 2.0 * v
     return w / (1.0 + math.sqrt(max(1.0 + kappa * w, 0.0)))
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def arc_xy(px: float, py: float, tx: float, ty: float, kappa: float,
            sigma: float) -> tuple[float, float]:
     """:func:`zwcore.arcs._geometry.arc_points` at one arc length."""
@@ -55,7 +55,7 @@ def arc_xy(px: float, py: float, tx: float, ty: float, kappa: float,
     return px + x * tx + y * -ty, py + x * ty + y * tx
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def sagitta1(kappa: float, length: float) -> float:
     """:func:`zwcore.arcs._geometry.sagitta` of one length."""
     b = 0.25 * kappa * length
@@ -63,7 +63,7 @@ def sagitta1(kappa: float, length: float) -> float:
     return abs(length) * abs(b) * 0.5 * (sc * sc)
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def reach_lines(samples: FloatArray, ps: FloatArray, ts: FloatArray, ks: IntArray, b: int,
                 stride: int, wt: float) -> tuple[IntArray, IntArray]:
     """Last sample each junction ``(C,)`` covers with one piece, and with one line.
@@ -107,7 +107,7 @@ def reach_lines(samples: FloatArray, ps: FloatArray, ts: FloatArray, ks: IntArra
     return reach, lreach
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def _bounds_scan(samples: FloatArray, px: float, py: float, tx: float, ty: float, k: int,
                  b: int, wt: float, lo_out: FloatArray, up_out: FloatArray) -> int:
     """Running curvature bounds from sample ``k + 1`` on, written to ``lo_out, up_out``
@@ -133,7 +133,7 @@ def _bounds_scan(samples: FloatArray, px: float, py: float, tx: float, ty: float
     return b - k
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def piece_bounds(samples: FloatArray, px: float, py: float, tx: float, ty: float, k: int,
                  b: int, wt: float) -> tuple[FloatArray, FloatArray]:
     """Running curvature bounds ``(n,)`` of the longest feasible piece from ``(p, t)``
@@ -147,7 +147,7 @@ def piece_bounds(samples: FloatArray, px: float, py: float, tx: float, ty: float
     return lo, up
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def _pymod(a: float, b: float) -> float:
     """``numpy.mod`` of two numbers (the sign of the divisor)."""
     m = np.fmod(a, b)
@@ -159,7 +159,7 @@ def _pymod(a: float, b: float) -> float:
     return m
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def foot_positions(u: FloatArray, v: FloatArray, kappa: float, sig: FloatArray) -> None:
     """:func:`zwcore.arcs._checks.foot_positions` written to ``sig`` ``(n,)`` (the angles
     unwrapped as :func:`numpy.unwrap` does)."""
@@ -193,7 +193,7 @@ def foot_positions(u: FloatArray, v: FloatArray, kappa: float, sig: FloatArray) 
         sig[i] = sig[i] / kappa
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def seg_dist(x: float, y: float, ax: float, ay: float, bx: float, by: float) -> float:
     """Distance of ``(x, y)`` to the segment ``a-b`` (as
     :func:`zwcore.arcs._geometry.points_to_segments_distance`)."""
@@ -208,7 +208,7 @@ def seg_dist(x: float, y: float, ax: float, ay: float, bx: float, by: float) -> 
     return math.hypot(apx - s * abx, apy - s * aby)
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def arc_near_polyline(samples: FloatArray, px: float, py: float, tx: float, ty: float,
                       kappa: float, s0: float, s1: float, a: int, b: int, tol: float,
                       step0: float) -> bool:
@@ -239,7 +239,7 @@ def arc_near_polyline(samples: FloatArray, px: float, py: float, tx: float, ty: 
     return True
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def _segments_within(u: FloatArray, v: FloatArray, sig: FloatArray, sig_end: float,
                      e0: float, e1: float, e2: float, e3: float, kappa: float, tol: float,
                      dense_first: bool) -> bool:
@@ -269,7 +269,7 @@ def _segments_within(u: FloatArray, v: FloatArray, sig: FloatArray, sig_end: flo
     return True
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def _portions_within(samples: FloatArray, k: int, sig: FloatArray, sig_end: float,
                      g: FloatArray, de: FloatArray, e_k: float, kappa: float, tol: float,
                      px: float, py: float, tx: float, ty: float, dense_first: bool,
@@ -309,7 +309,7 @@ def _portions_within(samples: FloatArray, k: int, sig: FloatArray, sig_end: floa
     return True, phi_prev
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def verify_piece(samples: FloatArray, px: float, py: float, tx: float, ty: float,
                  kappa: float, k: int, j: int, e_k: float, sig_end: float, given: bool,
                  dense_first: bool, tol: float,

@@ -22,8 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from zwcore.arcs import _kernels
-from zwcore.arcs._biarc import junction, last_on_first_arc
+from zwcore.arcs import _biarc, _kernels
 from zwcore.arcs._geometry import (
     kappa_bounds,
     local_uv,
@@ -91,6 +90,8 @@ class ToleranceBand:
         spacing = float(self.cum[-1]) / n_seg
         #: sample stride of the look-ahead scans (about a quarter tolerance)
         self.reach_stride = max(1, int(0.25 * tol / spacing)) if spacing > 0 else 1
+        #: the biarc splits tried, as arrays for the kernel
+        self._splits: dict[tuple[float, ...], FloatArray] = {}
 
     # -- feasibility scans -------------------------------------------------
 
@@ -292,61 +293,32 @@ class ToleranceBand:
         given (it then stands for sample ``b``: the second piece's ``e_end`` is their
         distance), else at sample ``b``. The junction is tried at several places
         (``splits``: lengths of the first tangent leg as shares of the chord, by default
-        :attr:`BIARC_SPLITS`); the first verified pair is returned.
+        :attr:`BIARC_SPLITS`); the first verified pair is returned. The first arc stands
+        for the samples whose foot points lie on it (up to sample ``m``); the second
+        starts at the junction, which stands for sample ``m`` at its distance, and its
+        first portion is checked densely (:func:`zwcore.arcs._biarc.biarc`).
         """
         at_sample = p1 is None
         p1 = self.samples[b] if p1 is None else p1
-        vv = p1 - p0
-        dist2 = float(vv @ vv)
-        if dist2 <= 0.0:
+        key = splits if splits is self.BIARC_SPLITS else tuple(splits)
+        arr = self._splits.get(key)
+        if arr is None:
+            arr = self._splits[key] = np.array(key, dtype=np.float64)
+        got, f, m = _biarc.biarc(
+            self.samples, np.asarray(p0, dtype=np.float64), np.asarray(t0, dtype=np.float64),
+            k, float(e), b, np.asarray(t1, dtype=np.float64),
+            np.asarray(p1, dtype=np.float64), arr, self.tol, self.dense_step, self.kmin,
+            self.kcap)
+        if got < 0:
             return None
-        dist = math.sqrt(dist2)
-        # the samples in the start frame, and the curvatures that keep samples k+1..i
-        # within (a hair more than) tol of the first arc's circle: a first arc outside
-        # them fails verification, so it is not verified (most tried splits end there)
-        uu, vv2 = local_uv(p0, t0, self.samples[k : b + 1])
-        lo_t, up_t = kappa_bounds(uu[1:], vv2[1:], self.tol * (1.0 + 1e-6))
-        lo_t = np.maximum.accumulate(lo_t)
-        up_t = np.minimum.accumulate(up_t)
-        for f in splits:
-            jn = junction(p0, t0, p1, t1, f)
-            if jn is None:
-                continue
-            first = self.arc_through(p0, t0, jn, dist)
-            if first is None:
-                continue
-            k1, s1 = first
-            tj = rotate1(t0, k1 * s1)
-            # None also when the junction fell on the end point: no second arc.
-            second = self.arc_through(jn, tj, p1, dist)
-            if second is None:
-                continue
-            k2, s2 = second
-            te = rotate1(tj, k2 * s2)
-            if abs(te[0] * t1[1] - te[1] * t1[0]) > 1e-9 or te @ t1 < 0:
-                continue
-            # split the samples: those whose foot point lies on the first arc
-            m = last_on_first_arc(uu, vv2, k1, s1, k, b)
-            if m > k and not lo_t[m - k - 1] <= k1 <= up_t[m - k - 1]:
-                continue
-            r1 = self.verify(p0, t0, k1, k, m, e, sig_end=s1)
-            if r1 is None:
-                continue
-            # the second arc starts at the junction, which stands for sample m
-            e_m = float(np.hypot(*(self.samples[m] - jn)))
-            r2 = self.verify(jn, tj, k2, m, b, e_m, sig_end=s2, dense_first=True)
-            if r2 is None:
-                continue
-            a1 = self.make_piece(p0, t0, k1, k, m, r1)
-            a1.end = jn
-            a1.t_end = tj
-            a2 = self.make_piece(jn, tj, k2, m, b, r2)
-            a2.end = p1.copy()
-            a2.t_end = t1.copy()
-            if not at_sample:
-                a2.e_end = float(np.hypot(*(self.samples[b] - p1)))
-            return [a1, a2]
-        return None
+        k1, s1, jx, jy, tjx, tjy, e1, k2, s2, e2 = f.tolist()
+        jn = np.array([jx, jy])
+        tj = np.array([tjx, tjy])
+        a1 = Piece(p0, t0, k1, s1, k, m, jn, tj, e1)
+        a2 = Piece(jn, tj, k2, s2, m, b, p1.copy(), t1.copy(), e2)
+        if not at_sample:
+            a2.e_end = float(np.hypot(*(self.samples[b] - p1)))
+        return [a1, a2]
 
 
 def merge_lines(pieces: list[Piece]) -> list[Piece]:
