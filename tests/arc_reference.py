@@ -27,6 +27,7 @@ from zwcore.arcs._geometry import (
     local_uv,
     point_to_arc_distance,
     points_to_segments_distance,
+    rotate,
     rotate1,
     sagitta,
     unwrap,
@@ -457,3 +458,30 @@ def biarc(samples: FloatArray, tol: float, dense_step: float, kmin: float, kcap:
     return None
 
 
+
+
+def candidates(samples: FloatArray, cum: FloatArray, p: FloatArray, t: FloatArray, k: int,
+               jm: int, lo1: FloatArray, up1: FloatArray, j_fractions: FloatArray,
+               k_fractions: FloatArray, kcap: float,
+               ) -> tuple[NDArray[np.int64], FloatArray, FloatArray, FloatArray, FloatArray]:
+    """:func:`zwcore.arcs._kernels.candidates` in numpy (the beam's candidate pieces)."""
+    span = cum[jm] - cum[k]
+    at = np.searchsorted(cum, cum[k] + j_fractions * span, side="right")
+    js = sorted({min(max(int(i) - 1, k + 1), jm) for i in at}, reverse=True)
+    ja = np.array(js, dtype=np.int64)
+    lo = np.maximum(lo1[ja - k - 1], -kcap)
+    hi = np.minimum(up1[ja - k - 1], kcap)
+    ok = lo <= hi
+    vals = np.concatenate(
+        [np.zeros((len(ja), 1)), lo[:, None] + k_fractions[None, :] * (hi - lo)[:, None]],
+        axis=1)
+    mask = np.concatenate(
+        [(ok & (lo <= 0.0) & (hi >= 0.0))[:, None],
+         np.repeat(ok[:, None], len(k_fractions), axis=1)], axis=1)
+    jj = np.repeat(ja[:, None], vals.shape[1], axis=1)[mask]
+    kk = vals[mask]
+    u, v = local_uv(p, t, samples[jj])
+    line = kk == 0.0
+    sj = np.where(line, u, np.arctan2(kk * u, 1.0 - kk * v) / np.where(line, 1.0, kk))
+    return (jj, kk, arc_points(p, t, kk, sj), rotate(t, kk * sj),
+            np.where(line, 0.3 * (cum[jj] - cum[k]), 0.0))

@@ -28,6 +28,7 @@ from zwcore.arcs._geometry import (
 from zwcore.arcs._pieces import Piece, ToleranceBand
 from zwcore.arcs._prepare import prepare
 from zwcore.arcs._runs import assemble
+from zwcore.arcs._search import Fitter
 from zwcore.arcs.verify import densify, deviations
 
 HAIR = 1e-9
@@ -211,3 +212,23 @@ def test_biarc_agrees_with_the_reference(case, ahead, turn, off_sample):
     # distance e, the end for sample b)
     near = pts[max(k - 1, 0) : b + 2]
     assert _within_two_sided(got, pts[k : b + 1], near, tol)
+
+
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(junctions(), st.floats(0.5, 1.0))
+def test_candidates_agree_with_the_reference(case, work):
+    pts, tol, p, t, k = case
+    band = ToleranceBand(pts, tol, work, None)
+    b = len(pts) - 1
+    lo1, up1 = band.longest_piece_bounds(p, t, k, b)
+    jm = min(k + len(lo1), b - 1)
+    assume(jm > k)
+    jf = np.array(Fitter.J_FRACTIONS)
+    kf = np.array(ToleranceBand.K_FRACTIONS)
+    got = _kernels.candidates(pts, band.cum, p[0], p[1], t[0], t[1], k, jm, lo1, up1, jf, kf,
+                              band.kcap)
+    want = ref.candidates(pts, band.cum, p, t, k, jm, lo1, up1, jf, kf, band.kcap)
+    np.testing.assert_array_equal(got[0], want[0])
+    np.testing.assert_array_equal(got[1], want[1])
+    for a, b_ in zip(got[2:], want[2:], strict=True):
+        np.testing.assert_allclose(a, b_, rtol=1e-12, atol=1e-12)

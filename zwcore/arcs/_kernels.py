@@ -360,3 +360,64 @@ def verify_piece(samples: FloatArray, px: float, py: float, tx: float, ty: float
     elif tail0 < sig_end * (1.0 - 1e-12):
         return fail
     return True, sig_end, ex, ey, g[n - 1]
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def candidates(samples: FloatArray, cum: FloatArray, px: float, py: float, tx: float,
+               ty: float, k: int, jm: int, lo1: FloatArray, up1: FloatArray,
+               j_fractions: FloatArray, k_fractions: FloatArray,
+               kcap: float) -> tuple[IntArray, FloatArray, FloatArray, FloatArray, FloatArray]:
+    """Candidate pieces from the junction ``(p, t)`` at sample ``k`` (no radius floor).
+
+    Ends: the samples at the shares ``j_fractions`` of the longest feasible piece's length
+    (up to sample ``jm``), longest first; per end a line when the running bounds
+    ``lo1, up1`` allow one, then the shares ``k_fractions`` of its curvature interval
+    (capped at ``kcap``). Each piece ends at the foot point of its end sample. Returns
+    ``(j, kappa, end (C, 2), end tangent (C, 2), bonus)``, the bonus favouring lines by
+    0.3 of their length (see :meth:`zwcore.arcs._search.Fitter._candidates`).
+    """
+    span = cum[jm] - cum[k]
+    nj = len(j_fractions)
+    js = np.empty(nj, dtype=np.int64)
+    for i in range(nj):
+        at = np.searchsorted(cum, cum[k] + j_fractions[i] * span, side="right")
+        js[i] = min(max(at - 1, k + 1), jm)
+    js = np.unique(js)[::-1]
+    nk = len(k_fractions) + 1
+    cap = len(js) * nk
+    jj = np.empty(cap, dtype=np.int64)
+    kk = np.empty(cap)
+    n = 0
+    for j in js:
+        lo = max(lo1[j - k - 1], -kcap)
+        hi = min(up1[j - k - 1], kcap)
+        if not lo <= hi:
+            continue
+        if lo <= 0.0 <= hi:
+            jj[n] = j
+            kk[n] = 0.0
+            n += 1
+        for f in k_fractions:
+            jj[n] = j
+            kk[n] = lo + f * (hi - lo)
+            n += 1
+    ends = np.empty((n, 2))
+    tends = np.empty((n, 2))
+    bonus = np.zeros(n)
+    for i in range(n):
+        j = jj[i]
+        kap = kk[i]
+        dx = samples[j, 0] - px
+        dy = samples[j, 1] - py
+        u = dx * tx + dy * ty
+        v = dy * tx - dx * ty
+        if kap == 0.0:
+            sj = u
+            bonus[i] = 0.3 * (cum[j] - cum[k])
+        else:
+            sj = math.atan2(kap * u, 1.0 - kap * v) / kap
+        ends[i, 0], ends[i, 1] = arc_xy(px, py, tx, ty, kap, sj)
+        c, s = math.cos(kap * sj), math.sin(kap * sj)
+        tends[i, 0] = c * tx - s * ty
+        tends[i, 1] = s * tx + c * ty
+    return jj[:n], kk[:n], ends, tends, bonus

@@ -30,6 +30,7 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
+from zwcore.arcs import _kernels
 from zwcore.arcs._anchors import StraightRuns
 from zwcore.arcs._geometry import (
     arc_points,
@@ -247,18 +248,25 @@ class Fitter:
         jm = min(k + len(lo1), jlimit)
         if jm <= k:
             return None
-        span = self.cum[jm] - self.cum[k]
-        at = np.searchsorted(self.cum, self.cum[k] + self._j_fractions * span, side="right")
-        js = np.unique(np.clip(at - 1, k + 1, jm))[::-1].tolist()
-        jj, kk = self._candidate_kappas(js, k, lo1, up1)
-        # all candidates at once (numpy's overhead per call dominates one-point calls):
-        # the foot point of sample j on each piece, its end point and end tangent
-        u, v = local_uv(p, t, self.samples[jj])
-        line = kk == 0.0
-        sj = np.where(line, u, np.arctan2(kk * u, 1.0 - kk * v) / np.where(line, 1.0, kk))
+        band = self.band
+        if band.kmin > 0.0:
+            span = self.cum[jm] - self.cum[k]
+            at = np.searchsorted(self.cum, self.cum[k] + self._j_fractions * span,
+                                 side="right")
+            js = np.unique(np.clip(at - 1, k + 1, jm))[::-1].tolist()
+            jj, kk = self._capped_kappas(js, k, lo1, up1)
+            # the foot point of sample j on each piece, its end point and end tangent
+            u, v = local_uv(p, t, self.samples[jj])
+            line = kk == 0.0
+            sj = np.where(line, u, np.arctan2(kk * u, 1.0 - kk * v) / np.where(line, 1.0, kk))
+            ends, tends = arc_points(p, t, kk, sj), rotate(t, kk * sj)
+            bonus = np.where(line, 0.3 * (self.cum[jj] - self.cum[k]), 0.0)
+        else:
+            jj, kk, ends, tends, bonus = _kernels.candidates(
+                self.samples, self.cum, float(p[0]), float(p[1]), float(t[0]), float(t[1]),
+                k, jm, lo1, up1, self._j_fractions, self._k_fractions, band.kcap)
         n = len(jj)
-        out = Cands(np.full(n, si, dtype=np.int64), jj, kk, arc_points(p, t, kk, sj),
-                    rotate(t, kk * sj), np.where(line, 0.3 * (self.cum[jj] - self.cum[k]), 0.0),
+        out = Cands(np.full(n, si, dtype=np.int64), jj, kk, ends, tends, bonus,
                     np.full(n, np.nan), np.zeros(n, dtype=bool))
         if self.straight is not None:
             extra = self.straight.candidates(p, t, k, b)
@@ -271,30 +279,18 @@ class Fitter:
                     np.array([c[4] for c in extra]), np.ones(m, dtype=bool))])
         return out
 
-    def _candidate_kappas(
+    def _capped_kappas(
         self, js: list[int], k: int, lo1: FloatArray, up1: FloatArray
     ) -> tuple[NDArray[np.int64], FloatArray]:
-        """The ends and curvatures of the candidates from a state at sample ``k``:
-        :meth:`ToleranceBand.candidate_kappas` for each end ``j`` of ``js`` (running bounds
-        ``lo1, up1``), in that order, as flat arrays."""
+        """The ends and curvatures of the candidates from a state at sample ``k`` with a
+        radius cap: :meth:`ToleranceBand.candidate_kappas` for each end ``j`` of ``js``
+        (running bounds ``lo1, up1``), in that order, as flat arrays (without a cap:
+        :func:`zwcore.arcs._kernels.candidates`)."""
         band = self.band
-        if band.kmin > 0.0:
-            pairs = [(j, kap) for j in js for kap in band.candidate_kappas(
-                float(lo1[j - k - 1]), float(up1[j - k - 1]))]
-            return (np.array([q[0] for q in pairs], dtype=np.int64),
-                    np.array([q[1] for q in pairs], dtype=np.float64))
-        ja = np.array(js, dtype=np.int64)
-        lo = np.maximum(lo1[ja - k - 1], -band.kcap)
-        hi = np.minimum(up1[ja - k - 1], band.kcap)
-        ok = lo <= hi
-        # per end: a line first when allowed, then the fractions of the interval
-        vals = np.concatenate(
-            [np.zeros((len(ja), 1)),
-             lo[:, None] + self._k_fractions[None, :] * (hi - lo)[:, None]], axis=1)
-        mask = np.concatenate(
-            [(ok & (lo <= 0.0) & (hi >= 0.0))[:, None],
-             np.repeat(ok[:, None], len(self._k_fractions), axis=1)], axis=1)
-        return np.repeat(ja[:, None], vals.shape[1], axis=1)[mask], vals[mask]
+        pairs = [(j, kap) for j in js for kap in band.candidate_kappas(
+            float(lo1[j - k - 1]), float(up1[j - k - 1]))]
+        return (np.array([q[0] for q in pairs], dtype=np.int64).reshape(-1),
+                np.array([q[1] for q in pairs], dtype=np.float64).reshape(-1))
 
     def _expand(self, level: list[State], b: int) -> list[State]:
         """The next level: the best verified pieces from all states, by look-ahead reach.
