@@ -22,6 +22,9 @@ from zwcore.arcs import _kernels
 from zwcore.arcs._geometry import (
     arc_point,
     arc_points,
+    kappa_bounds,
+    line_fit,
+    local_uv,
     point_to_arc_distance,
     points_to_segments_distance,
 )
@@ -232,3 +235,31 @@ def test_candidates_agree_with_the_reference(case, work):
     np.testing.assert_array_equal(got[1], want[1])
     for a, b_ in zip(got[2:], want[2:], strict=True):
         np.testing.assert_allclose(a, b_, rtol=1e-12, atol=1e-12)
+
+
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(wavy_curves(), st.integers(0, 200), st.integers(0, 200), st.booleans())
+def test_line_spread_agrees_with_line_fit(case, i, n, pinned):
+    pts, _tol = case
+    i0 = min(i, len(pts) - 1)
+    i1 = min(i0 + n, len(pts) - 1)
+    pivot = pts[i0] if pinned else None
+    want = line_fit(pts[i0 : i1 + 1], pivot)[2]
+    got = _kernels.line_spread(pts, i0, i1, pinned, pts[i0, 0], pts[i0, 1])
+    scale = float(np.abs(pts).max()) + 1.0
+    assert got == pytest.approx(want, rel=1e-9, abs=1e-12 * scale)
+
+
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(junctions(), st.floats(0.0, 1.0), st.floats(-0.2, 1.2))
+def test_kappa_fits_agrees_with_the_intervals(case, fj, fk):
+    pts, tol, p, t, k = case
+    b = len(pts) - 1
+    j = k + 1 + int(fj * (b - k - 1))
+    u, v = local_uv(p, t, pts[k + 1 : j + 1])
+    lo, up = kappa_bounds(u, v, tol)
+    lo_m, up_m = float(lo.max()), float(up.min())
+    assume(math.isfinite(lo_m) and math.isfinite(up_m) and lo_m <= up_m)
+    kappa = lo_m + fk * (up_m - lo_m)
+    want = bool(lo_m <= kappa <= up_m)
+    assert _kernels.kappa_fits(pts, p[0], p[1], t[0], t[1], k, j, tol, kappa, 0.0) == want

@@ -421,3 +421,56 @@ def candidates(samples: FloatArray, cum: FloatArray, px: float, py: float, tx: f
         tends[i, 0] = c * tx - s * ty
         tends[i, 1] = s * tx + c * ty
     return jj[:n], kk[:n], ends, tends, bonus
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def line_spread(samples: FloatArray, i0: int, i1: int, pinned: bool, qx: float,
+                qy: float) -> float:
+    """Largest distance of samples ``i0..i1`` from their least-squares line (through
+    ``(qx, qy)`` when ``pinned``): the third figure of
+    :func:`zwcore.arcs._geometry.line_fit`."""
+    n = i1 - i0 + 1
+    if n <= 0:
+        return 0.0
+    if pinned:
+        cx, cy = qx, qy
+    else:
+        cx = 0.0
+        cy = 0.0
+        for i in range(i0, i1 + 1):
+            cx += samples[i, 0]
+            cy += samples[i, 1]
+        cx /= n
+        cy /= n
+    m00 = m01 = m11 = 0.0
+    for i in range(i0, i1 + 1):
+        x = samples[i, 0] - cx
+        y = samples[i, 1] - cy
+        m00 += x * x
+        m01 += x * y
+        m11 += y * y
+    # the principal axis of the 2x2 scatter matrix, in closed form
+    th = 0.5 * math.atan2(2.0 * m01, m00 - m11)
+    dx, dy = math.cos(th), math.sin(th)
+    worst = 0.0
+    for i in range(i0, i1 + 1):
+        worst = max(worst, abs((samples[i, 1] - cy) * dx - (samples[i, 0] - cx) * dy))
+    return worst
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def kappa_fits(samples: FloatArray, px: float, py: float, tx: float, ty: float, k: int,
+               b: int, wt: float, kappa: float, slack: float) -> bool:
+    """True when the curvature ``kappa`` (within ``slack``) is in the interval of every
+    sample ``k+1..b`` from the junction ``(p, t)`` at working half-width ``wt``."""
+    wt2 = wt * wt
+    for i in range(k + 1, b + 1):
+        dx = samples[i, 0] - px
+        dy = samples[i, 1] - py
+        u = dx * tx + dy * ty
+        v = dy * tx - dx * ty
+        den = u * u + v * v - wt2
+        if den > 0.0 and not (
+                2.0 * (v - wt) / den - slack <= kappa <= 2.0 * (v + wt) / den + slack):
+            return False
+    return True

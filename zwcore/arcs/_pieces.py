@@ -24,7 +24,6 @@ from numpy.typing import NDArray
 
 from zwcore.arcs import _biarc, _kernels
 from zwcore.arcs._geometry import (
-    kappa_bounds,
     local_uv,
     rotate1,
 )
@@ -236,17 +235,11 @@ class ToleranceBand:
             kap = 0.0
         if not self.radius_ok(kap):
             return None
-        # cheap interval test first: every sample's curvature interval holds kap; in
-        # growing windows, as most states are far from b and fail within the first
-        slack = 1e-12 * abs(kap)
-        i, w = k, 64
-        while i < b:
-            hi = min(b, i + w)
-            u, v = local_uv(p, t, self.samples[i + 1 : hi + 1])
-            lo, up = kappa_bounds(u, v, self.work_tol)
-            if not (float(lo.max()) - slack <= kap <= float(up.min()) + slack):
-                return None
-            i, w = hi, 4 * w
+        # cheap interval test first: every sample's curvature interval holds kap (most
+        # states are far from b and fail within the first few samples)
+        if not _kernels.kappa_fits(self.samples, float(p[0]), float(p[1]), float(t[0]),
+                                   float(t[1]), k, b, self.work_tol, kap, 1e-12 * abs(kap)):
+            return None
         res = self.verify(p, t, kap, k, b, e)
         if res is None:
             return None
