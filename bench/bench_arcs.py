@@ -125,6 +125,14 @@ def _timed(pts: np.ndarray, closed: bool, tol: float = 0.1) -> tuple[float, obje
     return time.perf_counter() - t0, chain
 
 
+def _timed_cpu(pts: np.ndarray, closed: bool, tol: float) -> tuple[float, float, object]:
+    """Wall and CPU time (this process; the fit is single-threaded) of one fit: on a
+    shared machine the CPU time is the steadier figure."""
+    t0, c0 = time.perf_counter(), time.process_time()
+    chain = fit_arcs(pts, tol, closed=closed)
+    return time.perf_counter() - t0, time.process_time() - c0, chain
+
+
 def _corners_kept(chain: object, corners: np.ndarray, reach: float) -> int:
     """True corners with a corner junction of ``chain`` within ``reach`` mm."""
     segs = chain.segments  # type: ignore[attr-defined]
@@ -149,16 +157,17 @@ def glyphs(quick: bool, arcwelder: str | None) -> None:
           " contours), corner angle 30 deg\n")
     head = (f"{'sampling':8s} {'tol':>5s} {'points':>6s} {'seg':>5s} {'arc':>5s} {'line':>5s}"
             f" {'max dev':>8s} {'kink deg':>8s} {'corners':>9s} {'time s':>7s}"
-            f" {'ms/seg':>6s} {ref:>8s} {'ratio':>5s}"
+            f" {'ms/seg':>6s} {'cpu s':>6s} {'cpu ms/seg':>10s} {ref:>8s} {'ratio':>5s}"
             + (f" {'AW dev':>7s} {'AW kink':>7s} {'AW s':>6s}" if arcwelder else ""))
     print(head)
     print("-" * len(head))
     for tol in (0.05, 0.01):
         for name in ("even", "chordal", "noisy"):
             n_pts = seg = arcs = lines = kept = n_corner = n_ref = 0
-            dev = kink = t_all = aw_dev = aw_kink = aw_t = 0.0
+            dev = kink = t_all = c_all = aw_dev = aw_kink = aw_t = 0.0
             for _label, pts, corners in sets[name]:
-                dt, chain = _timed(pts, True, tol)
+                dt, dc, chain = _timed_cpu(pts, True, tol)
+                c_all += dc
                 n_pts += len(pts)
                 seg += len(chain.segments)
                 arcs += chain.n_arcs
@@ -181,7 +190,9 @@ def glyphs(quick: bool, arcwelder: str | None) -> None:
             _ = chain_tangents
             print(f"{name:8s} {tol:5.2f} {n_pts:6d} {seg:5d} {arcs:5d} {lines:5d} {dev:8.5f}"
                   f" {kink:8.1e} {kept:4d}/{n_corner:<4d} {t_all:7.2f}"
-                  f" {1e3 * t_all / max(seg, 1):6.2f} {n_ref:8d} {seg / max(n_ref, 1):5.2f}"
+                  f" {1e3 * t_all / max(seg, 1):6.2f} {c_all:6.2f}"
+                  f" {1e3 * c_all / max(seg, 1):10.2f}"
+                  f" {n_ref:8d} {seg / max(n_ref, 1):5.2f}"
                   + (f" {aw_dev:7.4f} {aw_kink:7.1f} {aw_t:6.2f}" if arcwelder else ""),
                   flush=True)
 
