@@ -11,12 +11,11 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
+from zwcore.arcs import _kernels
 from zwcore.arcs._geometry import (
     arc_point,
-    local_uv,
     points_to_segments_distance,
     sagitta,
-    unwrap,
 )
 from zwcore.arcs._pieces import Piece, ToleranceBand
 from zwcore.arcs._straight import FLAT_MIN_LEN, FLAT_SAGITTA, Anchor, is_flat
@@ -244,10 +243,5 @@ class StraightRuns:
         """Last sample in ``k..hi`` whose foot point on the piece lies before ``s_end``."""
         if hi <= k:
             return k
-        u, v = local_uv(p, t, self.samples[k + 1 : hi + 1])
-        if kap != 0.0:
-            sig = unwrap(np.arctan2(kap * u, 1.0 - kap * v)) / kap
-        else:
-            sig = u
-        over = np.flatnonzero(sig > s_end)
-        return k + (int(over[0]) if over.size else len(sig))
+        return _kernels.last_before(self.samples, float(p[0]), float(p[1]), float(t[0]),
+                                    float(t[1]), float(kap), k, hi, float(s_end))

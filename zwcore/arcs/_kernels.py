@@ -474,3 +474,34 @@ def kappa_fits(samples: FloatArray, px: float, py: float, tx: float, ty: float, 
                 2.0 * (v - wt) / den - slack <= kappa <= 2.0 * (v + wt) / den + slack):
             return False
     return True
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def last_before(samples: FloatArray, px: float, py: float, tx: float, ty: float,
+                kappa: float, k: int, hi: int, s_end: float) -> int:
+    """Last sample in ``k..hi`` whose foot point on the piece ``(p, t, kappa)`` lies
+    before arc length ``s_end`` (the angles unwrapped from sample ``k + 1`` on, as
+    :func:`numpy.unwrap` does)."""
+    prev = 0.0
+    corr = 0.0
+    for i in range(k + 1, hi + 1):
+        dx = samples[i, 0] - px
+        dy = samples[i, 1] - py
+        u = dx * tx + dy * ty
+        if kappa == 0.0:
+            sig = u
+        else:
+            v = dy * tx - dx * ty
+            phi = math.atan2(kappa * u, 1.0 - kappa * v)
+            if i > k + 1:
+                dd = phi - prev
+                if not abs(dd) < math.pi:
+                    ddmod = _pymod(dd + math.pi, _TWO_PI) - math.pi
+                    if ddmod == -math.pi and dd > 0.0:
+                        ddmod = math.pi
+                    corr += ddmod - dd
+            prev = phi
+            sig = (phi + corr) / kappa
+        if sig > s_end:
+            return i - 1
+    return hi

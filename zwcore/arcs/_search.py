@@ -237,17 +237,17 @@ class Fitter:
             return fb[0], []
         return None, [fb[1]]
 
-    def _candidates(self, si: int, st: State, b: int) -> Cands | None:
+    def _candidates(self, si: int, st: State, b: int) -> list[Cands]:
         """Candidate pieces from state ``si`` of the level, ``st`` (unverified)."""
         p, t, k = st.p, st.t, st.k
         assert t is not None
         jlimit = b - 1
         if jlimit <= k:
-            return None
+            return []
         lo1, up1 = self._bounds(st, b)
         jm = min(k + len(lo1), jlimit)
         if jm <= k:
-            return None
+            return []
         band = self.band
         if band.kmin > 0.0:
             span = self.cum[jm] - self.cum[k]
@@ -266,17 +266,17 @@ class Fitter:
                 self.samples, self.cum, float(p[0]), float(p[1]), float(t[0]), float(t[1]),
                 k, jm, lo1, up1, self._j_fractions, self._k_fractions, band.kcap)
         n = len(jj)
-        out = Cands(np.full(n, si, dtype=np.int64), jj, kk, ends, tends, bonus,
-                    np.full(n, np.nan), np.zeros(n, dtype=bool))
+        out = [Cands(np.full(n, si, dtype=np.int64), jj, kk, ends, tends, bonus,
+                     np.full(n, np.nan), np.zeros(n, dtype=bool))]
         if self.straight is not None:
             extra = self.straight.candidates(p, t, k, b)
             if extra:
                 m = len(extra)
-                out = Cands.join([out, Cands(
+                out.append(Cands(
                     np.full(m, si, dtype=np.int64), np.array([c[0] for c in extra]),
                     np.array([c[1] for c in extra]), np.array([c[2] for c in extra]),
                     np.array([c[3] for c in extra]), np.zeros(m),
-                    np.array([c[4] for c in extra]), np.ones(m, dtype=bool))])
+                    np.array([c[4] for c in extra]), np.ones(m, dtype=bool)))
         return out
 
     def _capped_kappas(
@@ -299,8 +299,8 @@ class Fitter:
         then candidates rank by the arcs over straight runs in their chain, and landing
         biarcs (:meth:`StraightRuns.landing_biarc`) join one level later.
         """
-        parts = [c for si, st in enumerate(level)
-                 if (c := self._candidates(si, st, b)) is not None and len(c)]
+        parts = [c for si, st in enumerate(level) for c in self._candidates(si, st, b)
+                 if len(c)]
         out: list[State] = self._verified(level, Cands.join(parts), b) if parts else []
         if self.straight is not None:
             out.extend(self._landings(level, b))

@@ -63,9 +63,16 @@ class Cands:
     @staticmethod
     def join(parts: list[Cands]) -> Cands:
         """The candidates of ``parts``, in order."""
-        return Cands(*(np.concatenate([getattr(c, f) for c in parts])
-                       for f in ("si", "j", "kappa", "end", "t_end", "bonus", "sig_end",
-                                 "special")))
+        if len(parts) == 1:
+            return parts[0]
+        return Cands(np.concatenate([c.si for c in parts]),
+                     np.concatenate([c.j for c in parts]),
+                     np.concatenate([c.kappa for c in parts]),
+                     np.concatenate([c.end for c in parts]),
+                     np.concatenate([c.t_end for c in parts]),
+                     np.concatenate([c.bonus for c in parts]),
+                     np.concatenate([c.sig_end for c in parts]),
+                     np.concatenate([c.special for c in parts]))
 
 
 def approx_lengths(c: Cands, chord: FloatArray) -> FloatArray:
