@@ -22,6 +22,7 @@ from zwcore.arcs import _kernels
 from zwcore.arcs._geometry import (
     arc_point,
     arc_points,
+    circle_gap,
     kappa_bounds,
     line_fit,
     local_uv,
@@ -32,6 +33,7 @@ from zwcore.arcs._pieces import Piece, ToleranceBand
 from zwcore.arcs._prepare import prepare
 from zwcore.arcs._runs import assemble
 from zwcore.arcs._search import Fitter
+from zwcore.arcs._select import candidates, select_verified
 from zwcore.arcs.verify import densify, deviations
 
 HAIR = 1e-9
@@ -228,7 +230,7 @@ def test_candidates_agree_with_the_reference(case, work):
     assume(jm > k)
     jf = np.array(Fitter.J_FRACTIONS)
     kf = np.array(ToleranceBand.K_FRACTIONS)
-    got = _kernels.candidates(pts, band.cum, p[0], p[1], t[0], t[1], k, jm, lo1, up1, jf, kf,
+    got = candidates(pts, band.cum, p[0], p[1], t[0], t[1], k, jm, lo1, up1, jf, kf,
                               band.kcap)
     want = ref.candidates(pts, band.cum, p, t, k, jm, lo1, up1, jf, kf, band.kcap)
     np.testing.assert_array_equal(got[0], want[0])
@@ -263,3 +265,72 @@ def test_kappa_fits_agrees_with_the_intervals(case, fj, fk):
     kappa = lo_m + fk * (up_m - lo_m)
     want = bool(lo_m <= kappa <= up_m)
     assert _kernels.kappa_fits(pts, p[0], p[1], t[0], t[1], k, j, tol, kappa, 0.0) == want
+
+
+@settings(max_examples=100, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(junctions(), st.floats(-0.3, 0.3))
+def test_line_reaches_and_chord_circles_agree_with_numpy(case, turn):
+    pts, tol, p, t, k = case
+    b = len(pts) - 1
+    th0 = math.atan2(t[1], t[0])
+    ths = th0 + turn + np.linspace(-0.1, 0.1, 7)
+    ts = np.stack([np.cos(ths), np.sin(ths)], 1)
+    u, v = local_uv(p[None, None, :], ts[:, None, :], pts[None, k + 1 : b + 1, :])
+    bad = (np.abs(v) > tol) | (u < -tol)
+    want = np.where(bad.any(axis=1), k + np.argmax(bad, axis=1), b)
+    np.testing.assert_array_equal(_kernels.line_reaches(pts, p[0], p[1], ts, k, b, tol), want)
+    # the circle through p along th and through sample b: its largest gap to the samples
+    tt = ts[0]
+    ub, vb = local_uv(p, tt, pts[b : b + 1])
+    kap = float(2.0 * vb[0] / (ub[0] ** 2 + vb[0] ** 2))
+    uu, vv = local_uv(p, tt, pts[k + 1 : b + 1])
+    gap = float(np.abs(circle_gap(uu, vv, kap)).max())
+    got = _kernels.chord_circle_gap(pts, p[0], p[1], float(ths[0]), k, b)
+    assert got == pytest.approx(gap, rel=1e-9, abs=1e-12)
+
+
+@settings(max_examples=100, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(junctions(), st.integers(1, 4), st.integers(0, 2**31))
+def test_select_verified_agrees_with_a_python_walk(case, beam, seed):
+    """The compiled walk of a ranking equals the Python loop over ToleranceBand.verify."""
+    pts, tol, p, t, k = case
+    rng = np.random.default_rng(seed)
+    band = ToleranceBand(pts, tol, 0.95, None)
+    b = len(pts) - 1
+    lo1, up1 = band.longest_piece_bounds(p, t, k, b)
+    jm = min(k + len(lo1), b - 1)
+    assume(jm > k)
+    jj, kk, _ends, tends, _bonus = candidates(
+        pts, band.cum, p[0], p[1], t[0], t[1], k, jm, lo1, up1, np.array(Fitter.J_FRACTIONS),
+        np.array(ToleranceBand.K_FRACTIONS), band.kcap)
+    n = len(jj)
+    assume(n > 0)
+    # some candidates spoilt (a curvature off the interval) so that some fail
+    kk = kk * np.where(rng.random(n) < 0.3, 1.5, 1.0)
+    order = rng.permutation(n).astype(np.int64)
+    reach = rng.integers(k, b + 1, n).astype(np.int64)
+    special = rng.random(n) < 0.2
+    sig_end = np.full(n, np.nan)
+    e = float(np.hypot(*(pts[k] - p)))
+    got, figs = select_verified(
+        pts, order, np.zeros(n, dtype=np.int64), jj, kk, sig_end, special, reach, tends,
+        p[None, :].copy(), t[None, :].copy(), np.array([k]), np.array([e]), beam, beam // 2,
+        tol, band.dense_step)
+    want, seen, checks, n_special = [], set(), 0, 0
+    for i in order.tolist():
+        if len(want) >= beam or checks >= 12 * beam:
+            break
+        if special[i] and n_special >= beam // 2:
+            continue
+        key = (int(reach[i]), int(jj[i]), round(math.atan2(tends[i, 1], tends[i, 0]) * 1e3))
+        if key in seen:
+            continue
+        checks += 1
+        res = band.verify(p, t, float(kk[i]), k, int(jj[i]), e)
+        if res is None:
+            continue
+        seen.add(key)
+        want.append((i, res[0]))
+        n_special += bool(special[i])
+    assert got.tolist() == [w[0] for w in want]
+    np.testing.assert_allclose(figs[:, 0], [w[1] for w in want], rtol=1e-12)

@@ -25,7 +25,8 @@ from numpy.typing import NDArray
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 
-__all__ = ["arc_near_polyline", "foot_positions", "piece_bounds", "reach_lines", "verify_piece"]
+__all__ = ["arc_near_polyline", "chord_circle_gap", "foot_positions", "kappa_fits", "last_before",
+           "line_reaches", "line_spread", "piece_bounds", "reach_lines", "verify_piece"]
 
 _TWO_PI = 2.0 * math.pi
 
@@ -363,67 +364,6 @@ def verify_piece(samples: FloatArray, px: float, py: float, tx: float, ty: float
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def candidates(samples: FloatArray, cum: FloatArray, px: float, py: float, tx: float,
-               ty: float, k: int, jm: int, lo1: FloatArray, up1: FloatArray,
-               j_fractions: FloatArray, k_fractions: FloatArray,
-               kcap: float) -> tuple[IntArray, FloatArray, FloatArray, FloatArray, FloatArray]:
-    """Candidate pieces from the junction ``(p, t)`` at sample ``k`` (no radius floor).
-
-    Ends: the samples at the shares ``j_fractions`` of the longest feasible piece's length
-    (up to sample ``jm``), longest first; per end a line when the running bounds
-    ``lo1, up1`` allow one, then the shares ``k_fractions`` of its curvature interval
-    (capped at ``kcap``). Each piece ends at the foot point of its end sample. Returns
-    ``(j, kappa, end (C, 2), end tangent (C, 2), bonus)``, the bonus favouring lines by
-    0.3 of their length (see :meth:`zwcore.arcs._search.Fitter._candidates`).
-    """
-    span = cum[jm] - cum[k]
-    nj = len(j_fractions)
-    js = np.empty(nj, dtype=np.int64)
-    for i in range(nj):
-        at = np.searchsorted(cum, cum[k] + j_fractions[i] * span, side="right")
-        js[i] = min(max(at - 1, k + 1), jm)
-    js = np.unique(js)[::-1]
-    nk = len(k_fractions) + 1
-    cap = len(js) * nk
-    jj = np.empty(cap, dtype=np.int64)
-    kk = np.empty(cap)
-    n = 0
-    for j in js:
-        lo = max(lo1[j - k - 1], -kcap)
-        hi = min(up1[j - k - 1], kcap)
-        if not lo <= hi:
-            continue
-        if lo <= 0.0 <= hi:
-            jj[n] = j
-            kk[n] = 0.0
-            n += 1
-        for f in k_fractions:
-            jj[n] = j
-            kk[n] = lo + f * (hi - lo)
-            n += 1
-    ends = np.empty((n, 2))
-    tends = np.empty((n, 2))
-    bonus = np.zeros(n)
-    for i in range(n):
-        j = jj[i]
-        kap = kk[i]
-        dx = samples[j, 0] - px
-        dy = samples[j, 1] - py
-        u = dx * tx + dy * ty
-        v = dy * tx - dx * ty
-        if kap == 0.0:
-            sj = u
-            bonus[i] = 0.3 * (cum[j] - cum[k])
-        else:
-            sj = math.atan2(kap * u, 1.0 - kap * v) / kap
-        ends[i, 0], ends[i, 1] = arc_xy(px, py, tx, ty, kap, sj)
-        c, s = math.cos(kap * sj), math.sin(kap * sj)
-        tends[i, 0] = c * tx - s * ty
-        tends[i, 1] = s * tx + c * ty
-    return jj[:n], kk[:n], ends, tends, bonus
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
 def line_spread(samples: FloatArray, i0: int, i1: int, pinned: bool, qx: float,
                 qy: float) -> float:
     """Largest distance of samples ``i0..i1`` from their least-squares line (through
@@ -505,3 +445,44 @@ def last_before(samples: FloatArray, px: float, py: float, tx: float, ty: float,
         if sig > s_end:
             return i - 1
     return hi
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def line_reaches(samples: FloatArray, px: float, py: float, ts: FloatArray, k: int, b: int,
+                 wt: float) -> IntArray:
+    """Last sample each straight piece from ``p`` (at sample ``k``) along ``ts[c]``
+    ``(C, 2)`` keeps within ``wt`` (not behind its start), up to ``b``."""
+    out = np.full(len(ts), b, dtype=np.int64)
+    for c in range(len(ts)):
+        tx, ty = ts[c, 0], ts[c, 1]
+        for i in range(k + 1, b + 1):
+            dx = samples[i, 0] - px
+            dy = samples[i, 1] - py
+            u = dx * tx + dy * ty
+            v = dy * tx - dx * ty
+            if abs(v) > wt or u < -wt:
+                out[c] = i - 1
+                break
+    return out
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def chord_circle_gap(samples: FloatArray, px: float, py: float, th: float, k: int,
+                     b: int) -> float:
+    """Largest distance of samples ``k+1..b`` from the circle through ``p`` along the
+    direction ``th`` and through sample ``b`` (inf when ``b`` is ``p``)."""
+    tx, ty = math.cos(th), math.sin(th)
+    dx = samples[b, 0] - px
+    dy = samples[b, 1] - py
+    ub = dx * tx + dy * ty
+    vb = dy * tx - dx * ty
+    q2 = ub * ub + vb * vb
+    if q2 <= 0.0:
+        return np.inf
+    kap = 2.0 * vb / q2
+    worst = 0.0
+    for i in range(k + 1, b + 1):
+        dx = samples[i, 0] - px
+        dy = samples[i, 1] - py
+        worst = max(worst, abs(circle_gap1(dx * tx + dy * ty, dy * tx - dx * ty, kap)))
+    return worst

@@ -128,19 +128,11 @@ class ToleranceBand:
         middle of the best range of ``ths``).
         """
         ts = np.stack([np.cos(ths), np.sin(ths)], axis=1)
-        w = 64
-        while True:
-            hi = min(b, k + w)
-            pts = self.samples[k + 1 : hi + 1]
-            u, v = local_uv(p[None, None, :], ts[:, None, :], pts[None, :, :])
-            bad = (np.abs(v) > self.work_tol) | (u < -self.work_tol)
-            anyb = bad.any(axis=1)
-            r = np.where(anyb, k + np.argmax(bad, axis=1), hi)
-            if anyb.all() or hi == b:
-                top = np.flatnonzero(r == r.max())
-                mid = int(top[len(top) // 2])
-                return int(r[mid]), float(ths[mid])
-            w *= 4
+        r = _kernels.line_reaches(self.samples, float(p[0]), float(p[1]), ts, k, b,
+                                  self.work_tol)
+        top = np.flatnonzero(r == r.max())
+        mid = int(top[len(top) // 2])
+        return int(r[mid]), float(ths[mid])
 
     def longest_piece_bounds(
         self, p: FloatArray, t: FloatArray, k: int, b: int

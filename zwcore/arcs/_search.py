@@ -30,7 +30,6 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
-from zwcore.arcs import _kernels
 from zwcore.arcs._anchors import StraightRuns
 from zwcore.arcs._geometry import (
     arc_points,
@@ -38,6 +37,7 @@ from zwcore.arcs._geometry import (
     rotate,
 )
 from zwcore.arcs._pieces import Piece, ToleranceBand
+from zwcore.arcs._select import candidates, select_verified
 from zwcore.arcs._start import free_start, free_start_tangents, full_circle, one_piece_to_end
 from zwcore.arcs._states import Cands, State, approx_lengths, unwind
 from zwcore.arcs._unstick import bridge, fallback
@@ -262,7 +262,7 @@ class Fitter:
             ends, tends = arc_points(p, t, kk, sj), rotate(t, kk * sj)
             bonus = np.where(line, 0.3 * (self.cum[jj] - self.cum[k]), 0.0)
         else:
-            jj, kk, ends, tends, bonus = _kernels.candidates(
+            jj, kk, ends, tends, bonus = candidates(
                 self.samples, self.cum, float(p[0]), float(p[1]), float(t[0]), float(t[1]),
                 k, jm, lo1, up1, self._j_fractions, self._k_fractions, band.kcap)
         n = len(jj)
@@ -337,39 +337,28 @@ class Fitter:
     def _verified(self, level: list[State], c: Cands, b: int) -> list[State]:
         """The best verified candidates, in the order of :meth:`_rank`, at most
         :attr:`BEAM` of them (pieces onto straight runs at most half of them), one per
-        end state (reach, end sample, end direction)."""
+        end state (reach, end sample, end direction)
+        (:func:`zwcore.arcs._select.select_verified`)."""
         band = self.band
         order, reach = self._rank(level, c, b)
         n_special_max = self.BEAM // 2 if self.straight is not None else 0
+        sts = [st.t for st in level]
+        assert all(t is not None for t in sts)
+        got, figs = select_verified(
+            self.samples, order.astype(np.int64), c.si, c.j, c.kappa, c.sig_end, c.special,
+            reach.astype(np.int64), c.t_end, np.array([st.p for st in level]),
+            np.array(sts, dtype=np.float64), np.array([st.k for st in level], dtype=np.int64),
+            np.array([st.e for st in level], dtype=np.float64), self.BEAM, n_special_max,
+            band.tol, band.dense_step)
         out: list[State] = []
-        seen: set[tuple[int, int, int]] = set()
-        checks = 0
-        n_special = 0
-        for i in order.tolist():
-            if len(out) >= self.BEAM or checks >= 12 * self.BEAM:
-                break
-            special = bool(c.special[i])
-            if special and n_special >= n_special_max:
-                continue
+        for i, (length, ex, ey, e_end) in zip(got.tolist(), figs.tolist(), strict=True):
             st = level[int(c.si[i])]
             j = int(c.j[i])
-            te = c.t_end[i]
-            key = (int(reach[i]), j, round(math.atan2(te[1], te[0]) * 1e3))
-            if key in seen:
-                continue
-            checks += 1
             assert st.t is not None
-            kappa = float(c.kappa[i])
-            s_end = float(c.sig_end[i])
-            res = band.verify(st.p, st.t, kappa, st.k, j, st.e,
-                              sig_end=None if math.isnan(s_end) else s_end)
-            if res is None:
-                continue
-            seen.add(key)
-            pc = band.make_piece(st.p, st.t, kappa, st.k, j, res)
-            if special:
-                n_special += 1
-                pc.t_end = te.copy()  # exactly the anchor's direction
+            pc = band.make_piece(st.p, st.t, float(c.kappa[i]), st.k, j,
+                                 (length, np.array([ex, ey]), e_end))
+            if c.special[i]:
+                pc.t_end = c.t_end[i].copy()  # exactly the anchor's direction
             out.append(State(pc.end, pc.t_end, j, pc.e_end, st, pc, st.t_first,
                              st.depth + 1))
         return out
