@@ -119,12 +119,6 @@ def greedy_min_pieces(points: np.ndarray, tol: float, closed: bool) -> int:
     return count
 
 
-def _timed(pts: np.ndarray, closed: bool, tol: float = 0.1) -> tuple[float, object]:
-    t0 = time.perf_counter()
-    chain = fit_arcs(pts, tol, closed=closed)
-    return time.perf_counter() - t0, chain
-
-
 def _timed_cpu(pts: np.ndarray, closed: bool, tol: float) -> tuple[float, float, object]:
     """Wall and CPU time (this process; the fit is single-threaded) of one fit: on a
     shared machine the CPU time is the steadier figure."""
@@ -251,6 +245,51 @@ def coarse_polygon(n: int = 1000, edge: float = 10.0, turn_deg: float = 12.0,
     return np.array(out)
 
 
+def _scaling(tol: float, quick: bool) -> None:
+    """The closed ellipse sampled ever finer: time per point."""
+    print("\nScaling (ellipse 100 x 50, closed, end to end incl. dense verification)")
+    print(f"{'points':>9s} {'spacing mm':>10s} {'seg':>4s} {'time s':>7s} {'cpu s':>6s}"
+          f" {'us/point':>9s} {'ratio vs prev':>13s}")
+    perimeter = 484.4224
+    runs = [("0.02 mm", 0.02)]
+    sizes = [10_000, 100_000] + ([] if quick else [1_000_000])
+    runs += [(f"{n} pts", perimeter / n) for n in sizes]
+    prev: tuple[int, float] | None = None
+    for _, step in runs:
+        pts, closed = ellipse(step)
+        dt, dc, chain = _timed_cpu(pts, closed, tol)
+        ratio = ""
+        if prev is not None:
+            ratio = f"t x{dc / prev[1]:.1f} / N x{len(pts) / prev[0]:.1f}"
+        print(f"{len(pts):9d} {step:10.5f} {len(chain.segments):4d} {dt:7.3f} {dc:6.3f}"
+              f" {1e6 * dc / len(pts):9.2f} {ratio:>13s}")
+        prev = (len(pts), dc)
+
+
+def _coarse() -> None:
+    """Coarse polygons: a line per edge and a fillet per vertex."""
+    # coarse polygons at a tight tolerance: every edge a straight run, a line per edge
+    # and a fillet per vertex (about two segments a point); the time must stay linear
+    print("\nCoarse polygon, tol 0.01 (a line per edge, a fillet per vertex)")
+    print(f"{'curve':22s} {'points':>6s} {'seg':>4s} {'arc':>4s} {'line':>4s} {'time s':>7s}"
+          f" {'cpu s':>6s} {'cpu ms/seg':>10s}")
+    coarse = [(f"spiral {n} pts", *coarse_spiral(n)) for n in (42, 84, 168)]
+    coarse += [(f"ellipse 30x15 {n} pts", *coarse_ellipse(n)) for n in (42, 84)]
+    for label, pts, closed in coarse:
+        dt, dc, chain = _timed_cpu(pts, closed, 0.01)
+        print(f"{label:22s} {len(pts):6d} {len(chain.segments):4d} {chain.n_arcs:4d}"
+              f" {chain.n_lines:4d} {dt:7.3f} {dc:6.3f}"
+              f" {1e3 * dc / len(chain.segments):10.2f}")
+    print("\nCoarse polygon: 10 mm edges, 12 deg turns (sides change every 15), open, tol 0.05")
+    print(f"{'vertices':>8s} {'seg':>5s} {'arc':>5s} {'line':>5s} {'time s':>7s} {'ms/seg':>6s}"
+          f" {'cpu s':>6s} {'cpu ms/seg':>10s}")
+    for n in (100, 1000):
+        dt, dc, chain = _timed_cpu(coarse_polygon(n), False, 0.05)
+        nseg = len(chain.segments)
+        print(f"{n:8d} {nseg:5d} {chain.n_arcs:5d} {chain.n_lines:5d}"
+              f" {dt:7.3f} {1e3 * dt / nseg:6.2f} {dc:6.3f} {1e3 * dc / nseg:10.2f}")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--quick", action="store_true", help="skip the 1M-point run")
@@ -264,53 +303,24 @@ def main() -> None:
     _warm_up()
     print(f"C1 arc fit, tolerance {tol} mm, curves sampled at 0.5 mm\n")
     head = (f"{'curve':10s} {'N':>6s} {'seg':>4s} {'arc':>4s} {'line':>4s} {'dev pts':>8s}"
-            f" {'dev chain':>9s} {'kink':>8s} {'corners':>7s} {'time s':>7s}"
-            f" {'greedy<=':>8s} {'AW':>7s}")
+            f" {'dev chain':>9s} {'kink':>8s} {'corners':>7s} {'time s':>7s} {'cpu s':>6s}"
+            f" {'cpu ms/seg':>10s} {'greedy<=':>8s} {'AW':>7s}")
     print(head)
     print("-" * len(head))
     for name, make in BENCH_CURVES.items():
         pts, closed = make()
-        dt, chain = _timed(pts, closed, tol)
+        dt, dc, chain = _timed_cpu(pts, closed, tol)
         greedy = greedy_min_pieces(pts, tol, closed)
         aw_a, aw_l = ARCWELDER_REFERENCE[name]
         aw = "-" if aw_a is None else (f"{aw_a}" + (f"+{aw_l}L" if aw_l else ""))
-        print(f"{name:10s} {len(pts):6d} {len(chain.segments):4d} {chain.n_arcs:4d}"
+        nseg = len(chain.segments)
+        print(f"{name:10s} {len(pts):6d} {nseg:4d} {chain.n_arcs:4d}"
               f" {chain.n_lines:4d} {chain.max_deviation_points:8.4f}"
               f" {chain.max_deviation_chain:9.4f} {chain.max_kink_smooth:8.1e}"
-              f" {len(chain.corners):7d} {dt:7.3f} {greedy:8d} {aw:>7s}")
-    print("\nScaling (ellipse 100 x 50, closed, end to end incl. dense verification)")
-    print(f"{'points':>9s} {'spacing mm':>10s} {'seg':>4s} {'time s':>7s} {'us/point':>9s}"
-          f" {'ratio vs prev':>13s}")
-    perimeter = 484.4224
-    runs = [("0.02 mm", 0.02)]
-    sizes = [10_000, 100_000] + ([] if args.quick else [1_000_000])
-    runs += [(f"{n} pts", perimeter / n) for n in sizes]
-    prev: tuple[int, float] | None = None
-    for _, step in runs:
-        pts, closed = ellipse(step)
-        dt, chain = _timed(pts, closed, tol)
-        ratio = ""
-        if prev is not None:
-            ratio = f"t x{dt / prev[1]:.1f} / N x{len(pts) / prev[0]:.1f}"
-        print(f"{len(pts):9d} {step:10.5f} {len(chain.segments):4d} {dt:7.3f}"
-              f" {1e6 * dt / len(pts):9.2f} {ratio:>13s}")
-        prev = (len(pts), dt)
-    # coarse polygons at a tight tolerance: every edge a straight run, a line per edge
-    # and a fillet per vertex (about two segments a point); the time must stay linear
-    print("\nCoarse polygon, tol 0.01 (a line per edge, a fillet per vertex)")
-    print(f"{'curve':22s} {'points':>6s} {'seg':>4s} {'arc':>4s} {'line':>4s} {'time s':>7s}")
-    coarse = [(f"spiral {n} pts", *coarse_spiral(n)) for n in (42, 84, 168)]
-    coarse += [(f"ellipse 30x15 {n} pts", *coarse_ellipse(n)) for n in (42, 84)]
-    for label, pts, closed in coarse:
-        dt, chain = _timed(pts, closed, 0.01)
-        print(f"{label:22s} {len(pts):6d} {len(chain.segments):4d} {chain.n_arcs:4d}"
-              f" {chain.n_lines:4d} {dt:7.3f}")
-    print("\nCoarse polygon: 10 mm edges, 12 deg turns (sides change every 15), open, tol 0.05")
-    print(f"{'vertices':>8s} {'seg':>5s} {'arc':>5s} {'line':>5s} {'time s':>7s} {'ms/seg':>6s}")
-    for n in (100, 1000):
-        dt, chain = _timed(coarse_polygon(n), False, 0.05)
-        print(f"{n:8d} {len(chain.segments):5d} {chain.n_arcs:5d} {chain.n_lines:5d}"
-              f" {dt:7.3f} {1e3 * dt / len(chain.segments):6.2f}")
+              f" {len(chain.corners):7d} {dt:7.3f} {dc:6.3f} {1e3 * dc / nseg:10.2f}"
+              f" {greedy:8d} {aw:>7s}")
+    _scaling(tol, args.quick)
+    _coarse()
     print("\nArcWelder 2.0 on the 0.02 mm ellipse (24,223 points): 10.3 s (issue text)")
     _ = math.pi
 
