@@ -290,12 +290,57 @@ def _coarse() -> None:
               f" {dt:7.3f} {1e3 * dt / nseg:6.2f} {dc:6.3f} {1e3 * dc / nseg:10.2f}")
 
 
+def load_mix(n: int) -> None:
+    """The arc requests of ``bench/load.py`` (its body generators and coarse share,
+    seeded), fitted in this process as the service's ``/v1/arcs`` does (a G-code
+    program with its rounding reserved where asked): the core's share of their latency."""
+    import random
+
+    from load import COARSE_SHARE, _arcs, _coarse_polygon
+
+    from zwcore.arcs.gcode import rounding_budget, to_gcode
+
+    rng = random.Random(15)
+    rows: dict[str, list[tuple[float, float, int]]] = {"fit_arcs": [], "fit_arcs_coarse": []}
+    for _ in range(n):
+        coarse = rng.random() < COARSE_SHARE
+        body = _coarse_polygon(rng) if coarse else _arcs(rng)
+        gcode = bool(body.get("gcode"))
+        t0, c0 = time.perf_counter(), time.process_time()
+        chain = fit_arcs(np.array(body["points"], dtype=float), body["tolerance"],
+                         closed=body["closed"], reserve=rounding_budget(4) if gcode else 0.0)
+        if gcode:
+            to_gcode(chain, feed=1000.0)
+        rows["fit_arcs_coarse" if coarse else "fit_arcs"].append(
+            (time.perf_counter() - t0, time.process_time() - c0, len(chain.segments)))
+    print(f"Arc requests of bench/load.py, {n} bodies (seed 15), fitted in-process\n")
+    head = (f"{'operation':16s} {'n':>4s} {'seg p50':>7s} {'p50 ms':>7s} {'p99 ms':>7s}"
+            f" {'max ms':>7s} {'cpu p50':>7s} {'cpu p99':>7s} {'cpu max':>7s}")
+    print(head)
+    print("-" * len(head))
+    for name, got in rows.items():
+        if not got:
+            continue
+        wall = np.array([g[0] for g in got]) * 1e3
+        cpu = np.array([g[1] for g in got]) * 1e3
+        seg = np.array([g[2] for g in got])
+        print(f"{name:16s} {len(got):4d} {np.median(seg):7.0f} {np.median(wall):7.1f}"
+              f" {np.percentile(wall, 99):7.1f} {wall.max():7.1f} {np.median(cpu):7.1f}"
+              f" {np.percentile(cpu, 99):7.1f} {cpu.max():7.1f}")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--quick", action="store_true", help="skip the 1M-point run")
     ap.add_argument("--glyphs", action="store_true", help="glyph outlines benchmark only")
     ap.add_argument("--arcwelder", metavar="PATH", help="ArcWelder console (see README)")
+    ap.add_argument("--load-mix", type=int, metavar="N",
+                    help="only the arc requests of bench/load.py: N bodies, in-process")
     args = ap.parse_args()
+    if args.load_mix:
+        _warm_up()
+        load_mix(args.load_mix)
+        return
     if args.glyphs:
         glyphs(args.quick, args.arcwelder)
         return
