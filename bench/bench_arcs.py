@@ -119,10 +119,19 @@ def greedy_min_pieces(points: np.ndarray, tol: float, closed: bool) -> int:
     return count
 
 
-def _timed(pts: np.ndarray, closed: bool, tol: float = 0.1) -> tuple[float, object]:
-    t0 = time.perf_counter()
+def _timed_cpu(pts: np.ndarray, closed: bool, tol: float) -> tuple[float, float, object]:
+    """Wall and CPU time (this process; the fit is single-threaded) of one fit: on a
+    shared machine the CPU time is the steadier figure."""
+    t0, c0 = time.perf_counter(), time.process_time()
     chain = fit_arcs(pts, tol, closed=closed)
-    return time.perf_counter() - t0, chain
+    return time.perf_counter() - t0, time.process_time() - c0, chain
+
+
+def _warm_up() -> None:
+    """One small fit before anything is timed: the compiled kernels are loaded (or
+    compiled) once per process, not counted against the first curve."""
+    th = np.linspace(0.0, 6.0, 200)
+    fit_arcs(np.stack([10 * np.cos(th), 5 * np.sin(th)], 1), 0.01)
 
 
 def _corners_kept(chain: object, corners: np.ndarray, reach: float) -> int:
@@ -144,21 +153,23 @@ def glyphs(quick: bool, arcwelder: str | None) -> None:
 
     chars = QUICK_GLYPHS if quick else GLYPHS
     sets = glyph_contours(chars)
+    _warm_up()
     ref = "AW seg" if arcwelder else "greedy<="
     print(f"Glyph outlines {chars!r} (DejaVu Sans, 50 mm high, {len(sets['even'])} closed"
           " contours), corner angle 30 deg\n")
     head = (f"{'sampling':8s} {'tol':>5s} {'points':>6s} {'seg':>5s} {'arc':>5s} {'line':>5s}"
             f" {'max dev':>8s} {'kink deg':>8s} {'corners':>9s} {'time s':>7s}"
-            f" {'ms/seg':>6s} {ref:>8s} {'ratio':>5s}"
+            f" {'ms/seg':>6s} {'cpu s':>6s} {'cpu ms/seg':>10s} {ref:>8s} {'ratio':>5s}"
             + (f" {'AW dev':>7s} {'AW kink':>7s} {'AW s':>6s}" if arcwelder else ""))
     print(head)
     print("-" * len(head))
     for tol in (0.05, 0.01):
         for name in ("even", "chordal", "noisy"):
             n_pts = seg = arcs = lines = kept = n_corner = n_ref = 0
-            dev = kink = t_all = aw_dev = aw_kink = aw_t = 0.0
+            dev = kink = t_all = c_all = aw_dev = aw_kink = aw_t = 0.0
             for _label, pts, corners in sets[name]:
-                dt, chain = _timed(pts, True, tol)
+                dt, dc, chain = _timed_cpu(pts, True, tol)
+                c_all += dc
                 n_pts += len(pts)
                 seg += len(chain.segments)
                 arcs += chain.n_arcs
@@ -181,7 +192,9 @@ def glyphs(quick: bool, arcwelder: str | None) -> None:
             _ = chain_tangents
             print(f"{name:8s} {tol:5.2f} {n_pts:6d} {seg:5d} {arcs:5d} {lines:5d} {dev:8.5f}"
                   f" {kink:8.1e} {kept:4d}/{n_corner:<4d} {t_all:7.2f}"
-                  f" {1e3 * t_all / max(seg, 1):6.2f} {n_ref:8d} {seg / max(n_ref, 1):5.2f}"
+                  f" {1e3 * t_all / max(seg, 1):6.2f} {c_all:6.2f}"
+                  f" {1e3 * c_all / max(seg, 1):10.2f}"
+                  f" {n_ref:8d} {seg / max(n_ref, 1):5.2f}"
                   + (f" {aw_dev:7.4f} {aw_kink:7.1f} {aw_t:6.2f}" if arcwelder else ""),
                   flush=True)
 
@@ -232,65 +245,127 @@ def coarse_polygon(n: int = 1000, edge: float = 10.0, turn_deg: float = 12.0,
     return np.array(out)
 
 
+def _scaling(tol: float, quick: bool) -> None:
+    """The closed ellipse sampled ever finer: time per point."""
+    print("\nScaling (ellipse 100 x 50, closed, end to end incl. dense verification)")
+    print(f"{'points':>9s} {'spacing mm':>10s} {'seg':>4s} {'time s':>7s} {'cpu s':>6s}"
+          f" {'us/point':>9s} {'ratio vs prev':>13s}")
+    perimeter = 484.4224
+    runs = [("0.02 mm", 0.02)]
+    sizes = [10_000, 100_000] + ([] if quick else [1_000_000])
+    runs += [(f"{n} pts", perimeter / n) for n in sizes]
+    prev: tuple[int, float] | None = None
+    for _, step in runs:
+        pts, closed = ellipse(step)
+        dt, dc, chain = _timed_cpu(pts, closed, tol)
+        ratio = ""
+        if prev is not None:
+            ratio = f"t x{dc / prev[1]:.1f} / N x{len(pts) / prev[0]:.1f}"
+        print(f"{len(pts):9d} {step:10.5f} {len(chain.segments):4d} {dt:7.3f} {dc:6.3f}"
+              f" {1e6 * dc / len(pts):9.2f} {ratio:>13s}")
+        prev = (len(pts), dc)
+
+
+def _coarse() -> None:
+    """Coarse polygons: a line per edge and a fillet per vertex."""
+    # coarse polygons at a tight tolerance: every edge a straight run, a line per edge
+    # and a fillet per vertex (about two segments a point); the time must stay linear
+    print("\nCoarse polygon, tol 0.01 (a line per edge, a fillet per vertex)")
+    print(f"{'curve':22s} {'points':>6s} {'seg':>4s} {'arc':>4s} {'line':>4s} {'time s':>7s}"
+          f" {'cpu s':>6s} {'cpu ms/seg':>10s}")
+    coarse = [(f"spiral {n} pts", *coarse_spiral(n)) for n in (42, 84, 168)]
+    coarse += [(f"ellipse 30x15 {n} pts", *coarse_ellipse(n)) for n in (42, 84)]
+    for label, pts, closed in coarse:
+        dt, dc, chain = _timed_cpu(pts, closed, 0.01)
+        print(f"{label:22s} {len(pts):6d} {len(chain.segments):4d} {chain.n_arcs:4d}"
+              f" {chain.n_lines:4d} {dt:7.3f} {dc:6.3f}"
+              f" {1e3 * dc / len(chain.segments):10.2f}")
+    print("\nCoarse polygon: 10 mm edges, 12 deg turns (sides change every 15), open, tol 0.05")
+    print(f"{'vertices':>8s} {'seg':>5s} {'arc':>5s} {'line':>5s} {'time s':>7s} {'ms/seg':>6s}"
+          f" {'cpu s':>6s} {'cpu ms/seg':>10s}")
+    for n in (100, 1000):
+        dt, dc, chain = _timed_cpu(coarse_polygon(n), False, 0.05)
+        nseg = len(chain.segments)
+        print(f"{n:8d} {nseg:5d} {chain.n_arcs:5d} {chain.n_lines:5d}"
+              f" {dt:7.3f} {1e3 * dt / nseg:6.2f} {dc:6.3f} {1e3 * dc / nseg:10.2f}")
+
+
+def load_mix(n: int) -> None:
+    """The arc requests of ``bench/load.py`` (its body generators and coarse share,
+    seeded), fitted in this process as the service's ``/v1/arcs`` does (a G-code
+    program with its rounding reserved where asked): the core's share of their latency."""
+    import random
+
+    from load import COARSE_SHARE, _arcs, _coarse_polygon
+
+    from zwcore.arcs.gcode import rounding_budget, to_gcode
+
+    rng = random.Random(15)
+    rows: dict[str, list[tuple[float, float, int]]] = {"fit_arcs": [], "fit_arcs_coarse": []}
+    for _ in range(n):
+        coarse = rng.random() < COARSE_SHARE
+        body = _coarse_polygon(rng) if coarse else _arcs(rng)
+        gcode = bool(body.get("gcode"))
+        t0, c0 = time.perf_counter(), time.process_time()
+        chain = fit_arcs(np.array(body["points"], dtype=float), body["tolerance"],
+                         closed=body["closed"], reserve=rounding_budget(4) if gcode else 0.0)
+        if gcode:
+            to_gcode(chain, feed=1000.0)
+        rows["fit_arcs_coarse" if coarse else "fit_arcs"].append(
+            (time.perf_counter() - t0, time.process_time() - c0, len(chain.segments)))
+    print(f"Arc requests of bench/load.py, {n} bodies (seed 15), fitted in-process\n")
+    head = (f"{'operation':16s} {'n':>4s} {'seg p50':>7s} {'p50 ms':>7s} {'p99 ms':>7s}"
+            f" {'max ms':>7s} {'cpu p50':>7s} {'cpu p99':>7s} {'cpu max':>7s}")
+    print(head)
+    print("-" * len(head))
+    for name, got in rows.items():
+        if not got:
+            continue
+        wall = np.array([g[0] for g in got]) * 1e3
+        cpu = np.array([g[1] for g in got]) * 1e3
+        seg = np.array([g[2] for g in got])
+        print(f"{name:16s} {len(got):4d} {np.median(seg):7.0f} {np.median(wall):7.1f}"
+              f" {np.percentile(wall, 99):7.1f} {wall.max():7.1f} {np.median(cpu):7.1f}"
+              f" {np.percentile(cpu, 99):7.1f} {cpu.max():7.1f}")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--quick", action="store_true", help="skip the 1M-point run")
     ap.add_argument("--glyphs", action="store_true", help="glyph outlines benchmark only")
     ap.add_argument("--arcwelder", metavar="PATH", help="ArcWelder console (see README)")
+    ap.add_argument("--load-mix", type=int, metavar="N",
+                    help="only the arc requests of bench/load.py: N bodies, in-process")
     args = ap.parse_args()
+    if args.load_mix:
+        _warm_up()
+        load_mix(args.load_mix)
+        return
     if args.glyphs:
         glyphs(args.quick, args.arcwelder)
         return
     tol = 0.1
+    _warm_up()
     print(f"C1 arc fit, tolerance {tol} mm, curves sampled at 0.5 mm\n")
     head = (f"{'curve':10s} {'N':>6s} {'seg':>4s} {'arc':>4s} {'line':>4s} {'dev pts':>8s}"
-            f" {'dev chain':>9s} {'kink':>8s} {'corners':>7s} {'time s':>7s}"
-            f" {'greedy<=':>8s} {'AW':>7s}")
+            f" {'dev chain':>9s} {'kink':>8s} {'corners':>7s} {'time s':>7s} {'cpu s':>6s}"
+            f" {'cpu ms/seg':>10s} {'greedy<=':>8s} {'AW':>7s}")
     print(head)
     print("-" * len(head))
     for name, make in BENCH_CURVES.items():
         pts, closed = make()
-        dt, chain = _timed(pts, closed, tol)
+        dt, dc, chain = _timed_cpu(pts, closed, tol)
         greedy = greedy_min_pieces(pts, tol, closed)
         aw_a, aw_l = ARCWELDER_REFERENCE[name]
         aw = "-" if aw_a is None else (f"{aw_a}" + (f"+{aw_l}L" if aw_l else ""))
-        print(f"{name:10s} {len(pts):6d} {len(chain.segments):4d} {chain.n_arcs:4d}"
+        nseg = len(chain.segments)
+        print(f"{name:10s} {len(pts):6d} {nseg:4d} {chain.n_arcs:4d}"
               f" {chain.n_lines:4d} {chain.max_deviation_points:8.4f}"
               f" {chain.max_deviation_chain:9.4f} {chain.max_kink_smooth:8.1e}"
-              f" {len(chain.corners):7d} {dt:7.3f} {greedy:8d} {aw:>7s}")
-    print("\nScaling (ellipse 100 x 50, closed, end to end incl. dense verification)")
-    print(f"{'points':>9s} {'spacing mm':>10s} {'seg':>4s} {'time s':>7s} {'us/point':>9s}"
-          f" {'ratio vs prev':>13s}")
-    perimeter = 484.4224
-    runs = [("0.02 mm", 0.02)]
-    sizes = [10_000, 100_000] + ([] if args.quick else [1_000_000])
-    runs += [(f"{n} pts", perimeter / n) for n in sizes]
-    prev: tuple[int, float] | None = None
-    for _, step in runs:
-        pts, closed = ellipse(step)
-        dt, chain = _timed(pts, closed, tol)
-        ratio = ""
-        if prev is not None:
-            ratio = f"t x{dt / prev[1]:.1f} / N x{len(pts) / prev[0]:.1f}"
-        print(f"{len(pts):9d} {step:10.5f} {len(chain.segments):4d} {dt:7.3f}"
-              f" {1e6 * dt / len(pts):9.2f} {ratio:>13s}")
-        prev = (len(pts), dt)
-    # coarse polygons at a tight tolerance: every edge a straight run, a line per edge
-    # and a fillet per vertex (about two segments a point); the time must stay linear
-    print("\nCoarse polygon, tol 0.01 (a line per edge, a fillet per vertex)")
-    print(f"{'curve':22s} {'points':>6s} {'seg':>4s} {'arc':>4s} {'line':>4s} {'time s':>7s}")
-    coarse = [(f"spiral {n} pts", *coarse_spiral(n)) for n in (42, 84, 168)]
-    coarse += [(f"ellipse 30x15 {n} pts", *coarse_ellipse(n)) for n in (42, 84)]
-    for label, pts, closed in coarse:
-        dt, chain = _timed(pts, closed, 0.01)
-        print(f"{label:22s} {len(pts):6d} {len(chain.segments):4d} {chain.n_arcs:4d}"
-              f" {chain.n_lines:4d} {dt:7.3f}")
-    print("\nCoarse polygon: 10 mm edges, 12 deg turns (sides change every 15), open, tol 0.05")
-    print(f"{'vertices':>8s} {'seg':>5s} {'arc':>5s} {'line':>5s} {'time s':>7s} {'ms/seg':>6s}")
-    for n in (100, 1000):
-        dt, chain = _timed(coarse_polygon(n), False, 0.05)
-        print(f"{n:8d} {len(chain.segments):5d} {chain.n_arcs:5d} {chain.n_lines:5d}"
-              f" {dt:7.3f} {1e3 * dt / len(chain.segments):6.2f}")
+              f" {len(chain.corners):7d} {dt:7.3f} {dc:6.3f} {1e3 * dc / nseg:10.2f}"
+              f" {greedy:8d} {aw:>7s}")
+    _scaling(tol, args.quick)
+    _coarse()
     print("\nArcWelder 2.0 on the 0.02 mm ellipse (24,223 points): 10.3 s (issue text)")
     _ = math.pi
 

@@ -717,32 +717,6 @@ def test_never_fails_on_jagged_curves(case):
     assert_fits_validly(*case)
 
 
-def test_biarc_second_arc_gets_its_start_distance(monkeypatch):
-    """The second arc of a biarc starts at the junction, which stands for sample m:
-    its verification must get that sample's distance from the junction, not 0."""
-    from zwcore.arcs._pieces import ToleranceBand
-
-    th = np.linspace(0, 1.5, 40)
-    s = np.stack([20 * np.cos(th), 20 * np.sin(th)], 1)
-    s[:, 1] += 0.05 * np.sin(7 * th)
-    band = ToleranceBand(s, 0.1, 0.95, None)
-    seen = []
-    orig = ToleranceBand.verify
-
-    def verify(self, p, t, kappa, k, j, e_k, sig_end=None, dense_first=False):
-        if dense_first:
-            seen.append((float(np.hypot(*(self.samples[k] - p))), e_k))
-        return orig(self, p, t, kappa, k, j, e_k, sig_end, dense_first)
-
-    monkeypatch.setattr(ToleranceBand, "verify", verify)
-    t0 = np.array([0.0, 1.0])
-    t1 = np.array([-math.sin(1.2), math.cos(1.2)])
-    band.biarc(s[0].copy(), t0, 0, 0.0, 30, t1)
-    assert seen
-    for true_e, passed in seen:
-        assert passed == pytest.approx(true_e, abs=1e-12)
-
-
 # ----------------------------------------------------------------------------
 # degenerate inputs: the reported figures are never NaN (an earlier schemathesis run
 # saw ``max_deviation_points: NaN``); a curve is either fitted validly or rejected

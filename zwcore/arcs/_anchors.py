@@ -11,9 +11,14 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
-from zwcore.arcs._geometry import arc_point, local_uv, points_to_segments_distance, unwrap
+from zwcore.arcs import _kernels
+from zwcore.arcs._geometry import (
+    arc_point,
+    points_to_segments_distance,
+    sagitta,
+)
 from zwcore.arcs._pieces import Piece, ToleranceBand
-from zwcore.arcs._straight import Anchor, is_flat
+from zwcore.arcs._straight import FLAT_MIN_LEN, FLAT_SAGITTA, Anchor, is_flat
 
 FloatArray = NDArray[np.float64]
 
@@ -97,6 +102,27 @@ class StraightRuns:
                     or (k == an.i0 and np.array_equal(an.q, self.samples[k]))):
                 return True
         return False
+
+    def are_over(self, k: NDArray[np.int64], j: NDArray[np.int64], kappa: FloatArray,
+                 length: FloatArray) -> NDArray[np.bool_]:
+        """:meth:`is_over` of many pieces at once (arrays ``(C,)``)."""
+        tol = self.tol
+        arc = kappa != 0.0
+        out = arc & (length >= FLAT_MIN_LEN * tol) & (
+            sagitta(kappa, length) < FLAT_SAGITTA * tol)
+        cum = self.cum
+        for an in self.anchors:
+            over = cum[np.minimum(j, an.i1)] - cum[np.maximum(k, an.i0)]
+            hit = over > 0.5 * (cum[an.i1] - cum[an.i0])
+            inside = (an.i0 <= k) & (j <= an.i1)
+            if inside.any():
+                # (on an anchor that starts or ends the run there: its line passes
+                # through that end sample)
+                at_end = inside & (j == an.i1) & (self.samples[j] == an.q).all(axis=1)
+                at_start = inside & (k == an.i0) & (self.samples[k] == an.q).all(axis=1)
+                hit |= at_end | at_start
+            out |= arc & hit
+        return out
 
     def candidates(self, p: FloatArray, t: FloatArray, k: int, b: int) -> list[AnchorPiece]:
         """Pieces from the junction ``(p, t)`` (sample ``k``) onto the next anchor's line.
@@ -217,10 +243,5 @@ class StraightRuns:
         """Last sample in ``k..hi`` whose foot point on the piece lies before ``s_end``."""
         if hi <= k:
             return k
-        u, v = local_uv(p, t, self.samples[k + 1 : hi + 1])
-        if kap != 0.0:
-            sig = unwrap(np.arctan2(kap * u, 1.0 - kap * v)) / kap
-        else:
-            sig = u
-        over = np.flatnonzero(sig > s_end)
-        return k + (int(over[0]) if over.size else len(sig))
+        return _kernels.last_before(self.samples, float(p[0]), float(p[1]), float(t[0]),
+                                    float(t[1]), float(kap), k, hi, float(s_end))

@@ -1,58 +1,156 @@
-"""Biarc geometry: the junction of two tangent arcs between two point-tangent pairs,
-and which samples the first arc stands for (used by
-:meth:`zwcore.arcs._pieces.ToleranceBand.biarc`)."""
+"""Compiled biarc of the tolerance band (:meth:`zwcore.arcs._pieces.ToleranceBand.biarc`):
+two tangent arcs from a junction ``(p0, t0)`` to a point ``p1`` arriving along ``t1``,
+the junction tried at several places along the chord, each pair verified two-sided with
+:func:`zwcore.arcs._kernels.verify_piece`. Most tried junctions fail a cheap curvature
+test first; in numpy each try cost some thirty small array operations.
+"""
 
 from __future__ import annotations
 
 import math
 
 import numpy as np
+from numba import njit
 from numpy.typing import NDArray
 
-from zwcore.arcs._geometry import unwrap
+from zwcore.arcs._kernels import foot_positions, verify_piece
 
 FloatArray = NDArray[np.float64]
 
-__all__ = ["junction", "last_on_first_arc"]
+__all__ = ["arc_through", "biarc"]
 
 
-def junction(
-    p0: FloatArray, t0: FloatArray, p1: FloatArray, t1: FloatArray, f: float
-) -> FloatArray | None:
-    """The junction of the biarc from ``(p0, t0)`` to ``(p1, t1)`` whose first tangent
-    leg is ``f`` chords long, or None when that biarc does not exist."""
-    vv = p1 - p0
-    dist2 = float(vv @ vv)
+@njit(cache=True, nogil=True, error_model="numpy")
+def arc_through(px: float, py: float, tx: float, ty: float, qx: float, qy: float,
+                dist: float, kmin: float, kcap: float) -> tuple[bool, float, float]:
+    """:meth:`zwcore.arcs._pieces.ToleranceBand.arc_through`: ``(ok, kappa, length)``."""
+    dx = qx - px
+    dy = qy - py
+    u = dx * tx + dy * ty
+    v = dy * tx - dx * ty
+    q2 = u * u + v * v
+    if q2 <= 0.0:
+        return False, 0.0, 0.0
+    kap = 2.0 * v / q2
+    if abs(kap) < 1e-15 * max(1.0 / dist, 1.0):
+        kap = 0.0  # numerically straight: a line
+    length = u if kap == 0.0 else math.atan2(kap * u, 1.0 - kap * v) / kap
+    ok = length > 0.0 and (kap == 0.0 or (abs(kap) >= kmin and abs(kap) <= kcap))
+    return ok, kap, length
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _biarc_junction(p0x: float, p0y: float, t0x: float, t0y: float, p1x: float, p1y: float,
+                    t1x: float, t1y: float, f: float) -> tuple[bool, float, float]:
+    """The junction of the biarc whose first tangent leg is ``f`` chords long: ``(ok, x, y)``."""
+    vx = p1x - p0x
+    vy = p1y - p0y
+    dist2 = vx * vx + vy * vy
     dist = math.sqrt(dist2)
-    vt0 = float(vv @ t0)
-    vt1 = float(vv @ t1)
-    t01 = float(t0 @ t1)
+    vt0 = vx * t0x + vy * t0y
+    vt1 = vx * t1x + vy * t1y
+    t01 = t0x * t1x + t0y * t1y
     d1 = f * dist
     den = vt1 - d1 * (t01 - 1.0)
     if abs(den) < 1e-300:
-        return None
+        return False, 0.0, 0.0
     d2 = (0.5 * dist2 - d1 * vt0) / den
     if not (d2 > 0.0 and math.isfinite(d2)):
-        return None
-    p0x, p0y, t0x, t0y = float(p0[0]), float(p0[1]), float(t0[0]), float(t0[1])
-    p1x, p1y, t1x, t1y = float(p1[0]), float(p1[1]), float(t1[0]), float(t1[1])
-    # (per coordinate: numpy's overhead on two elements dominates)
-    return np.array([
-        (d2 * (p0x + d1 * t0x) + d1 * (p1x - d2 * t1x)) / (d1 + d2),
-        (d2 * (p0y + d1 * t0y) + d1 * (p1y - d2 * t1y)) / (d1 + d2)])
+        return False, 0.0, 0.0
+    return (True, (d2 * (p0x + d1 * t0x) + d1 * (p1x - d2 * t1x)) / (d1 + d2),
+            (d2 * (p0y + d1 * t0y) + d1 * (p1y - d2 * t1y)) / (d1 + d2))
 
 
-def last_on_first_arc(
-    uu: FloatArray, vv: FloatArray, k1: float, s1: float, k: int, b: int
-) -> int:
-    """The last sample (in ``k..b-1``) whose foot point lies on the first arc (curvature
-    ``k1``, length ``s1``); ``uu, vv`` are samples ``k..b`` in the start frame."""
+@njit(cache=True, nogil=True, error_model="numpy")
+def _last_on_first_arc(uu: FloatArray, vv: FloatArray, k1: float, s1: float, k: int,
+                       b: int, sg: FloatArray) -> int:
+    """The last sample (in ``k..b-1``) whose foot point lies on the first arc of a biarc
+    (``uu, vv``: samples ``k..b`` in its start frame; ``sg``: scratch of ``len(uu)``)."""
     if k1 != 0.0:
-        ph = np.arctan2(k1 * uu, 1.0 - k1 * vv)
-        ph[0] = 0.0
-        sg = unwrap(ph) / k1
+        foot_positions(uu, vv, k1, sg)
     else:
-        sg = uu
-    over = np.flatnonzero(sg > s1)
-    m = k + (int(over[0]) - 1 if over.size else b - k - 1)
+        sg[:] = uu
+    m = k + b - k - 1
+    for i in range(len(sg)):
+        if sg[i] > s1:
+            m = k + i - 1
+            break
     return min(max(m, k), b - 1)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def biarc(samples: FloatArray, p0: FloatArray, t0: FloatArray, k: int, e: float, b: int,
+          t1: FloatArray, p1: FloatArray, splits: FloatArray, tol: float, step0: float,
+          kmin: float, kcap: float) -> tuple[int, FloatArray, int]:
+    """:meth:`zwcore.arcs._pieces.ToleranceBand.biarc` from ``(p0, t0)`` (sample ``k``,
+    distance ``e``) to ``p1`` (standing for sample ``b``) arriving along ``t1``.
+
+    Returns the index of the first split that gave a verified pair (-1: none), the
+    pair's figures ``(k1, s1, jx, jy, tjx, tjy, e1, k2, s2, e2)`` (curvature and length
+    of both arcs, the junction, its tangent, each arc's ``e_end``) and the last sample
+    of the first arc.
+    """
+    out = np.zeros(10)
+    vx = p1[0] - p0[0]
+    vy = p1[1] - p0[1]
+    dist2 = vx * vx + vy * vy
+    if dist2 <= 0.0:
+        return -1, out, 0
+    dist = math.sqrt(dist2)
+    n = b - k + 1
+    uu = np.empty(n)
+    vv = np.empty(n)
+    for i in range(n):
+        dx = samples[k + i, 0] - p0[0]
+        dy = samples[k + i, 1] - p0[1]
+        uu[i] = dx * t0[0] + dy * t0[1]
+        vv[i] = dy * t0[0] - dx * t0[1]
+    # the curvatures that keep samples k+1..i within (a hair more than) tol of the first
+    # arc's circle: a first arc outside them fails verification, so it is not verified
+    lo_t = np.empty(max(n - 1, 0))
+    up_t = np.empty(max(n - 1, 0))
+    wt = tol * (1.0 + 1e-6)
+    lo, up = -np.inf, np.inf
+    for i in range(1, n):
+        den = uu[i] * uu[i] + vv[i] * vv[i] - wt * wt
+        if den > 0.0:
+            lo = max(lo, 2.0 * (vv[i] - wt) / den)
+            up = min(up, 2.0 * (vv[i] + wt) / den)
+        lo_t[i - 1] = lo
+        up_t[i - 1] = up
+    sg = np.empty(n)
+    for si in range(len(splits)):
+        ok, jx, jy = _biarc_junction(p0[0], p0[1], t0[0], t0[1], p1[0], p1[1], t1[0], t1[1],
+                                     splits[si])
+        if not ok:
+            continue
+        ok, k1, s1 = arc_through(p0[0], p0[1], t0[0], t0[1], jx, jy, dist, kmin, kcap)
+        if not ok:
+            continue
+        c, s = math.cos(k1 * s1), math.sin(k1 * s1)
+        tjx, tjy = c * t0[0] - s * t0[1], s * t0[0] + c * t0[1]
+        # (None also when the junction fell on the end point: no second arc)
+        ok, k2, s2 = arc_through(jx, jy, tjx, tjy, p1[0], p1[1], dist, kmin, kcap)
+        if not ok:
+            continue
+        c, s = math.cos(k2 * s2), math.sin(k2 * s2)
+        tex, tey = c * tjx - s * tjy, s * tjx + c * tjy
+        if abs(tex * t1[1] - tey * t1[0]) > 1e-9 or tex * t1[0] + tey * t1[1] < 0.0:
+            continue
+        m = _last_on_first_arc(uu, vv, k1, s1, k, b, sg)
+        if m > k and not lo_t[m - k - 1] <= k1 <= up_t[m - k - 1]:
+            continue
+        r1 = verify_piece(samples, p0[0], p0[1], t0[0], t0[1], k1, k, m, e, s1, True, False,
+                          tol, step0)
+        if not r1[0]:
+            continue
+        # the second arc starts at the junction, which stands for sample m
+        e_m = math.hypot(samples[m, 0] - jx, samples[m, 1] - jy)
+        r2 = verify_piece(samples, jx, jy, tjx, tjy, k2, m, b, e_m, s2, True, True, tol,
+                          step0)
+        if not r2[0]:
+            continue
+        out[0], out[1], out[2], out[3], out[4], out[5] = k1, s1, jx, jy, tjx, tjy
+        out[6], out[7], out[8], out[9] = r1[4], k2, s2, r2[4]
+        return si, out, m
+    return -1, out, 0

@@ -147,7 +147,7 @@ def unwrap(phi: FloatArray) -> FloatArray:
     return out
 
 
-def sagitta(kappa: float, length: FloatArray) -> FloatArray:
+def sagitta(kappa: float | FloatArray, length: FloatArray) -> FloatArray:
     """Largest distance between an arc of ``length`` and its chord (0 for lines)."""
     b = 0.25 * kappa * np.asarray(length, dtype=np.float64)
     # 2 sin^2(b)/|kappa| written without dividing by kappa

@@ -22,15 +22,9 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from zwcore.arcs._biarc import junction, last_on_first_arc
-from zwcore.arcs._checks import foot_positions, portion_bounds, samples_within, segments_within
+from zwcore.arcs import _biarc, _kernels
 from zwcore.arcs._geometry import (
-    arc_point,
-    arc_points,
-    circle_gap,
-    kappa_bounds,
     local_uv,
-    points_to_segments_distance,
     rotate1,
 )
 
@@ -95,53 +89,19 @@ class ToleranceBand:
         spacing = float(self.cum[-1]) / n_seg
         #: sample stride of the look-ahead scans (about a quarter tolerance)
         self.reach_stride = max(1, int(0.25 * tol / spacing)) if spacing > 0 else 1
+        #: the biarc splits tried, as arrays for the kernel
+        self._splits: dict[tuple[float, ...], FloatArray] = {}
 
     # -- feasibility scans -------------------------------------------------
 
-    def curvature_intervals(
-        self, ps: FloatArray, ts: FloatArray, k: int, hi: int
-    ) -> tuple[FloatArray, FloatArray]:
-        """Running curvature bounds ``(C, hi-k)`` for samples ``k+1..hi``.
-
-        The junctions ``ps, ts`` ``(C, 2)`` stand for sample ``k``. Column ``i``
-        bounds the curvatures that keep samples ``k+1..k+1+i`` in the band; pieces
-        stop being feasible at the first column with ``lo > up``.
-        """
-        pts = self.samples[k + 1 : hi + 1]
-        u, v = local_uv(ps[:, None, :], ts[:, None, :], pts[None, :, :])
-        lo, up = kappa_bounds(u, v, self.work_tol)
-        return np.maximum.accumulate(lo, axis=1), np.minimum.accumulate(up, axis=1)
-
-    def reach(self, ps: FloatArray, ts: FloatArray, k: int, b: int, w0: int) -> NDArray[np.int64]:
+    def reach(self, ps: FloatArray, ts: FloatArray, k: int, b: int) -> NDArray[np.int64]:
         """Last sample index each junction ``(C,)`` at sample ``k`` covers with one piece.
 
-        Interval test only (no verification); ``w0`` is the initial scan window.
+        Interval test only (no verification), every sample scanned.
         """
-        c = len(ps)
-        out = np.full(c, b, dtype=np.int64)
-        todo = np.arange(c)
-        w = max(w0, 32)
-        lo_i = k
-        while todo.size and lo_i < b:
-            hi = min(b, k + w)
-            # keep memory bounded: at most ~4e6 entries per block
-            step = max(1, int(4e6 // max(hi - k, 1)))
-            done_now = []
-            for s0 in range(0, todo.size, step):
-                sub = todo[s0 : s0 + step]
-                lo_c, up_c = self.curvature_intervals(ps[sub], ts[sub], k, hi)
-                bad = lo_c > up_c
-                anyb = bad.any(axis=1)
-                first = np.argmax(bad, axis=1)
-                out[sub[anyb]] = k + first[anyb]
-                done_now.append(sub[anyb])
-            done = np.concatenate(done_now) if done_now else np.zeros(0, dtype=np.int64)
-            todo = np.setdiff1d(todo, done)
-            if hi == b:
-                break
-            w *= 2
-            lo_i = hi
-        return out
+        ks = np.full(len(ps), k, dtype=np.int64)
+        return _kernels.reach_lines(self.samples, np.ascontiguousarray(ps),
+                                    np.ascontiguousarray(ts), ks, b, 1, self.work_tol)[0]
 
     def reach_with_lines(
         self, ps: FloatArray, ts: FloatArray, ks: NDArray[np.int64], b: int
@@ -150,52 +110,16 @@ class ToleranceBand:
 
         Junction ``c`` starts at ``ps[c]`` with tangent ``ts[c]`` standing for sample
         ``ks[c]``. The figures only rank candidates (every piece is verified on all
-        samples), so densely sampled curves are scanned at :attr:`reach_stride`:
-        the work no longer grows with the sampling density.
+        samples), so densely sampled curves are scanned at :attr:`reach_stride`: the
+        work no longer grows with the sampling density. Each junction scans the samples
+        of the grid ``k0+1, k0+1+stride, ...`` (``k0 = ks.min()``) after its own sample
+        and stops where its curvature interval empties; a line is reported while the
+        arc scan still runs (beyond, a line never reaches further than the arcs: a line
+        is one of the circles).
         """
-        c = len(ps)
-        reach = np.full(c, b, dtype=np.int64)
-        lreach = np.full(c, b, dtype=np.int64)
-        if c == 0:
-            return reach, lreach
-        k0 = int(ks.min())
-        stride = self.reach_stride
-        wt = self.work_tol
-        # each junction scans the samples of the grid k0+1, k0+1+stride, ... after its
-        # own sample, window after window, carrying its running bounds (no rescans)
-        pos = k0 + 1 + stride * ((ks - k0 - 1) // stride + 1)
-        lo_run = np.full(c, -np.inf)
-        up_run = np.full(c, np.inf)
-        ltodo = np.ones(c, dtype=bool)
-        todo = np.flatnonzero(pos <= b)
-        w = 64
-        while todo.size:
-            n = max(16, min(max(1, w // stride), int(3e6 // todo.size)))
-            cols = pos[todo, None] + stride * np.arange(n)[None, :]
-            valid = cols <= b
-            u, v = local_uv(ps[todo, None, :], ts[todo, None, :],
-                            self.samples[np.minimum(cols, b)])
-            lo, up = kappa_bounds(u, v, wt)
-            lo = np.maximum(lo_run[todo, None],
-                            np.maximum.accumulate(np.where(valid, lo, -np.inf), axis=1))
-            up = np.minimum(up_run[todo, None],
-                            np.minimum.accumulate(np.where(valid, up, np.inf), axis=1))
-            bad = lo > up
-            anyb = bad.any(axis=1)
-            reach[todo[anyb]] = cols[anyb, np.argmax(bad[anyb], axis=1)] - 1
-            lb = ((np.abs(v) > wt) | (u < -wt)) & valid
-            lsel = lb.any(axis=1) & ltodo[todo]
-            lreach[todo[lsel]] = cols[lsel, np.argmax(lb[lsel], axis=1)] - 1
-            ltodo[todo[lsel]] = False
-            lo_run[todo] = lo[:, -1]
-            up_run[todo] = up[:, -1]
-            pos[todo] += stride * n
-            todo = todo[~anyb & (pos[todo] <= b)]
-            w *= 2
-        # lines are only reported while the arc scan was still running; beyond, a line
-        # never reaches further than the arcs (a line is one of the circles)
-        lreach = np.minimum(lreach, reach)
-        return reach, lreach
+        return _kernels.reach_lines(self.samples, np.ascontiguousarray(ps),
+                                    np.ascontiguousarray(ts), np.asarray(ks, dtype=np.int64),
+                                    b, self.reach_stride, self.work_tol)
 
     def line_reach(self, p: FloatArray, ths: FloatArray, k: int, b: int) -> tuple[int, float]:
         """Longest straight piece from ``p`` (at sample ``k``) over directions ``ths``.
@@ -204,39 +128,22 @@ class ToleranceBand:
         middle of the best range of ``ths``).
         """
         ts = np.stack([np.cos(ths), np.sin(ths)], axis=1)
-        w = 64
-        while True:
-            hi = min(b, k + w)
-            pts = self.samples[k + 1 : hi + 1]
-            u, v = local_uv(p[None, None, :], ts[:, None, :], pts[None, :, :])
-            bad = (np.abs(v) > self.work_tol) | (u < -self.work_tol)
-            anyb = bad.any(axis=1)
-            r = np.where(anyb, k + np.argmax(bad, axis=1), hi)
-            if anyb.all() or hi == b:
-                top = np.flatnonzero(r == r.max())
-                mid = int(top[len(top) // 2])
-                return int(r[mid]), float(ths[mid])
-            w *= 4
+        r = _kernels.line_reaches(self.samples, float(p[0]), float(p[1]), ts, k, b,
+                                  self.work_tol)
+        top = np.flatnonzero(r == r.max())
+        mid = int(top[len(top) // 2])
+        return int(r[mid]), float(ths[mid])
 
     def longest_piece_bounds(
         self, p: FloatArray, t: FloatArray, k: int, b: int
     ) -> tuple[FloatArray, FloatArray]:
         """Running curvature bounds of the longest feasible piece from ``(p, t)``.
 
-        Scans samples ``k+1..b`` in growing windows and cuts the bounds where they
-        become empty: ``len(lo)`` samples after ``k`` are reachable.
+        Scans samples ``k+1..b`` and cuts the bounds where they become empty:
+        ``len(lo)`` samples after ``k`` are reachable.
         """
-        w = 64
-        while True:
-            hi = min(b, k + w)
-            lo_c, up_c = self.curvature_intervals(p[None, :], t[None, :], k, hi)
-            lo1, up1 = lo_c[0], up_c[0]
-            bad = np.flatnonzero(lo1 > up1)
-            if bad.size:
-                return lo1[: bad[0]], up1[: bad[0]]
-            if hi == b:
-                return lo1, up1
-            w *= 4
+        return _kernels.piece_bounds(self.samples, float(p[0]), float(p[1]), float(t[0]),
+                                     float(t[1]), k, b, self.work_tol)
 
     # -- candidate curvatures ----------------------------------------------
 
@@ -267,26 +174,6 @@ class ToleranceBand:
 
     # -- verification ------------------------------------------------------
 
-    def _arc_near_polyline(
-        self, p: FloatArray, t: FloatArray, kappa: float, s0: float, s1: float, a: int, b: int
-    ) -> bool:
-        """Dense check of the arc portion ``[s0, s1]`` against polyline segments ``a..b``."""
-        if s1 <= s0:
-            return True
-        n = math.ceil((s1 - s0) / self.dense_step) + 1
-        if n > 4000:
-            return False
-        step = (s1 - s0) / (n - 1)
-        pts = arc_points(p, t, kappa, np.linspace(s0, s1, n))
-        a = max(a, 0)
-        b = min(b, len(self.samples) - 1)
-        if b <= a:
-            d = np.hypot(pts[:, 0] - self.samples[a, 0], pts[:, 1] - self.samples[a, 1])
-        else:
-            d = points_to_segments_distance(pts, self.samples[a:b], self.samples[a + 1 : b + 1])
-            d = d.min(axis=1)
-        return bool(d.max() <= self.tol - 0.5 * step)
-
     def verify(
         self, p: FloatArray, t: FloatArray, kappa: float, k: int, j: int, e_k: float,
         sig_end: float | None = None, dense_first: bool = False,
@@ -300,48 +187,22 @@ class ToleranceBand:
 
         Returns ``(length, end, e_end)``, or None when a bound exceeds ``tol``. All
         bounds are conservative: a piece that passes is within ``tol`` of the
-        polyline both ways over its extent.
+        polyline both ways over its extent. The bounds: every sample to the piece,
+        the interiors of the polyline segments to the arc (the farthest point of a
+        segment from a circle is an end or the point nearest the centre), and the
+        arc's portions between consecutive foot points to the polyline (the larger
+        end distance plus the portion's sagitta plus the jitter of the foot points);
+        the part of the arc past the last foot point, and with ``dense_first`` the
+        first portion, are measured densely at :attr:`dense_step`
+        (:func:`zwcore.arcs._kernels.verify_piece`).
         """
-        tol = self.tol
-        pts = self.samples[k : j + 1]
-        u, v = local_uv(p, t, pts)
-        g = np.abs(circle_gap(u, v, kappa))
-        sig = foot_positions(u, v, kappa)
-        given_end = sig_end is not None
-        if sig_end is None:
-            sig_end = float(sig[-1])
-        if not sig_end > 0.0 or abs(kappa * sig_end) > 2.0 * math.pi + 1e-9:
+        ok, length, ex, ey, e_end = _kernels.verify_piece(
+            self.samples, float(p[0]), float(p[1]), float(t[0]), float(t[1]), float(kappa),
+            k, j, float(e_k), 0.0 if sig_end is None else float(sig_end),
+            sig_end is not None, dense_first, self.tol, self.dense_step)
+        if not ok:
             return None
-        end = arc_point(p, t, kappa, sig_end)
-        de = np.hypot(pts[:, 0] - end[0], pts[:, 1] - end[1])
-        if not samples_within(u, v, g, sig, sig_end, de, tol):
-            return None
-        if kappa != 0.0 and len(pts) > 1 and not segments_within(
-                u, v, sig, sig_end, p, t, end, kappa, tol, dense_first):
-            return None
-        bound, dphi, phi_c = portion_bounds(pts, sig, sig_end, g, de, e_k, kappa)
-        if dphi.size:
-            mask = dphi > 0.0
-            if dense_first:
-                first = np.flatnonzero(mask)
-                if first.size:
-                    f0 = int(first[0])
-                    mask[f0] = False
-                    if not self._arc_near_polyline(
-                        p, t, kappa, 0.0, float(phi_c[f0 + 1]), k - 1, k + f0 + 2
-                    ):
-                        return None
-            if np.any(bound[mask] > tol):
-                return None
-        tail0 = float(phi_c[-1])
-        if given_end:
-            if tail0 < sig_end and not self._arc_near_polyline(
-                p, t, kappa, tail0, sig_end, j - 1, j + 2
-            ):
-                return None
-        elif tail0 < sig_end * (1.0 - 1e-12):
-            return None
-        return sig_end, end, float(g[-1])
+        return length, np.array([ex, ey]), e_end
 
     def make_piece(
         self, p: FloatArray, t: FloatArray, kappa: float, k: int, j: int,
@@ -366,17 +227,11 @@ class ToleranceBand:
             kap = 0.0
         if not self.radius_ok(kap):
             return None
-        # cheap interval test first: every sample's curvature interval holds kap; in
-        # growing windows, as most states are far from b and fail within the first
-        slack = 1e-12 * abs(kap)
-        i, w = k, 64
-        while i < b:
-            hi = min(b, i + w)
-            u, v = local_uv(p, t, self.samples[i + 1 : hi + 1])
-            lo, up = kappa_bounds(u, v, self.work_tol)
-            if not (float(lo.max()) - slack <= kap <= float(up.min()) + slack):
-                return None
-            i, w = hi, 4 * w
+        # cheap interval test first: every sample's curvature interval holds kap (most
+        # states are far from b and fail within the first few samples)
+        if not _kernels.kappa_fits(self.samples, float(p[0]), float(p[1]), float(t[0]),
+                                   float(t[1]), k, b, self.work_tol, kap, 1e-12 * abs(kap)):
+            return None
         res = self.verify(p, t, kap, k, b, e)
         if res is None:
             return None
@@ -423,61 +278,32 @@ class ToleranceBand:
         given (it then stands for sample ``b``: the second piece's ``e_end`` is their
         distance), else at sample ``b``. The junction is tried at several places
         (``splits``: lengths of the first tangent leg as shares of the chord, by default
-        :attr:`BIARC_SPLITS`); the first verified pair is returned.
+        :attr:`BIARC_SPLITS`); the first verified pair is returned. The first arc stands
+        for the samples whose foot points lie on it (up to sample ``m``); the second
+        starts at the junction, which stands for sample ``m`` at its distance, and its
+        first portion is checked densely (:func:`zwcore.arcs._biarc.biarc`).
         """
         at_sample = p1 is None
         p1 = self.samples[b] if p1 is None else p1
-        vv = p1 - p0
-        dist2 = float(vv @ vv)
-        if dist2 <= 0.0:
+        key = splits if splits is self.BIARC_SPLITS else tuple(splits)
+        arr = self._splits.get(key)
+        if arr is None:
+            arr = self._splits[key] = np.array(key, dtype=np.float64)
+        got, f, m = _biarc.biarc(
+            self.samples, np.asarray(p0, dtype=np.float64), np.asarray(t0, dtype=np.float64),
+            k, float(e), b, np.asarray(t1, dtype=np.float64),
+            np.asarray(p1, dtype=np.float64), arr, self.tol, self.dense_step, self.kmin,
+            self.kcap)
+        if got < 0:
             return None
-        dist = math.sqrt(dist2)
-        # the samples in the start frame, and the curvatures that keep samples k+1..i
-        # within (a hair more than) tol of the first arc's circle: a first arc outside
-        # them fails verification, so it is not verified (most tried splits end there)
-        uu, vv2 = local_uv(p0, t0, self.samples[k : b + 1])
-        lo_t, up_t = kappa_bounds(uu[1:], vv2[1:], self.tol * (1.0 + 1e-6))
-        lo_t = np.maximum.accumulate(lo_t)
-        up_t = np.minimum.accumulate(up_t)
-        for f in splits:
-            jn = junction(p0, t0, p1, t1, f)
-            if jn is None:
-                continue
-            first = self.arc_through(p0, t0, jn, dist)
-            if first is None:
-                continue
-            k1, s1 = first
-            tj = rotate1(t0, k1 * s1)
-            # None also when the junction fell on the end point: no second arc.
-            second = self.arc_through(jn, tj, p1, dist)
-            if second is None:
-                continue
-            k2, s2 = second
-            te = rotate1(tj, k2 * s2)
-            if abs(te[0] * t1[1] - te[1] * t1[0]) > 1e-9 or te @ t1 < 0:
-                continue
-            # split the samples: those whose foot point lies on the first arc
-            m = last_on_first_arc(uu, vv2, k1, s1, k, b)
-            if m > k and not lo_t[m - k - 1] <= k1 <= up_t[m - k - 1]:
-                continue
-            r1 = self.verify(p0, t0, k1, k, m, e, sig_end=s1)
-            if r1 is None:
-                continue
-            # the second arc starts at the junction, which stands for sample m
-            e_m = float(np.hypot(*(self.samples[m] - jn)))
-            r2 = self.verify(jn, tj, k2, m, b, e_m, sig_end=s2, dense_first=True)
-            if r2 is None:
-                continue
-            a1 = self.make_piece(p0, t0, k1, k, m, r1)
-            a1.end = jn
-            a1.t_end = tj
-            a2 = self.make_piece(jn, tj, k2, m, b, r2)
-            a2.end = p1.copy()
-            a2.t_end = t1.copy()
-            if not at_sample:
-                a2.e_end = float(np.hypot(*(self.samples[b] - p1)))
-            return [a1, a2]
-        return None
+        k1, s1, jx, jy, tjx, tjy, e1, k2, s2, e2 = f.tolist()
+        jn = np.array([jx, jy])
+        tj = np.array([tjx, tjy])
+        a1 = Piece(p0, t0, k1, s1, k, m, jn, tj, e1)
+        a2 = Piece(jn, tj, k2, s2, m, b, p1.copy(), t1.copy(), e2)
+        if not at_sample:
+            a2.e_end = float(np.hypot(*(self.samples[b] - p1)))
+        return [a1, a2]
 
 
 def merge_lines(pieces: list[Piece]) -> list[Piece]:

@@ -203,7 +203,8 @@ def prepare(raw: FloatArray, tol: float, closed: bool, corner_angle_deg: float) 
     # densify long polyline segments so junctions can sit between sparse input points
     seg = np.hypot(*(np.diff(poly, axis=0).T))
     nsub = np.maximum(np.ceil(seg / (6.0 * tol)).astype(np.int64), 1)
-    samples = densify(poly, 6.0 * tol) if np.any(nsub > 1) else poly
+    # (C order: the compiled kernels are specialised for it)
+    samples = np.ascontiguousarray(densify(poly, 6.0 * tol) if np.any(nsub > 1) else poly)
     sample_of_input = np.concatenate([[0], np.cumsum(nsub)])
     m_last = len(samples) - 1
     cs = [int(sample_of_input[c]) for c in corners_in]

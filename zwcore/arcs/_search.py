@@ -37,8 +37,9 @@ from zwcore.arcs._geometry import (
     rotate,
 )
 from zwcore.arcs._pieces import Piece, ToleranceBand
+from zwcore.arcs._select import candidates, select_verified
 from zwcore.arcs._start import free_start, free_start_tangents, full_circle, one_piece_to_end
-from zwcore.arcs._states import Cand, State, approx_len, unwind
+from zwcore.arcs._states import Cands, State, approx_lengths, unwind
 from zwcore.arcs._unstick import bridge, fallback
 
 FloatArray = NDArray[np.float64]
@@ -236,8 +237,8 @@ class Fitter:
             return fb[0], []
         return None, [fb[1]]
 
-    def _candidates(self, st: State, b: int) -> list[Cand]:
-        """Candidate pieces from a state (unverified)."""
+    def _candidates(self, si: int, st: State, b: int) -> list[Cands]:
+        """Candidate pieces from state ``si`` of the level, ``st`` (unverified)."""
         p, t, k = st.p, st.t, st.k
         assert t is not None
         jlimit = b - 1
@@ -247,51 +248,49 @@ class Fitter:
         jm = min(k + len(lo1), jlimit)
         if jm <= k:
             return []
-        span = self.cum[jm] - self.cum[k]
-        at = np.searchsorted(self.cum, self.cum[k] + self._j_fractions * span, side="right")
-        js = sorted({min(max(int(i) - 1, k + 1), jm) for i in at}, reverse=True)
-        jj, kk = self._candidate_kappas(js, k, lo1, up1)
-        out = []
-        if jj.size:
-            # all candidates at once (numpy's overhead per call dominates one-point calls):
+        band = self.band
+        if band.kmin > 0.0:
+            span = self.cum[jm] - self.cum[k]
+            at = np.searchsorted(self.cum, self.cum[k] + self._j_fractions * span,
+                                 side="right")
+            js = np.unique(np.clip(at - 1, k + 1, jm))[::-1].tolist()
+            jj, kk = self._capped_kappas(js, k, lo1, up1)
             # the foot point of sample j on each piece, its end point and end tangent
             u, v = local_uv(p, t, self.samples[jj])
             line = kk == 0.0
             sj = np.where(line, u, np.arctan2(kk * u, 1.0 - kk * v) / np.where(line, 1.0, kk))
-            ends = arc_points(p, t, kk, sj)
-            tends = rotate(t, kk * sj)
-            bonus = np.where(line, 0.3 * (self.cum[jj] - self.cum[k]), 0.0).tolist()
-            for i, (j, kap) in enumerate(zip(jj.tolist(), kk.tolist(), strict=True)):
-                out.append(Cand(j, kap, ends[i], tends[i], bonus[i]))
+            ends, tends = arc_points(p, t, kk, sj), rotate(t, kk * sj)
+            bonus = np.where(line, 0.3 * (self.cum[jj] - self.cum[k]), 0.0)
+        else:
+            jj, kk, ends, tends, bonus = candidates(
+                self.samples, self.cum, float(p[0]), float(p[1]), float(t[0]), float(t[1]),
+                k, jm, lo1, up1, self._j_fractions, self._k_fractions, band.kcap)
+        n = len(jj)
+        out = [Cands(np.full(n, si, dtype=np.int64), jj, kk, ends, tends, bonus,
+                     np.full(n, np.nan), np.zeros(n, dtype=bool))]
         if self.straight is not None:
-            for j, kap, end, tend, s_end in self.straight.candidates(p, t, k, b):
-                out.append(Cand(j, kap, end, tend, 0.0, s_end, True))
+            extra = self.straight.candidates(p, t, k, b)
+            if extra:
+                m = len(extra)
+                out.append(Cands(
+                    np.full(m, si, dtype=np.int64), np.array([c[0] for c in extra]),
+                    np.array([c[1] for c in extra]), np.array([c[2] for c in extra]),
+                    np.array([c[3] for c in extra]), np.zeros(m),
+                    np.array([c[4] for c in extra]), np.ones(m, dtype=bool)))
         return out
 
-    def _candidate_kappas(
+    def _capped_kappas(
         self, js: list[int], k: int, lo1: FloatArray, up1: FloatArray
     ) -> tuple[NDArray[np.int64], FloatArray]:
-        """The ends and curvatures of the candidates from a state at sample ``k``:
-        :meth:`ToleranceBand.candidate_kappas` for each end ``j`` of ``js`` (running bounds
-        ``lo1, up1``), in that order, as flat arrays."""
+        """The ends and curvatures of the candidates from a state at sample ``k`` with a
+        radius cap: :meth:`ToleranceBand.candidate_kappas` for each end ``j`` of ``js``
+        (running bounds ``lo1, up1``), in that order, as flat arrays (without a cap:
+        :func:`zwcore.arcs._kernels.candidates`)."""
         band = self.band
-        if band.kmin > 0.0:
-            pairs = [(j, kap) for j in js for kap in band.candidate_kappas(
-                float(lo1[j - k - 1]), float(up1[j - k - 1]))]
-            return (np.array([q[0] for q in pairs], dtype=np.int64),
-                    np.array([q[1] for q in pairs], dtype=np.float64))
-        ja = np.array(js, dtype=np.int64)
-        lo = np.maximum(lo1[ja - k - 1], -band.kcap)
-        hi = np.minimum(up1[ja - k - 1], band.kcap)
-        ok = lo <= hi
-        # per end: a line first when allowed, then the fractions of the interval
-        vals = np.concatenate(
-            [np.zeros((len(ja), 1)),
-             lo[:, None] + self._k_fractions[None, :] * (hi - lo)[:, None]], axis=1)
-        mask = np.concatenate(
-            [(ok & (lo <= 0.0) & (hi >= 0.0))[:, None],
-             np.repeat(ok[:, None], len(self._k_fractions), axis=1)], axis=1)
-        return np.repeat(ja[:, None], vals.shape[1], axis=1)[mask], vals[mask]
+        pairs = [(j, kap) for j in js for kap in band.candidate_kappas(
+            float(lo1[j - k - 1]), float(up1[j - k - 1]))]
+        return (np.array([q[0] for q in pairs], dtype=np.int64).reshape(-1),
+                np.array([q[1] for q in pairs], dtype=np.float64).reshape(-1))
 
     def _expand(self, level: list[State], b: int) -> list[State]:
         """The next level: the best verified pieces from all states, by look-ahead reach.
@@ -300,11 +299,9 @@ class Fitter:
         then candidates rank by the arcs over straight runs in their chain, and landing
         biarcs (:meth:`StraightRuns.landing_biarc`) join one level later.
         """
-        rows: list[tuple[int, Cand]] = []
-        for si, st in enumerate(level):
-            for c in self._candidates(st, b):
-                rows.append((si, c))
-        out: list[State] = self._verified(level, rows, b) if rows else []
+        parts = [c for si, st in enumerate(level) for c in self._candidates(si, st, b)
+                 if len(c)]
+        out: list[State] = self._verified(level, Cands.join(parts), b) if parts else []
         if self.straight is not None:
             out.extend(self._landings(level, b))
         if not out:
@@ -312,70 +309,57 @@ class Fitter:
         return out
 
     def _rank(
-        self, level: list[State], rows: list[tuple[int, Cand]], b: int
-    ) -> tuple[NDArray[np.int64], NDArray[np.int64], FloatArray]:
-        """The order in which the candidates ``rows`` (state index, candidate) are
-        verified, their reach and end tangents ``(C, 2)``."""
+        self, level: list[State], c: Cands, b: int
+    ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+        """The order in which the candidates ``c`` are verified, and their reach."""
         band = self.band
-        ep = np.array([r[1].end for r in rows])
-        et = np.array([r[1].t_end for r in rows])
-        js = np.array([r[1].j for r in rows], dtype=np.int64)
-        reach, lreach = band.reach_with_lines(ep, et, js, b)
+        js = c.j
+        reach, lreach = band.reach_with_lines(c.end, c.t_end, js, b)
         reach = np.where(js >= b, b, reach)
         lreach = np.where(js >= b, b, lreach)
         lscore = self.cum[lreach] + 0.3 * (self.cum[lreach] - self.cum[js])
-        score = np.maximum(self.cum[reach], lscore) + np.array([r[1].bonus for r in rows])
-        isarc = np.array([r[1].kappa != 0.0 for r in rows])
+        score = np.maximum(self.cum[reach], lscore) + c.bonus
+        isarc = c.kappa != 0.0
         sr = self.straight
         if sr is None:
-            return np.lexsort((-js, isarc, -score)), reach, et
-        sp = np.array([level[r[0]].p for r in rows])
-        chord = np.hypot(ep[:, 0] - sp[:, 0], ep[:, 1] - sp[:, 1]).tolist()
-        flat = np.array([
-            c.kappa != 0.0 and sr.is_over(level[si].k, c.j, c.kappa,
-                                          approx_len(c, chord[i]))
-            for i, (si, c) in enumerate(rows)])
-        special = np.array([r[1].special for r in rows])
+            return np.lexsort((-js, isarc, -score)), reach
+        sp = np.array([st.p for st in level])[c.si]
+        chord = np.hypot(c.end[:, 0] - sp[:, 0], c.end[:, 1] - sp[:, 1])
+        ks = np.array([st.k for st in level], dtype=np.int64)[c.si]
+        flat = sr.are_over(ks, js, c.kappa, approx_lengths(c, chord))
         # arcs over straight runs in the chain so far, this candidate's included
-        before = [self._n_over(st) for st in level]
-        n_over = np.array([before[r[0]] for r in rows]) + flat
+        before = np.array([self._n_over(st) for st in level], dtype=np.int64)
+        n_over = before[c.si] + flat
         order = np.lexsort((-js, isarc, -score, n_over))
-        order = np.concatenate([order[special[order]], order[~special[order]]])
-        return order, reach, et
+        order = np.concatenate([order[c.special[order]], order[~c.special[order]]])
+        return order, reach
 
-    def _verified(self, level: list[State], rows: list[tuple[int, Cand]], b: int
-                  ) -> list[State]:
+    def _verified(self, level: list[State], c: Cands, b: int) -> list[State]:
         """The best verified candidates, in the order of :meth:`_rank`, at most
         :attr:`BEAM` of them (pieces onto straight runs at most half of them), one per
-        end state (reach, end sample, end direction)."""
+        end state (reach, end sample, end direction)
+        (:func:`zwcore.arcs._select.select_verified`)."""
         band = self.band
-        order, reach, et = self._rank(level, rows, b)
+        order, reach = self._rank(level, c, b)
         n_special_max = self.BEAM // 2 if self.straight is not None else 0
+        sts = [st.t for st in level]
+        assert all(t is not None for t in sts)
+        got, figs = select_verified(
+            self.samples, order.astype(np.int64), c.si, c.j, c.kappa, c.sig_end, c.special,
+            reach.astype(np.int64), c.t_end, np.array([st.p for st in level]),
+            np.array(sts, dtype=np.float64), np.array([st.k for st in level], dtype=np.int64),
+            np.array([st.e for st in level], dtype=np.float64), self.BEAM, n_special_max,
+            band.tol, band.dense_step)
         out: list[State] = []
-        seen: set[tuple[int, int, int]] = set()
-        checks = 0
-        n_special = 0
-        for i in order:
-            if len(out) >= self.BEAM or checks >= 12 * self.BEAM:
-                break
-            si, c = rows[int(i)]
-            if c.special and n_special >= n_special_max:
-                continue
-            st = level[si]
-            key = (int(reach[i]), c.j, round(math.atan2(et[i][1], et[i][0]) * 1e3))
-            if key in seen:
-                continue
-            checks += 1
+        for i, (length, ex, ey, e_end) in zip(got.tolist(), figs.tolist(), strict=True):
+            st = level[int(c.si[i])]
+            j = int(c.j[i])
             assert st.t is not None
-            res = band.verify(st.p, st.t, c.kappa, st.k, c.j, st.e, sig_end=c.sig_end)
-            if res is None:
-                continue
-            seen.add(key)
-            pc = band.make_piece(st.p, st.t, c.kappa, st.k, c.j, res)
-            if c.special:
-                n_special += 1
-                pc.t_end = c.t_end.copy()  # exactly the anchor's direction
-            out.append(State(pc.end, pc.t_end, c.j, pc.e_end, st, pc, st.t_first,
+            pc = band.make_piece(st.p, st.t, float(c.kappa[i]), st.k, j,
+                                 (length, np.array([ex, ey]), e_end))
+            if c.special[i]:
+                pc.t_end = c.t_end[i].copy()  # exactly the anchor's direction
+            out.append(State(pc.end, pc.t_end, j, pc.e_end, st, pc, st.t_first,
                              st.depth + 1))
         return out
 

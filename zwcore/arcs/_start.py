@@ -16,7 +16,8 @@ from collections.abc import Callable
 import numpy as np
 from numpy.typing import NDArray
 
-from zwcore.arcs._geometry import circle_gap, local_uv
+from zwcore.arcs import _kernels
+from zwcore.arcs._geometry import local_uv
 from zwcore.arcs._pieces import Piece, ToleranceBand
 
 FloatArray = NDArray[np.float64]
@@ -42,7 +43,7 @@ def free_start(band: ToleranceBand, p: FloatArray, k: int, b: int) -> tuple[Floa
     for _ in range(3):
         ths = best_th + np.linspace(-span, span, n)
         ts = np.stack([np.cos(ths), np.sin(ths)], axis=1)
-        r = band.reach(np.repeat(p[None, :], n, axis=0), ts, k, b, 64)
+        r = band.reach(np.repeat(p[None, :], n, axis=0), ts, k, b)
         top = np.flatnonzero(r == r.max())
         # the middle of the best range: robust to the grid and to noise
         mid = int(top[len(top) // 2])
@@ -77,19 +78,11 @@ def one_piece_to_end(
     both ends (golden-section search about ``th_guess``).
     """
     samples = band.samples
-    pts = samples[k + 1 : b + 1]
     dx, dy = samples[b] - p
     chord = math.atan2(dy, dx)
 
     def worst(th: float) -> float:
-        t = np.array([math.cos(th), math.sin(th)])
-        ub, vb = local_uv(p, t, samples[b : b + 1])
-        q2 = float(ub[0] ** 2 + vb[0] ** 2)
-        if q2 <= 0.0:
-            return math.inf
-        kap = float(2.0 * vb[0] / q2)
-        u, v = local_uv(p, t, pts)
-        return float(np.abs(circle_gap(u, v, kap)).max())
+        return _kernels.chord_circle_gap(samples, float(p[0]), float(p[1]), th, k, b)
 
     cands = [chord]
     # golden-section search for the minimax circle through both ends

@@ -3,7 +3,6 @@ pieces proposed from them."""
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -13,7 +12,7 @@ from zwcore.arcs._pieces import Piece
 
 FloatArray = NDArray[np.float64]
 
-__all__ = ["Cand", "State", "approx_len", "unwind"]
+__all__ = ["Cands", "State", "approx_lengths", "unwind"]
 
 
 @dataclass
@@ -42,19 +41,48 @@ class State:
 
 
 @dataclass
-class Cand:
-    """A candidate piece from a state: it ends at ``end`` with tangent ``t_end`` standing
-    for sample ``j``; ``sig_end`` is its length when given (else the foot point of
-    ``j``), ``special`` marks pieces onto straight runs (:class:`StraightRuns`),
-    ``bonus`` is added to its rank score."""
+class Cands:
+    """Candidate pieces from the states of a level, as arrays ``(C,)``: piece ``c``
+    starts from state ``si[c]`` and ends at ``end[c]`` ``(C, 2)`` with tangent ``t_end[c]``
+    standing for sample ``j[c]``; ``sig_end`` is its length when given (NaN: it ends at
+    the foot point of ``j``), ``special`` marks pieces onto straight runs
+    (:class:`~zwcore.arcs._anchors.StraightRuns`), ``bonus`` is added to its rank score."""
 
-    j: int
-    kappa: float
+    si: NDArray[np.int64]
+    j: NDArray[np.int64]
+    kappa: FloatArray
     end: FloatArray
     t_end: FloatArray
-    bonus: float
-    sig_end: float | None = None
-    special: bool = False
+    bonus: FloatArray
+    sig_end: FloatArray
+    special: NDArray[np.bool_]
+
+    def __len__(self) -> int:
+        return len(self.j)
+
+    @staticmethod
+    def join(parts: list[Cands]) -> Cands:
+        """The candidates of ``parts``, in order."""
+        if len(parts) == 1:
+            return parts[0]
+        return Cands(np.concatenate([c.si for c in parts]),
+                     np.concatenate([c.j for c in parts]),
+                     np.concatenate([c.kappa for c in parts]),
+                     np.concatenate([c.end for c in parts]),
+                     np.concatenate([c.t_end for c in parts]),
+                     np.concatenate([c.bonus for c in parts]),
+                     np.concatenate([c.sig_end for c in parts]),
+                     np.concatenate([c.special for c in parts]))
+
+
+def approx_lengths(c: Cands, chord: FloatArray) -> FloatArray:
+    """Lengths ``(C,)`` of the candidates whose chords are ``chord`` long (the given
+    length, or the chord's arc)."""
+    x = 0.5 * c.kappa * chord
+    ax = np.abs(x)
+    arc = chord * np.where(x != 0.0, np.arcsin(np.minimum(ax, 1.0)) / np.where(
+        x != 0.0, ax, 1.0), 1.0)
+    return np.where(np.isnan(c.sig_end), arc, c.sig_end)
 
 
 def unwind(st: State) -> list[Piece]:
@@ -67,12 +95,3 @@ def unwind(st: State) -> list[Piece]:
         node = node.parent
     out.reverse()
     return out
-
-
-def approx_len(c: Cand, chord: float) -> float:
-    """Length of candidate ``c`` whose chord is ``chord`` long (its given length, or the
-    chord's arc)."""
-    if c.sig_end is not None:
-        return c.sig_end
-    x = 0.5 * c.kappa * chord
-    return chord * (math.asin(min(abs(x), 1.0)) / abs(x) if x != 0.0 else 1.0)

@@ -11,6 +11,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from zwcore.arcs._geometry import line_fit, sagitta1
+from zwcore.arcs._kernels import line_spread
 from zwcore.arcs._pieces import Piece
 
 FloatArray = NDArray[np.float64]
@@ -82,7 +83,7 @@ def straight_run(
     band = STRAIGHT_BAND * tol
 
     def straight(i0: int, i1: int) -> bool:
-        return i1 - i0 < 2 or line_fit(samples[i0 : i1 + 1])[2] <= band
+        return i1 - i0 < 2 or line_spread(samples, i0, i1, False, 0.0, 0.0) <= band
 
     # the whole span, else its end parts or its middle half
     q4 = (j - k) // 4
@@ -122,8 +123,8 @@ def straight_run(
 
         def pinned(m: int, pin: int = pin) -> bool:
             lo, hi = (pin, m) if pin == a else (m, pin)
-            return hi - lo < 2 or (
-                line_fit(samples[lo : hi + 1], samples[pin])[2] <= PINNED_BAND * tol)
+            return hi - lo < 2 or line_spread(
+                samples, lo, hi, True, samples[pin, 0], samples[pin, 1]) <= PINNED_BAND * tol
 
         # the longest part of the run from the pinned end that a line through it keeps
         far = i1 if pin == a else i0

@@ -1,0 +1,336 @@
+"""The compiled kernels of the arc fit against their plain-numpy reference
+(``tests/arc_reference.py``, the formulation the fit used before they were compiled).
+
+Scans (reach, running curvature bounds) do the same exact arithmetic, so they must agree
+exactly. The verification and the dense deviation use transcendental functions whose
+last bits differ between numpy's vector loops and libm: a kernel's accept must be a
+reference accept at a hair more tolerance, a kernel's reject a reference reject at a hair
+less, and the figures must agree to rounding.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, assume, given, settings
+from hypothesis import strategies as st
+
+from tests import arc_reference as ref
+from zwcore.arcs import _kernels
+from zwcore.arcs._geometry import (
+    arc_point,
+    arc_points,
+    circle_gap,
+    kappa_bounds,
+    line_fit,
+    local_uv,
+    point_to_arc_distance,
+    points_to_segments_distance,
+)
+from zwcore.arcs._pieces import Piece, ToleranceBand
+from zwcore.arcs._prepare import prepare
+from zwcore.arcs._runs import assemble
+from zwcore.arcs._search import Fitter
+from zwcore.arcs._select import candidates, select_verified
+from zwcore.arcs.verify import densify, deviations
+
+HAIR = 1e-9
+
+
+@st.composite
+def wavy_curves(draw: st.DrawFn) -> tuple[np.ndarray, float]:
+    """A sampled curve (a sum of two waves, with noise) and a tolerance."""
+    n = draw(st.integers(8, 160))
+    step = draw(st.floats(0.02, 1.0))
+    amp = draw(st.floats(0.0, 5.0))
+    wave = draw(st.floats(0.5, 40.0))
+    noise = draw(st.floats(0.0, 0.05))
+    tol = draw(st.floats(0.005, 0.3))
+    seed = draw(st.integers(0, 2**31))
+    rng = np.random.default_rng(seed)
+    x = np.arange(n) * step
+    y = amp * np.sin(x / wave * 2 * math.pi) + 0.3 * amp * np.sin(x / (0.37 * wave))
+    pts = np.stack([x, y], 1) + rng.uniform(-noise, noise, (n, 2))
+    return pts, tol
+
+
+@st.composite
+def junctions(draw: st.DrawFn) -> tuple[np.ndarray, float, np.ndarray, np.ndarray, int]:
+    """A curve, a tolerance and a junction (point near a sample, tangent near the
+    polyline's) at sample ``k``."""
+    pts, tol = draw(wavy_curves())
+    k = draw(st.integers(0, len(pts) - 3))
+    d = pts[k + 1] - pts[k]
+    th = math.atan2(d[1], d[0]) + draw(st.floats(-0.3, 0.3))
+    off = draw(st.floats(-1.0, 1.0)) * tol
+    t = np.array([math.cos(th), math.sin(th)])
+    p = pts[k] + off * np.array([-t[1], t[0]])
+    return pts, tol, p, t, k
+
+
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(junctions(), st.floats(0.5, 1.0), st.integers(1, 5))
+def test_reach_scans_equal_the_reference(case, work, stride):
+    pts, tol, p, t, k = case
+    wt = work * tol
+    b = len(pts) - 1
+    # several junctions at different samples, as the beam ranks them
+    ps = np.array([p, pts[min(k + 1, b)], pts[min(k + 2, b)]])
+    ts = np.array([t, t, t])
+    ks = np.array([k, min(k + 1, b), min(k + 2, b)], dtype=np.int64)
+    got = _kernels.reach_lines(pts, ps, ts, ks, b, stride, wt)
+    want = ref.reach_with_lines(pts, wt, stride, ps, ts, ks, b)
+    np.testing.assert_array_equal(got[0], want[0])
+    np.testing.assert_array_equal(got[1], want[1])
+    lo, up = _kernels.piece_bounds(pts, p[0], p[1], t[0], t[1], k, b, wt)
+    lo_r, up_r = ref.longest_piece_bounds(pts, wt, p, t, k, b)
+    np.testing.assert_array_equal(lo, lo_r)
+    np.testing.assert_array_equal(up, up_r)
+
+
+@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(junctions(), st.floats(0.0, 1.0), st.floats(0.0, 1.0), st.booleans(), st.booleans(),
+       st.floats(0.9, 1.1))
+def test_verify_agrees_with_the_reference(case, fj, fk, given_end, dense_first, stretch):
+    pts, tol, p, t, k = case
+    b = len(pts) - 1
+    lo, up = ref.longest_piece_bounds(pts, tol, p, t, k, b)
+    assume(len(lo) >= 1)
+    # a piece inside the feasible interval of its end sample (passes often), or a bit
+    # outside it (fails often)
+    j = k + 1 + int(fj * (len(lo) - 1))
+    lo_j, up_j = max(lo[j - k - 1], -1e3), min(up[j - k - 1], 1e3)
+    kappa = lo_j + (fk * 1.2 - 0.1) * (up_j - lo_j)
+    e_k = float(np.hypot(*(pts[k] - p)))
+    sig_end = None
+    if given_end:
+        u = float((pts[j] - p) @ t)
+        sig_end = max(u, 1e-6) * stretch
+    band = ToleranceBand(pts, tol, 1.0, None)
+    got = band.verify(p, t, kappa, k, j, e_k, sig_end=sig_end, dense_first=dense_first)
+    args = (p, t, kappa, k, j, e_k, sig_end, dense_first)
+    if got is None:
+        assert ref.verify(pts, tol * (1 - HAIR), band.dense_step, *args) is None
+    else:
+        want = ref.verify(pts, tol * (1 + HAIR), band.dense_step, *args)
+        assert want is not None
+        assert math.isclose(got[0], want[0], rel_tol=1e-12, abs_tol=1e-12)
+        np.testing.assert_allclose(got[1], want[1], rtol=0, atol=1e-11)
+        assert math.isclose(got[2], want[2], rel_tol=1e-9, abs_tol=1e-12)
+
+
+def _pieces(pts: np.ndarray, tol: float, closed: bool) -> tuple[np.ndarray, list[Piece]]:
+    prep = prepare(pts, tol, closed, math.radians(30.0))
+    pieces = assemble(prep, None, True)[0]
+    return prep.samples, pieces
+
+
+@settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(wavy_curves(), st.booleans(), st.floats(-1.0, 1.0))
+def test_dense_deviations_agree_with_the_reference(case, closed, bend):
+    pts, tol = case
+    samples, pieces = _pieces(pts - pts[0], tol, closed)
+    if bend:
+        # a spoilt chain (curvatures changed): the measure must see the violation too
+        spoilt = []
+        for pc in pieces:
+            kap = pc.kappa * (1.0 + 0.2 * bend) + 0.02 * bend / tol
+            end = arc_point(pc.p, pc.t, kap, pc.length)
+            spoilt.append(Piece(pc.p, pc.t, kap, pc.length, pc.k, pc.j, end, pc.t_end,
+                                pc.e_end))
+        pieces = spoilt
+    got = deviations(samples, pieces, tol)
+    want = ref.deviations(samples, pieces, tol)
+    np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-12)
+
+
+def _within_two_sided(pieces: list[Piece], covered: np.ndarray, near: np.ndarray,
+                      tol: float) -> bool:
+    """Brute force: every dense point of the polyline ``covered`` within ``tol`` of the
+    pieces and every dense point of the pieces within ``tol`` of the polyline ``near``
+    (``covered`` and a little around it), with a hair for the sampling."""
+    step = tol / 50.0
+    chain = []
+    for pc in pieces:
+        n = max(math.ceil(pc.length / step), 1) + 1
+        chain.append(arc_points(pc.p, pc.t, pc.kappa, np.linspace(0.0, pc.length, n)))
+    cpts = np.vstack(chain)
+    d_c = points_to_segments_distance(cpts, near[:-1], near[1:]).min(axis=1)
+    dense = densify(covered, step)
+    d_p = np.min([point_to_arc_distance(dense, pc.p, pc.t, pc.kappa, pc.length)
+                  for pc in pieces], axis=0)
+    return bool(d_c.max() <= tol + step and d_p.max() <= tol + step)
+
+
+def test_biarc_second_arc_gets_its_start_distance():
+    """The second arc of a biarc starts at the junction, which stands for sample m: its
+    check uses that sample's distance from the junction (the numpy reference does), and
+    the pair is within the tolerance both ways."""
+    th = np.linspace(0, 1.5, 40)
+    s = np.stack([20 * np.cos(th), 20 * np.sin(th)], 1)
+    s[:, 1] += 0.05 * np.sin(7 * th)
+    band = ToleranceBand(s, 0.1, 0.95, None)
+    t0 = np.array([0.0, 1.0])
+    t1 = np.array([-math.sin(1.2), math.cos(1.2)])
+    got = band.biarc(s[0].copy(), t0, 0, 0.0, 30, t1)
+    want = ref.biarc(s, 0.1, band.dense_step, band.kmin, band.kcap, s[0].copy(), t0, 0, 0.0,
+                     30, t1, None, band.BIARC_SPLITS)
+    assert got is not None and want is not None
+    for a, b in zip(got, want, strict=True):
+        assert (a.k, a.j) == (b.k, b.j)
+        assert a.kappa == pytest.approx(b.kappa, rel=1e-12)
+        assert a.e_end == pytest.approx(b.e_end, rel=1e-9, abs=1e-12)
+    assert _within_two_sided(got, s[: got[1].j + 1], s, 0.1)
+
+
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(junctions(), st.integers(2, 40), st.floats(-0.3, 0.3), st.booleans())
+def test_biarc_agrees_with_the_reference(case, ahead, turn, off_sample):
+    pts, tol, p, t, k = case
+    b = min(k + ahead, len(pts) - 1)
+    assume(b > k + 1)
+    d = pts[b] - pts[b - 1]
+    th = math.atan2(d[1], d[0]) + turn
+    t1 = np.array([math.cos(th), math.sin(th)])
+    p1 = pts[b] + 0.3 * tol * np.array([-t1[1], t1[0]]) if off_sample else None
+    band = ToleranceBand(pts, tol, 0.95, None)
+    e = float(np.hypot(*(pts[k] - p)))
+    got = band.biarc(p, t, k, e, b, t1, p1)
+
+    def reference(scale: float) -> list[Piece] | None:
+        return ref.biarc(pts, tol * scale, band.dense_step, band.kmin, band.kcap, p, t, k, e,
+                         b, t1, p1, band.BIARC_SPLITS)
+
+    if got is None:
+        assert reference(1 - HAIR) is None
+        return
+    want = reference(1 + HAIR)
+    assert want is not None
+    if [(a.k, a.j) for a in want] == [(a.k, a.j) for a in got]:
+        for a, b_ in zip(got, want, strict=True):
+            assert a.kappa == pytest.approx(b_.kappa, rel=1e-9, abs=1e-12)
+            assert a.length == pytest.approx(b_.length, rel=1e-9, abs=1e-12)
+            np.testing.assert_allclose(a.end, b_.end, rtol=0, atol=1e-9)
+    # the pair itself, measured by brute force (the start stands for sample k at
+    # distance e, the end for sample b)
+    near = pts[max(k - 1, 0) : b + 2]
+    assert _within_two_sided(got, pts[k : b + 1], near, tol)
+
+
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(junctions(), st.floats(0.5, 1.0))
+def test_candidates_agree_with_the_reference(case, work):
+    pts, tol, p, t, k = case
+    band = ToleranceBand(pts, tol, work, None)
+    b = len(pts) - 1
+    lo1, up1 = band.longest_piece_bounds(p, t, k, b)
+    jm = min(k + len(lo1), b - 1)
+    assume(jm > k)
+    jf = np.array(Fitter.J_FRACTIONS)
+    kf = np.array(ToleranceBand.K_FRACTIONS)
+    got = candidates(pts, band.cum, p[0], p[1], t[0], t[1], k, jm, lo1, up1, jf, kf,
+                              band.kcap)
+    want = ref.candidates(pts, band.cum, p, t, k, jm, lo1, up1, jf, kf, band.kcap)
+    np.testing.assert_array_equal(got[0], want[0])
+    np.testing.assert_array_equal(got[1], want[1])
+    for a, b_ in zip(got[2:], want[2:], strict=True):
+        np.testing.assert_allclose(a, b_, rtol=1e-12, atol=1e-12)
+
+
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(wavy_curves(), st.integers(0, 200), st.integers(0, 200), st.booleans())
+def test_line_spread_agrees_with_line_fit(case, i, n, pinned):
+    pts, _tol = case
+    i0 = min(i, len(pts) - 1)
+    i1 = min(i0 + n, len(pts) - 1)
+    pivot = pts[i0] if pinned else None
+    want = line_fit(pts[i0 : i1 + 1], pivot)[2]
+    got = _kernels.line_spread(pts, i0, i1, pinned, pts[i0, 0], pts[i0, 1])
+    scale = float(np.abs(pts).max()) + 1.0
+    assert got == pytest.approx(want, rel=1e-9, abs=1e-12 * scale)
+
+
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(junctions(), st.floats(0.0, 1.0), st.floats(-0.2, 1.2))
+def test_kappa_fits_agrees_with_the_intervals(case, fj, fk):
+    pts, tol, p, t, k = case
+    b = len(pts) - 1
+    j = k + 1 + int(fj * (b - k - 1))
+    u, v = local_uv(p, t, pts[k + 1 : j + 1])
+    lo, up = kappa_bounds(u, v, tol)
+    lo_m, up_m = float(lo.max()), float(up.min())
+    assume(math.isfinite(lo_m) and math.isfinite(up_m) and lo_m <= up_m)
+    kappa = lo_m + fk * (up_m - lo_m)
+    want = bool(lo_m <= kappa <= up_m)
+    assert _kernels.kappa_fits(pts, p[0], p[1], t[0], t[1], k, j, tol, kappa, 0.0) == want
+
+
+@settings(max_examples=100, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(junctions(), st.floats(-0.3, 0.3))
+def test_line_reaches_and_chord_circles_agree_with_numpy(case, turn):
+    pts, tol, p, t, k = case
+    b = len(pts) - 1
+    th0 = math.atan2(t[1], t[0])
+    ths = th0 + turn + np.linspace(-0.1, 0.1, 7)
+    ts = np.stack([np.cos(ths), np.sin(ths)], 1)
+    u, v = local_uv(p[None, None, :], ts[:, None, :], pts[None, k + 1 : b + 1, :])
+    bad = (np.abs(v) > tol) | (u < -tol)
+    want = np.where(bad.any(axis=1), k + np.argmax(bad, axis=1), b)
+    np.testing.assert_array_equal(_kernels.line_reaches(pts, p[0], p[1], ts, k, b, tol), want)
+    # the circle through p along th and through sample b: its largest gap to the samples
+    tt = ts[0]
+    ub, vb = local_uv(p, tt, pts[b : b + 1])
+    kap = float(2.0 * vb[0] / (ub[0] ** 2 + vb[0] ** 2))
+    uu, vv = local_uv(p, tt, pts[k + 1 : b + 1])
+    gap = float(np.abs(circle_gap(uu, vv, kap)).max())
+    got = _kernels.chord_circle_gap(pts, p[0], p[1], float(ths[0]), k, b)
+    assert got == pytest.approx(gap, rel=1e-9, abs=1e-12)
+
+
+@settings(max_examples=100, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(junctions(), st.integers(1, 4), st.integers(0, 2**31))
+def test_select_verified_agrees_with_a_python_walk(case, beam, seed):
+    """The compiled walk of a ranking equals the Python loop over ToleranceBand.verify."""
+    pts, tol, p, t, k = case
+    rng = np.random.default_rng(seed)
+    band = ToleranceBand(pts, tol, 0.95, None)
+    b = len(pts) - 1
+    lo1, up1 = band.longest_piece_bounds(p, t, k, b)
+    jm = min(k + len(lo1), b - 1)
+    assume(jm > k)
+    jj, kk, _ends, tends, _bonus = candidates(
+        pts, band.cum, p[0], p[1], t[0], t[1], k, jm, lo1, up1, np.array(Fitter.J_FRACTIONS),
+        np.array(ToleranceBand.K_FRACTIONS), band.kcap)
+    n = len(jj)
+    assume(n > 0)
+    # some candidates spoilt (a curvature off the interval) so that some fail
+    kk = kk * np.where(rng.random(n) < 0.3, 1.5, 1.0)
+    order = rng.permutation(n).astype(np.int64)
+    reach = rng.integers(k, b + 1, n).astype(np.int64)
+    special = rng.random(n) < 0.2
+    sig_end = np.full(n, np.nan)
+    e = float(np.hypot(*(pts[k] - p)))
+    got, figs = select_verified(
+        pts, order, np.zeros(n, dtype=np.int64), jj, kk, sig_end, special, reach, tends,
+        p[None, :].copy(), t[None, :].copy(), np.array([k]), np.array([e]), beam, beam // 2,
+        tol, band.dense_step)
+    want, seen, checks, n_special = [], set(), 0, 0
+    for i in order.tolist():
+        if len(want) >= beam or checks >= 12 * beam:
+            break
+        if special[i] and n_special >= beam // 2:
+            continue
+        key = (int(reach[i]), int(jj[i]), round(math.atan2(tends[i, 1], tends[i, 0]) * 1e3))
+        if key in seen:
+            continue
+        checks += 1
+        res = band.verify(p, t, float(kk[i]), k, int(jj[i]), e)
+        if res is None:
+            continue
+        seen.add(key)
+        want.append((i, res[0]))
+        n_special += bool(special[i])
+    assert got.tolist() == [w[0] for w in want]
+    np.testing.assert_allclose(figs[:, 0], [w[1] for w in want], rtol=1e-12)

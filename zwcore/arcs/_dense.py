@@ -1,0 +1,246 @@
+"""Compiled kernel of :func:`zwcore.arcs.verify.deviations`: the two-sided deviation of a
+chain from its polyline, measured densely.
+
+One loop per piece over the dense points near it, with the exact distance of each point
+to the other side's geometry (arcs, polyline segments); no temporaries, so the dense
+check of a chain costs about as much as the points it samples. The figures are those of
+the numpy formulation kept in ``tests/arc_reference.py`` (property tests compare them).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+from numpy.typing import NDArray
+
+from zwcore.arcs._kernels import arc_xy, circle_gap1, foot_positions, seg_dist
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
+
+__all__ = ["dense_deviations"]
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def point_arc_distance(x: float, y: float, px: float, py: float, tx: float, ty: float,
+                       kappa: float, length: float, ex: float, ey: float,
+                       known: float) -> float:
+    """Exact distance of ``(x, y)`` to the piece from ``p`` along ``t`` of curvature
+    ``kappa`` and arc length ``length`` ending at ``(ex, ey)`` when it is below ``known``
+    (a distance already found); else a figure no smaller than ``known``."""
+    dx = x - px
+    dy = y - py
+    u = dx * tx + dy * ty
+    v = dy * tx - dx * ty
+    if kappa == 0.0:
+        if 0.0 <= u <= length:
+            return abs(v)
+        return min(math.hypot(u, v), math.hypot(x - ex, y - ey))
+    gap = abs(circle_gap1(u, v, kappa))
+    if gap >= known:
+        return gap  # (no closer than the circle: the arc cannot beat ``known``)
+    d_ends = min(math.hypot(u, v), math.hypot(x - ex, y - ey))
+    phi = math.atan2(kappa * u, 1.0 - kappa * v)
+    ang = phi if kappa > 0.0 else -phi
+    if ang < 0.0:
+        ang += 2.0 * math.pi
+    if ang <= abs(kappa * length):
+        return min(gap, d_ends)
+    return d_ends
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _dense_offsets(samples: FloatArray, step: float) -> IntArray:
+    """Index of the first dense point of each polyline segment ``(nseg + 1,)`` (the last
+    entry: the final vertex), segments cut into pieces no longer than ``step``."""
+    nseg = len(samples) - 1
+    off = np.zeros(nseg + 1, dtype=np.int64)
+    for s in range(nseg):
+        seg = math.hypot(samples[s + 1, 0] - samples[s, 0], samples[s + 1, 1] - samples[s, 1])
+        off[s + 1] = off[s] + max(math.ceil(seg / step), 1)
+    return off
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _dense_point(samples: FloatArray, off: IntArray, s: int, i: int) -> tuple[float, float]:
+    """Dense point ``i`` of segment ``s`` (the last one: the final vertex)."""
+    if i >= off[len(off) - 1]:
+        return samples[len(samples) - 1, 0], samples[len(samples) - 1, 1]
+    f = (i - off[s]) / (off[s + 1] - off[s])
+    return (samples[s, 0] + f * (samples[s + 1, 0] - samples[s, 0]),
+            samples[s, 1] + f * (samples[s + 1, 1] - samples[s, 1]))
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _pieces_near(ks: IntArray, js: IntArray, nseg: int) -> tuple[IntArray, IntArray]:
+    """The pieces compared with each polyline segment (those covering samples within two
+    segments of it), as ``(start (nseg + 1,), piece indices)`` (CSR)."""
+    cnt = np.zeros(nseg + 1, dtype=np.int64)
+    for q in range(len(ks)):
+        for s in range(max(ks[q] - 2, 0), min(js[q] + 2, nseg - 1) + 1):
+            cnt[s + 1] += 1
+    for s in range(nseg):
+        cnt[s + 1] += cnt[s]
+    idx = np.empty(cnt[nseg], dtype=np.int64)
+    fill = cnt[:-1].copy()
+    for q in range(len(ks)):
+        for s in range(max(ks[q] - 2, 0), min(js[q] + 2, nseg - 1) + 1):
+            idx[fill[s]] = q
+            fill[s] += 1
+    return cnt, idx
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _to_pieces(geo: FloatArray, qs: IntArray, x: float, y: float) -> float:
+    """Distance of ``(x, y)`` to the pieces ``qs``."""
+    d = np.inf
+    for q in qs:
+        d = min(d, point_arc_distance(x, y, geo[q, 0], geo[q, 1], geo[q, 2], geo[q, 3],
+                                      geo[q, 4], geo[q, 5], geo[q, 6], geo[q, 7], d))
+    return d
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _polyline_to_chain(samples: FloatArray, geo: FloatArray, ks: IntArray, js: IntArray,
+                       off: IntArray, tol: float) -> float:
+    """Largest distance of the dense polyline points to the chain: to the pieces covering
+    samples near each point's segment, to every piece where that exceeds ``tol``.
+
+    Points that cannot raise the maximum are skipped: along one segment the distance to
+    a fixed set of pieces changes no faster than the position (1-Lipschitz), so a point
+    within ``worst - d`` of one measured at ``d`` is no farther than ``worst``.
+    """
+    nseg = len(samples) - 1
+    total = off[nseg] + 1
+    start, idx = _pieces_near(ks, js, nseg)
+    every = np.arange(len(geo))
+    worst = 0.0
+    for s in range(nseg):
+        qs = idx[start[s] : start[s + 1]]
+        # (the final vertex counts as a point of the last segment)
+        hi = off[s + 1] if s < nseg - 1 else total
+        have = False
+        lx = ly = ld = 0.0
+        for i in range(off[s], hi):
+            x, y = _dense_point(samples, off, s, i)
+            if have and ld <= worst:
+                room = worst - ld
+                if (x - lx) * (x - lx) + (y - ly) * (y - ly) <= room * room:
+                    continue
+            d = _to_pieces(geo, qs, x, y)
+            lx, ly, ld, have = x, y, d, True
+            if not d <= tol:
+                d = _to_pieces(geo, every, x, y)
+            worst = max(worst, d)
+    if nseg == 0:
+        worst = _to_pieces(geo, every, samples[0, 0], samples[0, 1])
+    return worst
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _segments_near(samples: FloatArray, x: float, y: float, m: int) -> tuple[float, int]:
+    """Distance of ``(x, y)`` to the polyline segments ``m-3..m+3`` (clipped), and the
+    nearest of them."""
+    nseg = len(samples) - 1
+    d2 = np.inf
+    best = 0
+    for o in range(-3, 4):
+        s = min(max(m + o, 0), nseg - 1)
+        ax, ay = samples[s, 0], samples[s, 1]
+        abx = samples[s + 1, 0] - ax
+        aby = samples[s + 1, 1] - ay
+        den = abx * abx + aby * aby
+        if not den > 0.0:
+            den = 1.0
+        apx = x - ax
+        apy = y - ay
+        f = min(max((apx * abx + apy * aby) / den, 0.0), 1.0)
+        qx = apx - f * abx
+        qy = apy - f * aby
+        if qx * qx + qy * qy < d2:
+            d2 = qx * qx + qy * qy
+            best = s
+    return math.sqrt(d2), best
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _all_segments(samples: FloatArray, x: float, y: float) -> float:
+    d = np.inf
+    for s in range(len(samples) - 1):
+        d = min(d, seg_dist(x, y, samples[s, 0], samples[s, 1], samples[s + 1, 0],
+                            samples[s + 1, 1]))
+    return d
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _chain_to_polyline(samples: FloatArray, geo: FloatArray, ks: IntArray, js: IntArray,
+                       step: float, tol: float) -> float:
+    """Largest distance of the dense chain points to the polyline (near the foot points
+    first, everything where that exceeds ``tol``)."""
+    nseg = len(samples) - 1
+    worst = 0.0
+    for q in range(len(geo)):
+        px, py, tx, ty, kappa, length = geo[q, 0], geo[q, 1], geo[q, 2], geo[q, 3], \
+            geo[q, 4], geo[q, 5]
+        n = max(math.ceil(length / step), 1) + 1
+        k = max(ks[q], 0)
+        j = min(js[q], nseg)
+        nf = max(j - k + 1, 0)
+        u = np.empty(nf)
+        v = np.empty(nf)
+        for i in range(nf):
+            dx = samples[k + i, 0] - px
+            dy = samples[k + i, 1] - py
+            u[i] = dx * tx + dy * ty
+            v[i] = dy * tx - dx * ty
+        foot = np.empty(nf)
+        foot_positions(u, v, kappa, foot)
+        if kappa == 0.0 and nf:
+            foot[0] = u[0]  # (a line's foot positions are u itself, the first one too)
+        for i in range(1, nf):
+            foot[i] = max(foot[i], foot[i - 1])
+        ptr = 0
+        # the last measured point (arc length, distance, nearest segment): the distance
+        # to that segment grows no faster than the arc length (see _polyline_to_chain)
+        have = False
+        ls = ld = 0.0
+        lseg = 0
+        for i in range(n):
+            sg = length if i == n - 1 else i * (length / (n - 1))
+            while ptr < nf and foot[ptr] <= sg:
+                ptr += 1
+            m = k + ptr - 1
+            if (have and i < n - 1 and max(m - 3, 0) <= lseg <= min(m + 3, nseg - 1)
+                    and ld + (sg - ls) <= worst):
+                continue
+            if i == n - 1:
+                x, y = geo[q, 6], geo[q, 7]
+            else:
+                x, y = arc_xy(px, py, tx, ty, kappa, sg)
+            if nseg == 0:
+                d = math.hypot(x - samples[0, 0], y - samples[0, 1])
+            else:
+                d, lseg = _segments_near(samples, x, y, m)
+                ls, ld, have = sg, d, True
+                if not d <= tol:
+                    d = _all_segments(samples, x, y)
+            worst = max(worst, d)
+    return worst
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def dense_deviations(samples: FloatArray, geo: FloatArray, ks: IntArray, js: IntArray,
+                     tol: float, step: float) -> tuple[float, float]:
+    """Dense two-sided deviation ``(polyline -> chain, chain -> polyline)``.
+
+    ``geo`` ``(P, 8)`` holds each piece's start point, start tangent, curvature, length
+    and end point; piece ``q`` stands for samples ``ks[q]..js[q]``. Both sides are sampled
+    at ``step``; each dense point is measured exactly against the nearby part of the other
+    side (an upper bound of its distance), and again against everything where that
+    exceeds ``tol``.
+    """
+    off = _dense_offsets(samples, step)
+    return (_polyline_to_chain(samples, geo, ks, js, off, tol),
+            _chain_to_polyline(samples, geo, ks, js, step, tol))
