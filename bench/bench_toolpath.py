@@ -26,7 +26,7 @@ sys.path.insert(0, str(ROOT))
 from bench.bench_scanline_core import synthetic  # noqa: E402
 from zwcore import ZMap, plan_scanline  # noqa: E402
 from zwcore.toolpath import scanline_toolpaths  # noqa: E402
-from zwcore.toolpath.plans import tool_numbers  # noqa: E402
+from zwcore.toolpath.plans import _refine_tolerance, tool_numbers  # noqa: E402
 from zwcore.toolpath.scanline_paths import scanline_stage_path, sim_cl_heights  # noqa: E402
 
 DATA = next((p for p in (ROOT.parent / "shared" / "data" / "mount_rush_zmap_0.1mm.npy",
@@ -85,15 +85,15 @@ def rushmore() -> None:
     for i, st in enumerate(plan.stages):
         if st.level == plan.depth:
             continue
-        stock = np.full(part.shape, plan.stock_top)
         t = time.perf_counter()
         scanline_stage_path(part, st, i, data[st.tool.id], CL, clearance=plan.stock_top + 5,
-                            chord_tolerance=0.25 * plan.tolerance, stock=stock)
+                            chord_tolerance=0.25 * plan.tolerance, stock_top=plan.stock_top,
+                            refine_tolerance=_refine_tolerance(plan, st))
         a = time.perf_counter() - t
-        stock = np.full(part.shape, plan.stock_top)
         t = time.perf_counter()
         scanline_stage_path(part, st, i, data[st.tool.id], CL, clearance=plan.stock_top + 5,
-                            chord_tolerance=0.25 * plan.tolerance, stock=stock, model=part.z,
+                            chord_tolerance=0.25 * plan.tolerance, stock_top=plan.stock_top,
+                            refine_tolerance=_refine_tolerance(plan, st), model=part.z,
                             spacing=(part.dx, part.dy))
         b = time.perf_counter() - t
         t_model += a

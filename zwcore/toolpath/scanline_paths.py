@@ -21,13 +21,14 @@ from collections.abc import Callable
 import numpy as np
 from numpy.typing import NDArray
 
+from zwcore.errors import InvalidInputError
 from zwcore.grid.tools import Tool
 from zwcore.grid.zmap import ZMap
-from zwcore.scanline.results import ScanLines, ScanlineStage
+from zwcore.scanline.results import ScanlineStage
 from zwcore.sim import drop_cutter
-from zwcore.toolpath._polyline import lift_out_of_part, refine_against_part, thin
-from zwcore.toolpath.program import RAPID, CuttingData, Moves, StagePath
-from zwcore.toolpath.sweep import GridFrame, sweep_moves
+from zwcore.toolpath._polyline import follow_part
+from zwcore.toolpath._scan_links import entry_heights, region_stretches
+from zwcore.toolpath.program import LINE, RAPID, CuttingData, Moves, StagePath
 
 __all__ = ["CLHeights", "scanline_stage_path", "sim_cl_heights"]
 
@@ -74,17 +75,17 @@ class _Polyline:
         part, dec = self.part, self.decimals
         x, y = (u, v) if self.along_x else (v, u)
         pts = np.column_stack([np.round(part.x0 + x, dec), np.round(part.y0 + y, dec), z])
-        pts, su, fx = refine_against_part(pts, su, fixed, breaks, part, self.tool, self.refine,
-                                          self.min_len)
-        pts[:, :2] = np.round(pts[:, :2], dec)
-        keep = thin(su, pts[:, 2], fx, self.chord)
-        out, lift = lift_out_of_part(pts[keep], part, self.tool, decimals=dec)
-        return out, lift, su[keep]
+        out, su, lift = follow_part(pts, su, fixed, breaks, part, self.tool, chord=self.chord,
+                                    refine=self.refine, min_len=self.min_len, decimals=dec)
+        return out, lift, su
 
 
 def _full_lines(cl: F64, rows: F64, sx: float, sy: float, extent: float, ext: float,
-                poly: _Polyline) -> tuple[F64, float, int]:
-    """Whole lines, zig-zag, run past both stock edges (links in air beside the stock)."""
+                poly: _Polyline) -> tuple[F64, float, int, list[F64]]:
+    """Whole lines, zig-zag, run past both stock edges (links in air beside the stock);
+    also each line's final ``(u, z)`` polyline, ``u`` increasing."""
+    if not len(rows):
+        return np.zeros((0, 3)), 0.0, 0, []
     z = _raster(cl, rows)
     cols = np.arange(z.shape[1]) * sx
     u_in = np.concatenate([cols[cols < extent], [extent]])
@@ -106,20 +107,25 @@ def _full_lines(cl: F64, rows: F64, sx: float, sy: float, extent: float, ext: fl
     breaks[n_pts + 1::n_pts + 2] = True  # the links between lines
     pts, lift, _ = poly.points(u_all.ravel(), v_all.ravel(), z_all.ravel(), su.ravel(),
                                fixed.ravel(), breaks)
-    return pts, lift, int(z.size)
+    # a line keeps its offset through the thinning and the splits; links change it
+    x, y = pts[:, 0] - poly.part.x0, pts[:, 1] - poly.part.y0
+    ua, va = (x, y) if poly.along_x else (y, x)
+    per_line = np.split(np.column_stack([ua, pts[:, 2]]), np.flatnonzero(np.diff(va) != 0) + 1)
+    per_line = [q[::-1] if n % 2 else q for n, q in enumerate(per_line)]
+    return pts, lift, int(z.size), per_line
 
 
-def _extra_segments(cl: F64, lines: ScanLines, extra: NDArray[np.intp], sx: float, sy: float,
-                    poly: _Polyline) -> tuple[list[F64], float, int]:
-    """The extra segments as one polyline (breaks between them) through the refine, thin
-    and lift steps, then split again."""
-    rows = _raster(cl, lines.offset[extra] / sy)
+def _segments(cl: F64, offset: F64, start: F64, stop: F64, sx: float, sy: float,
+              poly: _Polyline) -> tuple[list[F64], float, int]:
+    """Line segments (extra lines, region pieces) as one polyline (breaks between them)
+    through the thin and lift steps, then split again."""
+    rows = _raster(cl, offset / sy)
     us, zs, vs = [], [], []
-    for n, j in enumerate(extra):
-        u, z = _along(rows[n], sx, float(lines.start[j]), float(lines.stop[j]))
+    for n in range(len(offset)):
+        u, z = _along(rows[n], sx, float(start[n]), float(stop[n]))
         us.append(u)
         zs.append(z)
-        vs.append(np.full(len(u), lines.offset[j]))
+        vs.append(np.full(len(u), offset[n]))
     sizes = np.array([len(u) for u in us])
     u, z, v = np.concatenate(us), np.concatenate(zs), np.concatenate(vs)
     ends = np.cumsum(sizes)
@@ -136,20 +142,39 @@ def _extra_segments(cl: F64, lines: ScanLines, extra: NDArray[np.intp], sx: floa
     return np.split(pts, cuts), lift, len(u)
 
 
-def _entry_height(stock: F64, part: ZMap, xy: F64, radius: float) -> float:
-    """Highest stock within the tool's reach of ``xy``: a rapid down to above it is in air."""
-    k0 = max(0, int(np.floor((xy[0] - radius - part.x0) / part.dx)))
-    k1 = min(part.shape[1], int(np.ceil((xy[0] + radius - part.x0) / part.dx)) + 1)
-    i0 = max(0, int(np.floor((xy[1] - radius - part.y0) / part.dy)))
-    i1 = min(part.shape[0], int(np.ceil((xy[1] + radius - part.y0) / part.dy)) + 1)
-    window = stock[i0:i1, k0:k1]
-    return float(window.max()) if window.size else -np.inf
+def _segment_moves(segs: list[F64], entry_z: F64, clearance: float) -> Moves:
+    """Each segment: a rapid at the clearance over its start, a rapid down to ``entry_z``,
+    its moves (the first at the plunge feed), a rapid up to the clearance."""
+    sizes = np.array([len(g) for g in segs])
+    starts = np.array([g[0] for g in segs])
+    stops = np.array([g[-1] for g in segs])
+    above = starts.copy()
+    above[:, 2] = clearance
+    down = starts.copy()
+    down[:, 2] = entry_z
+    up = stops.copy()
+    up[:, 2] = clearance
+    # rows per segment: 2 entry rapids, the segment, 1 retract
+    per = sizes + 3
+    first = np.cumsum(per) - per
+    n = int(per.sum())
+    end = np.empty((n, 3))
+    kind = np.full(n, LINE, np.int8)
+    plunge = np.zeros(n, bool)
+    end[first], end[first + 1], end[first + 2 + sizes] = above, down, up
+    kind[first] = kind[first + 1] = kind[first + 2 + sizes] = RAPID
+    plunge[first + 2] = True
+    body = np.repeat(first + 2, sizes) + (np.arange(int(sizes.sum()))
+                                          - np.repeat(np.cumsum(sizes) - sizes, sizes))
+    end[body] = np.vstack(segs)
+    return Moves(kind, end, np.full((n, 2), np.nan), plunge)
 
 
 def scanline_stage_path(part: ZMap, stage: ScanlineStage, index: int, cutting: CuttingData,
                         cl_heights: CLHeights, *, clearance: float, chord_tolerance: float,
-                        stock: F64, refine_tolerance: float | None = None,
+                        stock_top: float, refine_tolerance: float | None = None,
                         model: F64 | None = None, spacing: tuple[float, float] | None = None,
+                        region: NDArray[np.bool_] | None = None,
                         decimals: int = 4) -> StagePath:
     """Tool path of one scan-line stage.
 
@@ -168,9 +193,9 @@ def scanline_stage_path(part: ZMap, stage: ScanlineStage, index: int, cutting: C
         Safe height, mm.
     chord_tolerance : float
         Thinning tolerance, mm (> 0).
-    stock : (ny, nx) float64
-        The stock before the stage at the part's nodes; lowered in place by the stage's
-        moves (extra segments are entered from above the stock they meet).
+    stock_top : float
+        The stock before the program: segments are entered from above the stock, bounded
+        by it and by the stage's whole lines (:func:`~zwcore.toolpath._scan_links.entry_heights`).
     refine_tolerance : float, optional
         Segments whose gouge against the part exceeds this are split (down to a sixteenth
         of the part's spacing) before the lift; default ``chord_tolerance``. A roughing
@@ -178,53 +203,67 @@ def scanline_stage_path(part: ZMap, stage: ScanlineStage, index: int, cutting: C
     model, spacing : optional
         Another model to compute the path on (e.g. the part itself, for comparisons);
         default: the stage's.
+    region : (my, mx) bool, optional
+        Where the stage cuts, on the nodes of the model the path is computed on (e.g. its
+        rest regions): only the stretches of lines over it are cut
+        (:func:`~zwcore.toolpath._scan_links.region_stretches`); default everywhere.
 
     Returns
     -------
     StagePath
-        ``figures``: ``lines``, ``extra_segments``, ``points_before_thinning``,
+        ``figures``: ``lines`` (cut whole), ``extra_segments`` (the plan's), ``segments``
+        (entered from above: extra segments and region stretches), ``points_before_thinning``,
         ``points``, ``max_lift``.
     """
     tool = stage.tool
     mdl = stage.model if model is None else model
     sx, sy = stage.spacing if spacing is None else spacing
     cl = cl_heights(ZMap(mdl, part.x0, part.y0, sx, sy), tool)
+    if region is not None and region.shape != mdl.shape:
+        raise InvalidInputError("region", f"must be a grid of the model's shape {mdl.shape}, "
+                                f"got {region.shape}")
     along_x = stage.scan_direction == "x"
     if not along_x:  # work as if lines ran along x
         cl, sx, sy = cl.T, sy, sx
+        region = None if region is None else region.T
     ny, nx = part.shape
-    extent = (nx - 1) * part.dx if along_x else (ny - 1) * part.dy
+    du, dv, shape_uv = ((part.dx, part.dy, (nx, ny)) if along_x else
+                        (part.dy, part.dx, (ny, nx)))
+    extent = (shape_uv[0] - 1) * du
     lines = stage.lines
     full = (lines.start <= 1e-9) & (lines.stop >= extent - 1e-9)
+    seg_off, seg_a, seg_b = lines.offset[~full], lines.start[~full], lines.stop[~full]
+    if region is not None:  # whole lines inside the region zig-zag, the rest are segments
+        li, a, b = region_stretches(region, lines.offset, lines.start, lines.stop, sx, sy)
+        zig = full[li] & (a <= lines.start[li] + 1e-9) & (b >= lines.stop[li] - 1e-9)
+        full = np.zeros(len(full), bool)
+        full[li[zig]] = True
+        seg_off, seg_a, seg_b = lines.offset[li[~zig]], a[~zig], b[~zig]
     refine = chord_tolerance if refine_tolerance is None else refine_tolerance
     min_len = min(part.dx, part.dy) / 16.0 if refine_tolerance is None else 0.25 * min(sx, sy)
     poly = _Polyline(part, tool, along_x, chord_tolerance, decimals, refine, min_len)
     ext = tool.radius + max(part.dx, part.dy)
-    pts, max_lift, n_raw = _full_lines(cl, lines.offset[full] / sy, sx, sy, extent, ext, poly)
-    frame = GridFrame(part.x0, part.y0, part.dx, part.dy, part.shape)
-    ball = tool.kind == "ball"
-    parts = [Moves.lines(pts[:1], kind=RAPID), Moves.lines(pts[1:])]
-    sweep_moves(frame, pts[:-1], pts[1:], tool.radius, ball, stock)
-    extra = np.flatnonzero(~full)
-    if len(extra):
-        segs, lift, n = _extra_segments(cl, lines, extra, sx, sy, poly)
+    pts, max_lift, n_raw, per_line = _full_lines(cl, lines.offset[full] / sy, sx, sy, extent,
+                                                 ext, poly)
+    parts = [Moves.lines(pts[:1], kind=RAPID), Moves.lines(pts[1:])] if len(pts) else []
+    if len(seg_off):
+        segs, lift, n = _segments(cl, seg_off, seg_a, seg_b, sx, sy, poly)
         max_lift, n_raw = max(max_lift, lift), n_raw + n
-        # entered from above the stock the whole lines left (later segments only lower it)
+        first = np.array([g[0] for g in segs])
+        uv = (first[:, :2] - [part.x0, part.y0]) if along_x else (
+            first[:, 1::-1] - [part.y0, part.x0])
+        top = np.maximum(entry_heights(uv, lines.offset[full], per_line, du, dv, shape_uv,
+                                       tool.radius, stock_top), first[:, 2])
         scale = 10.0 ** decimals
-        # up from the last whole line's exit, then from segment to segment at the clearance
-        parts.append(Moves.lines(np.array([[pts[-1, 0], pts[-1, 1], clearance]]), kind=RAPID))
-        for seg in segs:
-            top = max(_entry_height(stock, part, seg[0, :2], tool.radius), seg[0, 2])
-            air = min(clearance, np.ceil((top + 0.5) * scale) / scale)
-            entry = np.array([[seg[0, 0], seg[0, 1], clearance], [seg[0, 0], seg[0, 1], air]])
-            parts += [Moves.lines(entry, kind=RAPID),
-                      Moves.lines(seg, plunge=np.arange(len(seg)) == 0),
-                      Moves.lines(np.array([[seg[-1, 0], seg[-1, 1], clearance]]), kind=RAPID)]
-        cut = np.vstack([np.vstack([g[:1], g[:-1]]) for g in segs])
-        sweep_moves(frame, cut, np.vstack(segs), tool.radius, ball, stock)
-    start = np.array([pts[0, 0], pts[0, 1], clearance])
+        air = np.minimum(clearance, np.ceil((top + 0.5) * scale) / scale)
+        if len(pts):  # up from the last whole line's exit
+            parts.append(Moves.lines(np.array([[pts[-1, 0], pts[-1, 1], clearance]]),
+                                     kind=RAPID))
+        parts.append(_segment_moves(segs, air, clearance))
     moves = Moves.concat(parts)
-    figures = {"lines": float(full.sum()), "extra_segments": float(len(extra)),
-               "points_before_thinning": float(n_raw), "points": float(len(moves)),
-               "max_lift": max_lift}
+    start = np.array([moves.end[0, 0], moves.end[0, 1], clearance]) if len(moves) else \
+        np.array([part.x0, part.y0, clearance])
+    figures = {"lines": float(full.sum()), "extra_segments": float(stage.extra_segments),
+               "segments": float(len(seg_off)), "points_before_thinning": float(n_raw),
+               "points": float(len(moves)), "max_lift": max_lift}
     return StagePath(index, "scanline", tool, cutting, start, moves, figures)

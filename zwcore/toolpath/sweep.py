@@ -77,11 +77,59 @@ def _node_envelope(qx: float, qy: float, x0: float, y0: float, z0: float, ax: fl
     return z0 + vz * (lo if vz >= 0.0 else hi)
 
 
+@njit(cache=True, nogil=True, fastmath={"contract", "arcp", "reassoc", "nsz"})
+def _row_envelope(qx0: float, dx: float, ka: int, kb: int, wy: float, sx: float, sz: float,
+                  ax: float, ay: float, vz: float, r: float, ball: bool, inv_a: float,
+                  inv_sa: float, kz: float, env: F64) -> None:
+    """``env[k - ka]`` for the nodes ``ka..kb`` of one row and one (not vertical) move: the
+    closed form of :func:`_node_envelope` without branches (unreached nodes get ``inf``),
+    into a scratch row so that the loop vectorises."""
+    a = 1.0 / inv_a
+    reach2 = r * r * (1.0 - 1e-10)
+    for k in range(ka, kb + 1):
+        wx = sx - (qx0 + k * dx)
+        c = wx * wx + wy * wy
+        b = ax * wx + ay * wy
+        t0 = -b * inv_a
+        dmin2 = max(c + b * t0, 0.0)
+        w2 = reach2 - dmin2
+        sw = math.sqrt(max(w2, 0.0))
+        half = sw * inv_sa
+        lo, hi = max(0.0, t0 - half), min(1.0, t0 + half)
+        if ball:
+            ts = min(max(t0 - vz * sw * kz, lo), hi)
+            d2 = a * (ts - t0) ** 2 + dmin2
+            e = sz + vz * ts + r - math.sqrt(max(r * r - d2, 0.0))
+        else:
+            e = sz + vz * (lo if vz >= 0.0 else hi)
+        env[k - ka] = e if (w2 > 0.0 and lo <= hi) else math.inf
+
+
+@njit(cache=True, nogil=True, fastmath={"contract", "arcp", "reassoc", "nsz"})
+def _row_apply(env: F64, ka: int, kb: int, srow: F64, rrow: F64, apply: bool
+               ) -> tuple[float, float]:
+    """Largest stock and reference over the row's envelope; lower the stock to it."""
+    best_s, best_r = -math.inf, -math.inf
+    if apply:
+        for k in range(ka, kb + 1):
+            e = env[k - ka]
+            best_s = max(best_s, srow[k] - e)
+            best_r = max(best_r, rrow[k] - e)
+            srow[k] = min(srow[k], e)
+    else:
+        for k in range(ka, kb + 1):
+            e = env[k - ka]
+            best_s = max(best_s, srow[k] - e)
+            best_r = max(best_r, rrow[k] - e)
+    return best_s, best_r
+
+
 @njit(cache=True, nogil=True, fastmath={"contract", "arcp", "reassoc"})
 def _sweep_kernel(x0: float, y0: float, dx: float, dy: float, p0: F64, p1: F64, r: F64,
                   ball: bool, apply: NDArray[np.bool_], stock: F64, ref: F64,
                   over_stock: F64, over_ref: F64) -> None:
     ny, nx = stock.shape
+    scratch = np.empty(nx)
     for s in range(p0.shape[0]):
         sx, sy, sz = p0[s, 0], p0[s, 1], p0[s, 2]
         ax, ay, vz = p1[s, 0] - sx, p1[s, 1] - sy, p1[s, 2] - sz
@@ -92,6 +140,11 @@ def _sweep_kernel(x0: float, y0: float, dx: float, dy: float, p0: F64, p1: F64, 
         i1 = min(ny - 1, math.floor((max(sy, sy + ay) + rr - y0) / dy))
         best_s, best_r = -math.inf, -math.inf
         ylo, yhi = min(sy, sy + ay), max(sy, sy + ay)
+        a = ax * ax + ay * ay
+        vertical = a <= 1e-18
+        inv_a = 1.0 / a if not vertical else 0.0
+        inv_sa = math.sqrt(inv_a)
+        kz = 1.0 / math.sqrt(a * (a + vz * vz)) if not vertical else 0.0
         for i in range(i0, i1 + 1):
             qy = y0 + i * dy
             # the nodes of this row within R of the move's xy shadow: the part of the move
@@ -107,14 +160,23 @@ def _sweep_kernel(x0: float, y0: float, dx: float, dy: float, p0: F64, p1: F64, 
             xa, xb = sx + ax * ta, sx + ax * tb
             ka = max(k0, math.ceil((min(xa, xb) - w - x0) / dx))
             kb = min(k1, math.floor((max(xa, xb) + w - x0) / dx))
-            for k in range(ka, kb + 1):
-                env = _node_envelope(x0 + k * dx, qy, sx, sy, sz, ax, ay, vz, rr, ball)
-                if env == math.inf:
-                    continue
-                best_s = max(best_s, stock[i, k] - env)
-                best_r = max(best_r, ref[i, k] - env)
-                if apply[s] and env < stock[i, k]:
-                    stock[i, k] = env
+            if kb < ka:
+                continue
+            if vertical:
+                for k in range(ka, kb + 1):
+                    env = _node_envelope(x0 + k * dx, qy, sx, sy, sz, ax, ay, vz, rr, ball)
+                    if env == math.inf:
+                        continue
+                    best_s = max(best_s, stock[i, k] - env)
+                    best_r = max(best_r, ref[i, k] - env)
+                    if apply[s] and env < stock[i, k]:
+                        stock[i, k] = env
+                continue
+            _row_envelope(x0, dx, ka, kb, sy - qy, sx, sz, ax, ay, vz, rr, ball, inv_a, inv_sa,
+                          kz, scratch)
+            bs, br = _row_apply(scratch, ka, kb, stock[i], ref[i], apply[s])
+            best_s = max(best_s, bs)
+            best_r = max(best_r, br)
         over_stock[s] = best_s
         over_ref[s] = best_r
 
