@@ -77,13 +77,62 @@ def thin(u: F64, z: F64, fixed: BOOL, above: float, below: float = 0.0) -> BOOL:
     return keep
 
 
+class PartGouge:
+    """Deepest gouge of moves against the part's nodes, with an optional coarse first look.
+
+    With ``block > 1`` the part is also held as the maxima of ``block x block`` node blocks,
+    one coarse node at each block's centre. Every node of a block lies within
+    ``rho`` (half the block's diagonal) of its centre, so a ball of radius ``R + rho`` whose
+    tip runs ``rho`` lower stays under the ball of radius ``R`` over every node of the
+    block (the larger sphere, same centre, holds the smaller one moved by up to ``rho``; a
+    flat end mill needs no lowering). A move whose coarse measure is ``<= 0`` cannot gouge
+    any node; only the others are swept over the part's own nodes. The values that decide a
+    lift or a split (``> 0``) are always the exact ones, so the path is the same as with
+    ``block = 1``, at a cost that scales with the coarse grid for moves clear of the part.
+    """
+
+    def __init__(self, part: ZMap, tool: Tool, block: int = 1):
+        self.part, self.tool, self.block = part, tool, max(1, int(block))
+        self.ball = tool.kind == "ball"
+        self.frame = GridFrame(part.x0, part.y0, part.dx, part.dy, part.shape)
+        if self.block > 1:
+            b = self.block
+            ny, nx = part.shape
+            my, mx = -(-ny // b), -(-nx // b)
+            pad = np.full((my * b, mx * b), -np.inf)
+            pad[:ny, :nx] = part.z
+            self.coarse = np.ascontiguousarray(pad.reshape(my * b, mx, b).max(axis=2)
+                                               .reshape(my, b, mx).max(axis=1))
+            half = 0.5 * (b - 1)
+            self.coarse_frame = GridFrame(part.x0 + half * part.dx, part.y0 + half * part.dy,
+                                          b * part.dx, b * part.dy, (my, mx))
+            self.rho = half * float(np.hypot(part.dx, part.dy)) * (1.0 + 1e-9) + 1e-12
+
+    def __call__(self, p0: F64, p1: F64) -> F64:
+        """Gouge of each move ``p0[i] -> p1[i]`` (exact where ``> 0``; ``-inf``: reaches
+        no node), mm."""
+        if self.block == 1 or not len(p0):
+            return self._fine(p0, p1)
+        drop = np.array([0.0, 0.0, self.rho if self.ball else 0.0])
+        _, bound = sweep_moves(self.coarse_frame, p0 - drop, p1 - drop,
+                               self.tool.radius + self.rho, self.ball, self.coarse,
+                               ref=self.coarse, apply=False)
+        out = bound.copy()
+        near = np.flatnonzero(bound > 0.0)
+        if len(near):
+            out[near] = self._fine(p0[near], p1[near])
+        return out
+
+    def _fine(self, p0: F64, p1: F64) -> F64:
+        _, gouge = sweep_moves(self.frame, p0, p1, self.tool.radius, self.ball, self.part.z,
+                               ref=self.part.z, apply=False)
+        return gouge
+
+
 def _pair_gouge(p0: F64, p1: F64, part: ZMap, tool: Tool) -> F64:
     """Deepest gouge of each move ``p0[i] -> p1[i]`` against the part's nodes (``-inf``:
     reaches no node), mm."""
-    frame = GridFrame(part.x0, part.y0, part.dx, part.dy, part.shape)
-    _, gouge = sweep_moves(frame, p0, p1, tool.radius, tool.kind == "ball", part.z,
-                           ref=part.z, apply=False)
-    return gouge
+    return PartGouge(part, tool)(p0, p1)
 
 
 def segment_gouge(points: F64, part: ZMap, tool: Tool) -> F64:
@@ -93,7 +142,7 @@ def segment_gouge(points: F64, part: ZMap, tool: Tool) -> F64:
     return _pair_gouge(points[:-1], points[1:], part, tool)
 
 
-def _split(points: F64, u: F64, gouge: F64, breaks: BOOL, part: ZMap, tool: Tool, tol: float,
+def _split(points: F64, u: F64, gouge: F64, breaks: BOOL, measure: PartGouge, tol: float,
            min_len: float, decimals: int, rounds: int) -> tuple[F64, F64, F64]:
     """Halve segments that gouge by more than ``tol`` (midpoint xy at the output precision,
     z on the chord, so each half is measured as it will be written); only new halves are
@@ -106,9 +155,8 @@ def _split(points: F64, u: F64, gouge: F64, breaks: BOOL, part: ZMap, tool: Tool
         at = split + 1
         mid = 0.5 * (points[at - 1] + points[at])
         mid[:, :2] = np.round(mid[:, :2], decimals)
-        g_new = _pair_gouge(np.stack([points[split], mid], axis=1).reshape(-1, 3),
-                            np.stack([mid, points[at]], axis=1).reshape(-1, 3),
-                            part, tool).reshape(-1, 2)
+        g_new = measure(np.stack([points[split], mid], axis=1).reshape(-1, 3),
+                        np.stack([mid, points[at]], axis=1).reshape(-1, 3)).reshape(-1, 2)
         points = np.insert(points, at, mid, axis=0)
         u = np.insert(u, at, 0.5 * (u[at - 1] + u[at]))
         breaks = np.insert(breaks, split, False)
@@ -119,7 +167,7 @@ def _split(points: F64, u: F64, gouge: F64, breaks: BOOL, part: ZMap, tool: Tool
     return points, u, gouge
 
 
-def follow_part(points: F64, u: F64, fixed: BOOL, breaks: BOOL, part: ZMap, tool: Tool, *,
+def follow_part(points: F64, u: F64, fixed: BOOL, breaks: BOOL, measure: PartGouge, *,
                 chord: float, refine: float, min_len: float, decimals: int = 4,
                 rounds: int = 8) -> tuple[F64, F64, float]:
     """Thin a CL polyline, then lift it so that no segment's sweep reaches below the part.
@@ -134,8 +182,8 @@ def follow_part(points: F64, u: F64, fixed: BOOL, breaks: BOOL, part: ZMap, tool
         Vertices that stay (line ends, link ends).
     breaks : (n - 1,) bool
         Segments that are links (never split; their ends are fixed).
-    part : ZMap
-    tool : Tool
+    measure : PartGouge
+        The gouge of moves against the part's nodes (the tool and the part).
     chord : float
         One-sided chordal tolerance of the thinning, mm.
     refine : float
@@ -160,7 +208,7 @@ def follow_part(points: F64, u: F64, fixed: BOOL, breaks: BOOL, part: ZMap, tool
     # lifted by its exact gouge below, so the path ends within ``chord`` above the CL polyline
     keep = thin(u, points[:, 2], fixed, 0.5 * chord, 0.5 * chord)
     idx = np.flatnonzero(keep)
-    gouge = _pair_gouge(points[idx[:-1]], points[idx[1:]], part, tool)
+    gouge = measure(points[idx[:-1]], points[idx[1:]])
     bad = np.flatnonzero((gouge > refine) & ~breaks[idx[:-1]] & (idx[1:] - idx[:-1] > 1))
     if len(bad):  # the dropped points of gouging chords come back
         back = np.zeros(len(points) + 1, np.int64)
@@ -173,10 +221,10 @@ def follow_part(points: F64, u: F64, fixed: BOOL, breaks: BOOL, part: ZMap, tool
         # an unchanged chord keeps its measure; the pieces of returned ones are swept
         g[known] = gouge[np.searchsorted(idx, new[:-1][known])]
         fresh = np.flatnonzero(~known)
-        g[fresh] = _pair_gouge(points[new[fresh]], points[new[fresh + 1]], part, tool)
+        g[fresh] = measure(points[new[fresh]], points[new[fresh + 1]])
         idx, gouge = new, g
     seg_breaks = breaks[idx[:-1]]
-    pts, uu, gouge = _split(points[idx], u[idx], gouge, seg_breaks, part, tool, refine,
+    pts, uu, gouge = _split(points[idx], u[idx], gouge, seg_breaks, measure, refine,
                             min_len, decimals, rounds)
     lift = np.where(gouge > 0.0, gouge, 0.0)
     vert = np.zeros(len(pts))

@@ -17,12 +17,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba import njit
 from numpy.typing import NDArray
 
 F64 = NDArray[np.float64]
-
-#: Entry windows evaluated at once (bounds the temporaries to a few tens of MB).
-_BATCH_NODES = 2_000_000
 
 
 def region_stretches(region: NDArray[np.bool_], offset: F64, start: F64, stop: F64,
@@ -88,36 +86,42 @@ def entry_heights(entries: F64, line_v: F64, line_paths: list[F64], du: float, d
     (m,) float64
         A height the stock within ``radius`` of each entry point does not exceed.
     """
-    n_u, n_v = shape_uv
-    out = np.full(len(entries), -np.inf)
-    if not len(entries):
-        return out
-    # every node within the radius: from floor((e - R) / d), 2 ceil(R / d) + 2 of them
-    win_u = np.arange(2 * math.ceil(radius / du) + 2)
-    win_v = np.arange(2 * math.ceil(radius / dv) + 2)
-    nl = len(line_v)
+    n_u = shape_uv[0]
     u_nodes = np.arange(n_u) * du
     z_line = (np.array([np.interp(u_nodes, p[:, 0], p[:, 1]) for p in line_paths])
-              if nl else np.zeros((0, n_u)))
-    batch = max(1, _BATCH_NODES // (len(win_u) * len(win_v)))
-    for a in range(0, len(entries), batch):
-        e = entries[a:a + batch]
-        ku = np.floor((e[:, 0] - radius) / du).astype(np.int64)[:, None] + win_u  # (b, wu)
-        iv = np.floor((e[:, 1] - radius) / dv).astype(np.int64)[:, None] + win_v  # (b, wv)
-        ok_u = (ku >= 0) & (ku < n_u)
-        ok_v = (iv >= 0) & (iv < n_v)
-        ku = np.clip(ku, 0, n_u - 1)
-        bound = np.full((len(e), len(win_v), len(win_u)), stock_top)
-        if nl:
-            v = iv * dv
-            below = np.searchsorted(line_v, v, side="right") - 1
-            for j in (below, below + 1):  # the nearest whole line on either side
-                jc = np.clip(j, 0, nl - 1)
-                d = np.abs(line_v[jc] - v)
-                near = (j >= 0) & (j < nl) & (d < radius)
-                rise = radius - np.sqrt(np.maximum(radius * radius - d * d, 0.0))
-                cand = z_line[jc[:, :, None], ku[:, None, :]] + rise[:, :, None]
-                bound = np.minimum(bound, np.where(near[:, :, None], cand, np.inf))
-        inside = ok_v[:, :, None] & ok_u[:, None, :]
-        out[a:a + batch] = np.where(inside, bound, -np.inf).max(axis=(1, 2))
+              if len(line_v) else np.zeros((0, n_u)))
+    out = np.empty(len(entries))
+    _entry_kernel(np.ascontiguousarray(entries, np.float64), np.ascontiguousarray(line_v,
+                  np.float64), z_line, du, dv, shape_uv[0], shape_uv[1], float(radius),
+                  float(stock_top), out)
     return out
+
+
+@njit(cache=True, nogil=True)
+def _entry_kernel(entries: F64, line_v: F64, z_line: F64, du: float, dv: float, n_u: int,
+                  n_v: int, radius: float, stock_top: float, out: F64) -> None:
+    """Per entry, the max over the nodes within ``radius`` (a box holding them) of
+    ``min(stock_top, z_line[j] + rise(d_j))`` over the nearest whole line on either side
+    within reach."""
+    nl = len(line_v)
+    r2 = radius * radius
+    for e in range(len(entries)):
+        ue, ve = entries[e, 0], entries[e, 1]
+        k0 = max(0, math.floor((ue - radius) / du))
+        k1 = min(n_u - 1, math.ceil((ue + radius) / du))
+        i0 = max(0, math.floor((ve - radius) / dv))
+        i1 = min(n_v - 1, math.ceil((ve + radius) / dv))
+        best = -math.inf
+        for i in range(i0, i1 + 1):
+            v = i * dv
+            below = np.searchsorted(line_v, v, side="right") - 1
+            for k in range(k0, k1 + 1):
+                bound = stock_top
+                for j in (below, below + 1):
+                    if 0 <= j < nl:
+                        d = abs(line_v[j] - v)
+                        if d < radius:
+                            rise = radius - math.sqrt(max(r2 - d * d, 0.0))
+                            bound = min(bound, z_line[j, k] + rise)
+                best = max(best, bound)
+        out[e] = best

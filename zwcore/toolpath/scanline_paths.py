@@ -26,7 +26,7 @@ from zwcore.grid.tools import Tool
 from zwcore.grid.zmap import ZMap
 from zwcore.scanline.results import ScanlineStage
 from zwcore.sim import drop_cutter
-from zwcore.toolpath._polyline import follow_part
+from zwcore.toolpath._polyline import PartGouge, follow_part
 from zwcore.toolpath._scan_links import entry_heights, region_stretches
 from zwcore.toolpath.program import LINE, RAPID, CuttingData, Moves, StagePath
 
@@ -53,20 +53,48 @@ def _raster(cl: F64, rows: F64) -> F64:
     return (1.0 - t) * cl[r0] + t * cl[r1]
 
 
-def _along(line: F64, sx: float, start: float, stop: float) -> tuple[F64, F64]:
-    """Points of one segment along a CL row: model columns inside, ends interpolated."""
-    cols = np.arange(len(line)) * sx
-    inner = cols[(cols > start) & (cols < stop)]
-    u = np.concatenate([[start], inner, [stop]])
-    return u, np.interp(u, cols, line)
+def _segment_points(cl: F64, offset: F64, start: F64, stop: F64, sx: float, sy: float
+                    ) -> tuple[F64, F64, F64, NDArray[np.int64]]:
+    """Points of line segments on the CL grid: each segment's ends and the model columns
+    strictly inside it, heights bilinear between the CL rows and columns.
+
+    Returns
+    -------
+    u, v, z : (m,) float64
+    sizes : (n,) int64
+        Points per segment (in order).
+    """
+    nr, nc = cl.shape
+    c_lo = np.floor(start / sx).astype(np.int64) + 1
+    c_hi = np.minimum(np.ceil(stop / sx).astype(np.int64) - 1, nc - 1)
+    inner = np.maximum(c_hi - c_lo + 1, 0)
+    sizes = inner + 2
+    first = np.cumsum(sizes) - sizes
+    owner = np.repeat(np.arange(len(offset)), sizes)
+    j = np.arange(int(sizes.sum())) - first[owner]
+    u = (c_lo[owner] + j - 1) * sx
+    u[first] = start
+    u[first + sizes - 1] = stop
+    rows = offset / sy
+    r0 = np.clip(np.floor(rows).astype(np.int64), 0, nr - 1)
+    r1 = np.minimum(r0 + 1, nr - 1)
+    t = (rows - r0)[owner]
+    k = np.clip(np.floor(u / sx).astype(np.int64), 0, max(nc - 2, 0))
+    f = np.clip(u / sx - k, 0.0, 1.0)
+    k1 = np.minimum(k + 1, nc - 1)
+    a, b = r0[owner], r1[owner]
+    left = (1.0 - t) * cl[a, k] + t * cl[b, k]
+    right = (1.0 - t) * cl[a, k1] + t * cl[b, k1]
+    return u, offset[owner], (1.0 - f) * left + f * right, sizes
 
 
 class _Polyline:
     """Builds a path (xy rounded to the output) through the refine, thin and lift steps."""
 
     def __init__(self, part: ZMap, tool: Tool, along_x: bool, chord: float, decimals: int,
-                 refine: float, min_len: float):
+                 refine: float, min_len: float, block: int = 1):
         self.part, self.tool, self.along_x = part, tool, along_x
+        self.measure = PartGouge(part, tool, block)
         self.chord, self.decimals = chord, decimals
         self.refine, self.min_len = refine, min_len
 
@@ -75,7 +103,7 @@ class _Polyline:
         part, dec = self.part, self.decimals
         x, y = (u, v) if self.along_x else (v, u)
         pts = np.column_stack([np.round(part.x0 + x, dec), np.round(part.y0 + y, dec), z])
-        out, su, lift = follow_part(pts, su, fixed, breaks, part, self.tool, chord=self.chord,
+        out, su, lift = follow_part(pts, su, fixed, breaks, self.measure, chord=self.chord,
                                     refine=self.refine, min_len=self.min_len, decimals=dec)
         return out, lift, su
 
@@ -116,18 +144,10 @@ def _full_lines(cl: F64, rows: F64, sx: float, sy: float, extent: float, ext: fl
 
 
 def _segments(cl: F64, offset: F64, start: F64, stop: F64, sx: float, sy: float,
-              poly: _Polyline) -> tuple[list[F64], float, int]:
+              poly: _Polyline) -> tuple[F64, NDArray[np.int64], float, int]:
     """Line segments (extra lines, region pieces) as one polyline (breaks between them)
-    through the thin and lift steps, then split again."""
-    rows = _raster(cl, offset / sy)
-    us, zs, vs = [], [], []
-    for n in range(len(offset)):
-        u, z = _along(rows[n], sx, float(start[n]), float(stop[n]))
-        us.append(u)
-        zs.append(z)
-        vs.append(np.full(len(u), offset[n]))
-    sizes = np.array([len(u) for u in us])
-    u, z, v = np.concatenate(us), np.concatenate(zs), np.concatenate(vs)
+    through the thin and lift steps; returns the points and how many belong to each."""
+    u, v, z, sizes = _segment_points(cl, offset, start, stop, sx, sy)
     ends = np.cumsum(sizes)
     fixed = np.zeros(len(u), bool)
     fixed[ends - 1] = fixed[ends - sizes] = True
@@ -138,22 +158,20 @@ def _segments(cl: F64, offset: F64, start: F64, stop: F64, sx: float, sy: float,
     pts, lift, su_kept = poly.points(u, v, z, su, fixed, breaks)
     # segment n's parameters lie in [n * span + u.min(), (n + 1) * span + u.min())
     owner = np.floor((su_kept - u.min()) / span).astype(np.int64)
-    cuts = np.searchsorted(owner, np.arange(1, len(sizes)))
-    return np.split(pts, cuts), lift, len(u)
+    kept = np.bincount(owner, minlength=len(sizes)).astype(np.int64)
+    return pts, kept, lift, len(u)
 
 
-def _segment_moves(segs: list[F64], entry_z: F64, clearance: float) -> Moves:
-    """Each segment: a rapid at the clearance over its start, a rapid down to ``entry_z``,
-    its moves (the first at the plunge feed), a rapid up to the clearance."""
-    sizes = np.array([len(g) for g in segs])
-    starts = np.array([g[0] for g in segs])
-    stops = np.array([g[-1] for g in segs])
-    above = starts.copy()
-    above[:, 2] = clearance
-    down = starts.copy()
-    down[:, 2] = entry_z
-    up = stops.copy()
-    up[:, 2] = clearance
+def _segment_moves(pts: F64, sizes: NDArray[np.int64], entry_z: F64, clearance: float
+                   ) -> Moves:
+    """Each segment (``sizes`` points of ``pts`` in turn): a rapid at the clearance over its
+    start, a rapid down to ``entry_z``, its moves (the first at the plunge feed), a rapid up
+    to the clearance."""
+    last = np.cumsum(sizes) - 1
+    above = pts[last - sizes + 1].copy()
+    down = above.copy()
+    up = pts[last].copy()
+    above[:, 2], down[:, 2], up[:, 2] = clearance, entry_z, clearance
     # rows per segment: 2 entry rapids, the segment, 1 retract
     per = sizes + 3
     first = np.cumsum(per) - per
@@ -166,7 +184,7 @@ def _segment_moves(segs: list[F64], entry_z: F64, clearance: float) -> Moves:
     plunge[first + 2] = True
     body = np.repeat(first + 2, sizes) + (np.arange(int(sizes.sum()))
                                           - np.repeat(np.cumsum(sizes) - sizes, sizes))
-    end[body] = np.vstack(segs)
+    end[body] = pts
     return Moves(kind, end, np.full((n, 2), np.nan), plunge)
 
 
@@ -241,15 +259,17 @@ def scanline_stage_path(part: ZMap, stage: ScanlineStage, index: int, cutting: C
         seg_off, seg_a, seg_b = lines.offset[li[~zig]], a[~zig], b[~zig]
     refine = chord_tolerance if refine_tolerance is None else refine_tolerance
     min_len = min(part.dx, part.dy) / 16.0 if refine_tolerance is None else 0.25 * min(sx, sy)
-    poly = _Polyline(part, tool, along_x, chord_tolerance, decimals, refine, min_len)
+    # the gouge measure's coarse look: blocks of a quarter of the model's spacing
+    block = max(1, round(0.25 * min(sx / du, sy / dv)))
+    poly = _Polyline(part, tool, along_x, chord_tolerance, decimals, refine, min_len, block)
     ext = tool.radius + max(part.dx, part.dy)
     pts, max_lift, n_raw, per_line = _full_lines(cl, lines.offset[full] / sy, sx, sy, extent,
                                                  ext, poly)
     parts = [Moves.lines(pts[:1], kind=RAPID), Moves.lines(pts[1:])] if len(pts) else []
     if len(seg_off):
-        segs, lift, n = _segments(cl, seg_off, seg_a, seg_b, sx, sy, poly)
+        seg_pts, sizes, lift, n = _segments(cl, seg_off, seg_a, seg_b, sx, sy, poly)
         max_lift, n_raw = max(max_lift, lift), n_raw + n
-        first = np.array([g[0] for g in segs])
+        first = seg_pts[np.cumsum(sizes) - sizes]
         uv = (first[:, :2] - [part.x0, part.y0]) if along_x else (
             first[:, 1::-1] - [part.y0, part.x0])
         top = np.maximum(entry_heights(uv, lines.offset[full], per_line, du, dv, shape_uv,
@@ -259,7 +279,7 @@ def scanline_stage_path(part: ZMap, stage: ScanlineStage, index: int, cutting: C
         if len(pts):  # up from the last whole line's exit
             parts.append(Moves.lines(np.array([[pts[-1, 0], pts[-1, 1], clearance]]),
                                      kind=RAPID))
-        parts.append(_segment_moves(segs, air, clearance))
+        parts.append(_segment_moves(seg_pts, sizes, air, clearance))
     moves = Moves.concat(parts)
     start = np.array([moves.end[0, 0], moves.end[0, 1], clearance]) if len(moves) else \
         np.array([part.x0, part.y0, clearance])
