@@ -121,10 +121,9 @@ def end_to_end_1025() -> None:
 
 
 def main() -> None:
-    # compile the swept-tool kernel outside the timings (numba caches it on disk)
-    from zwcore.toolpath.sweep import GridFrame, sweep_moves
-    sweep_moves(GridFrame(0, 0, 1, 1, (2, 2)), np.zeros((1, 3)), np.ones((1, 3)), 1.0, True,
-                np.zeros((2, 2)))
+    # compile (or load from numba's disk cache) every kernel outside the timings
+    small = synthetic(65)
+    scanline_toolpaths(small, plan_scanline(small), CL)
     if DATA.exists():
         rushmore()
     else:
