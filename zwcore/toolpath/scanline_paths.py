@@ -32,6 +32,9 @@ from zwcore.toolpath.program import LINE, RAPID, CuttingData, Moves, StagePath
 
 __all__ = ["CLHeights", "scanline_stage_path", "sim_cl_heights"]
 
+#: Smallest block (input nodes a side) of the gouge measure's coarse first look.
+BLOCK_MIN = 1
+
 F64 = NDArray[np.float64]
 
 #: ``cl_heights(model, tool)``: tip heights of ``tool`` dropped onto every node of ``model``
@@ -260,7 +263,7 @@ def scanline_stage_path(part: ZMap, stage: ScanlineStage, index: int, cutting: C
     refine = chord_tolerance if refine_tolerance is None else refine_tolerance
     min_len = min(part.dx, part.dy) / 16.0 if refine_tolerance is None else 0.25 * min(sx, sy)
     # the gouge measure's coarse look: blocks of a quarter of the model's spacing
-    block = max(1, round(0.25 * min(sx / du, sy / dv)))
+    block = max(BLOCK_MIN, round(0.25 * min(sx / du, sy / dv)))
     poly = _Polyline(part, tool, along_x, chord_tolerance, decimals, refine, min_len, block)
     ext = tool.radius + max(part.dx, part.dy)
     pts, max_lift, n_raw, per_line = _full_lines(cl, lines.offset[full] / sy, sx, sy, extent,

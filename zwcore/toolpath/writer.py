@@ -36,19 +36,21 @@ def _put_fixed(out: NDArray[np.uint8], at: int, v: int, decimals: int) -> int:
         out[at] = 45  # '-'
         at += 1
         v = -v
-    digits = np.empty(24, np.uint8)
-    n = 0
-    while v > 0 or n <= decimals:
-        digits[n] = 48 + v % 10
-        v //= 10
+    n, w = 1, v // 10  # digits, at least decimals + 1 (a leading 0 before the point)
+    while w > 0:
         n += 1
-    for k in range(n - 1, -1, -1):
-        out[at] = digits[k]
-        at += 1
+        w //= 10
+    n = max(n, decimals + 1)
+    width = n + (1 if decimals > 0 else 0)
+    pos = at + width - 1
+    for k in range(n):  # from the last digit backwards, the point after ``decimals`` of them
         if k == decimals and decimals > 0:
-            out[at] = 46  # '.'
-            at += 1
-    return at
+            out[pos] = 46  # '.'
+            pos -= 1
+        out[pos] = 48 + v % 10
+        v //= 10
+        pos -= 1
+    return at + width
 
 
 @njit(cache=True, nogil=True)
