@@ -158,3 +158,32 @@ def test_a_region_mask_restricts_the_cut_and_keeps_every_guarantee():
     assert any(p.figures["segments"] > 0 for p in tp.stages)
     for p, r in zip(tp.stages, regions, strict=True):  # an empty region: nothing to cut
         assert r.any() or len(p.moves) == 0
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.integers(0, 10_000))
+def test_segment_points_are_the_cl_rows_interpolated(seed):
+    # oracle: per segment, the CL row interpolated between grid rows, then np.interp along it
+    from zwcore.toolpath.scanline_paths import _segment_points
+    rng = np.random.default_rng(seed)
+    cl = rng.normal(size=(9, 13))
+    sx, sy = 0.5, 0.7
+    n = 6
+    offset = rng.uniform(0, 8 * sy, n)
+    a = rng.uniform(0, 12 * sx, n)
+    b = np.minimum(a + rng.uniform(0.01, 4.0, n), 12 * sx)
+    u, v, z, sizes = _segment_points(cl, offset, a, b, sx, sy)
+    cols = np.arange(13) * sx
+    pos = 0
+    for k in range(n):
+        r = offset[k] / sy
+        r0 = int(np.floor(r))
+        r1 = min(r0 + 1, 8)
+        row = (1 - (r - r0)) * cl[r0] + (r - r0) * cl[r1]
+        want_u = np.concatenate([[a[k]], cols[(cols > a[k]) & (cols < b[k])], [b[k]]])
+        got = slice(pos, pos + sizes[k])
+        np.testing.assert_allclose(u[got], want_u, atol=1e-12)
+        np.testing.assert_allclose(z[got], np.interp(want_u, cols, row), atol=1e-12)
+        assert np.all(v[got] == offset[k])
+        pos += sizes[k]
+    assert pos == len(u)
