@@ -5,6 +5,11 @@ subpackages; a refactor that changes a result or a task id fails here. The core
 build (part of every task id, a digest of the core's sources) is held fixed, so
 the pins speak of the request canonicalisation, not of the source text.
 
+Re-pinned on 2026-11-26 (all four result digests): floats are hashed at 9 significant
+digits. The scanline digest had moved with a fresh install of the dependencies alone (same
+code, newer numpy/scipy wheels); mrr, contour and arcs still matched their old full-precision
+digests before the change, and every task id is unchanged.
+
 Re-pinned on purpose: ``scanline`` for issue 16 (extra lines laid by region).
 The stage models and every earlier figure stayed the same; the body gained
 ``path_length``, ``path_length_whole_strips`` and ``extra_segments`` per stage
@@ -50,15 +55,15 @@ REQUESTS: dict[str, tuple[str, dict[str, object]]] = {
 # re-taken then, after checking that the old digests hold with the old names put back.
 PINNED: dict[str, tuple[str, str]] = {
     "mrr": ("b1500866fbd1fdfbf5316dd1ae2173f8c32f5260c9b4e878b3c9f6dba7610746",
-            "31de2fbd8ee47e1e6593e88134fd959409089d4da283a17bb109a8c8cb758d00"),
+            "511b56c84f0f5b7c3b3699bb21052e244b35645644ad5df5ecb96d9ae068b23c"),
     "scanline": ("0d373fe45ad19e3b0af762cc5bf3f023ae1ecd34c414f499db31a0f7bee50cc5",
-                 "96390587b90063e86e0f98a771257ee7bd1d4b19e49f2dfab32bf35d3063c0a3"),
+                 "6f6965e23f778fb0828708f473ed5c1b9878a2e26e94b49d5349b5a07aaf50c5"),
     "contour": ("af4786a3c0c89d765d85abbeb7289898a35f887b14e5abbe03ef564b2b881010",
-                "f790a92b32701ef29a3902d847750f4f75f4a6a57c6834812cb9d5a0fb379987"),
+                "451e40e57762313c96b6500671840cc7a1e474220a35a9f05768aff603afad78"),
     # (re-pinned twice: issue 14 names results by operation id, ``fit_arcs``; issue 15
     # fits a request with ``gcode`` within the tolerance less the rounding budget)
     "arcs": ("23fc3a19a8201f54ca921c00b25d1d1dd04c02411101afc91a73565971f22ff3",
-             "d8242cea8bf415b7c92b55182712186dd852a369dd4dfdabd6976a226a727104"),
+             "a299b79bf449618b7a62e8d7fcac213118073fde0dc315f96339ba597f23283b"),
 }
 
 
@@ -69,6 +74,11 @@ def _digest(body: object) -> str:
                     if k != "task_id" and "seconds" not in k and "elapsed" not in k}
         if isinstance(v, list):
             return [strip(x) for x in v]
+        if isinstance(v, float):
+            # 9 significant digits: a refactor that changes a result changes far more
+            # than the last bits, which differ between numpy/scipy builds (the scanline
+            # digest moved with the environment alone on 2026-11-26).
+            return float(f"{v:.9g}")
         return v
 
     return hashlib.sha256(orjson.dumps(strip(body), option=orjson.OPT_SORT_KEYS)).hexdigest()
