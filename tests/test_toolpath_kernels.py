@@ -187,3 +187,20 @@ def test_segment_points_are_the_cl_rows_interpolated(seed):
         assert np.all(v[got] == offset[k])
         pos += sizes[k]
     assert pos == len(u)
+
+
+def test_finishing_closing_and_its_argmin_against_the_brute_envelope():
+    from tests.test_toolpath import brute_cl, brute_envelope
+    from zwcore.toolpath._scallop import _best_positions, finishing_closing
+    part = _wavy(41, 0.25, 5)
+    tool = Tool("B", "ball", 2.0, 10.0)
+    cl = brute_cl(part, tool)
+    best = finishing_closing(part, tool, cl)
+    np.testing.assert_allclose(best, brute_envelope(cl, part, tool), atol=1e-12)
+    # the argmin position leaves exactly that over its node
+    rng = np.random.default_rng(1)
+    i, k = rng.integers(0, 41, 50), rng.integers(0, 41, 50)
+    ci, ck = _best_positions(part, tool, cl, i, k)
+    d2 = ((ci - i) * part.dy) ** 2 + ((ck - k) * part.dx) ** 2
+    left = cl[ci, ck] + tool.radius - np.sqrt(tool.radius ** 2 - d2)
+    np.testing.assert_allclose(left, best[i, k], atol=1e-12)

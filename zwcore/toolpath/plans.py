@@ -183,7 +183,9 @@ def scanline_toolpaths(part: ZMap, plan: ScanlinePlan, cl_heights: CLHeights = s
                                   chord_tolerance=CHORD_FRACTION * plan.tolerance,
                                   stock_top=plan.stock_top,
                                   refine_tolerance=_refine_tolerance(plan, st),
-                                  region=None if regions is None else regions[i])
+                                  region=None if regions is None else regions[i],
+                                  scallop_tolerance=(plan.tolerance if i == len(plan.stages) - 1
+                                                     else None))
               for i, st in enumerate(plan.stages)]
     timings = [("paths", time.perf_counter() - t)]
     models = [bilinear_at_fine_nodes(st.model, round(st.spacing[0] / part.dx), part.shape)

@@ -27,6 +27,7 @@ from zwcore.grid.zmap import ZMap
 from zwcore.scanline.results import ScanlineStage
 from zwcore.sim import drop_cutter
 from zwcore.toolpath._polyline import PartGouge, follow_part
+from zwcore.toolpath._scallop import fine_points, finishing_closing, scallop_segments
 from zwcore.toolpath._scan_links import entry_heights, region_stretches
 from zwcore.toolpath.program import LINE, RAPID, CuttingData, Moves, StagePath
 
@@ -34,6 +35,8 @@ __all__ = ["CLHeights", "scanline_stage_path", "sim_cl_heights"]
 
 #: Smallest block (input nodes a side) of the gouge measure's coarse first look.
 BLOCK_MIN = 1
+#: Rounds of scallop lines on a finishing pass (each halves the spacing where it is added).
+SCALLOP_ROUNDS = 2
 
 F64 = NDArray[np.float64]
 
@@ -146,11 +149,11 @@ def _full_lines(cl: F64, rows: F64, sx: float, sy: float, extent: float, ext: fl
     return pts, lift, int(z.size), per_line
 
 
-def _segments(cl: F64, offset: F64, start: F64, stop: F64, sx: float, sy: float,
-              poly: _Polyline) -> tuple[F64, NDArray[np.int64], float, int]:
+def _segments(raw: tuple[F64, F64, F64, NDArray[np.int64]], poly: _Polyline
+              ) -> tuple[F64, NDArray[np.int64], float, int]:
     """Line segments (extra lines, region pieces) as one polyline (breaks between them)
     through the thin and lift steps; returns the points and how many belong to each."""
-    u, v, z, sizes = _segment_points(cl, offset, start, stop, sx, sy)
+    u, v, z, sizes = raw
     ends = np.cumsum(sizes)
     fixed = np.zeros(len(u), bool)
     fixed[ends - 1] = fixed[ends - sizes] = True
@@ -191,12 +194,54 @@ def _segment_moves(pts: F64, sizes: NDArray[np.int64], entry_z: F64, clearance: 
     return Moves(kind, end, np.full((n, 2), np.nan), plunge)
 
 
+def _feed_pairs(pts: F64, segs: list[F64]) -> tuple[F64, F64]:
+    """Start and end points of the feed moves of a polyline and of segments."""
+    chains = [c for c in [pts, *segs] if len(c) > 1]
+    if not chains:
+        return np.zeros((0, 3)), np.zeros((0, 3))
+    return (np.vstack([c[:-1] for c in chains]), np.vstack([c[1:] for c in chains]))
+
+
+class _Entered:
+    """Builds segments entered from above (extra lines, region stretches, scallop lines):
+    their points through the thin and lift steps, the entry rapids to above the stock
+    bounded from the stage's whole lines, and the retracts; keeps every segment's points."""
+
+    def __init__(self, part: ZMap, tool: Tool, cl: F64, sx: float, sy: float, poly: _Polyline,
+                 along_x: bool, line_v: F64, per_line: list[F64],
+                 grid: tuple[float, float, tuple[int, int]], stock_top: float,
+                 clearance: float, decimals: int):
+        self.part, self.tool, self.cl, self.sx, self.sy, self.poly = part, tool, cl, sx, sy, poly
+        self.along_x, self.line_v, self.per_line, self.grid = along_x, line_v, per_line, grid
+        self.stock_top, self.clearance, self.decimals = stock_top, clearance, decimals
+        self.points: list[F64] = []
+        self.max_lift, self.n_raw = 0.0, 0
+
+    def __call__(self, off: F64, a: F64, b: F64, fine: bool = False) -> Moves:
+        """Segments ``off, a, b``: CL from the stage's grid, or (``fine``) from the node
+        drop-cutter every quarter of an input step."""
+        part, (du, dv, shape_uv) = self.part, self.grid
+        raw = (fine_points(part, self.tool, off, a, b, self.along_x, 0.25 * min(du, dv))
+               if fine else _segment_points(self.cl, off, a, b, self.sx, self.sy))
+        seg_pts, sizes, lift, n = _segments(raw, self.poly)
+        self.max_lift, self.n_raw = max(self.max_lift, lift), self.n_raw + n
+        self.points += np.split(seg_pts, np.cumsum(sizes)[:-1])
+        first = seg_pts[np.cumsum(sizes) - sizes]
+        uv = (first[:, :2] - [part.x0, part.y0]) if self.along_x else (
+            first[:, 1::-1] - [part.y0, part.x0])
+        top = np.maximum(entry_heights(uv, self.line_v, self.per_line, du, dv, shape_uv,
+                                       self.tool.radius, self.stock_top), first[:, 2])
+        scale = 10.0 ** self.decimals
+        air = np.minimum(self.clearance, np.ceil((top + 0.5) * scale) / scale)
+        return _segment_moves(seg_pts, sizes, air, self.clearance)
+
+
 def scanline_stage_path(part: ZMap, stage: ScanlineStage, index: int, cutting: CuttingData,
                         cl_heights: CLHeights, *, clearance: float, chord_tolerance: float,
                         stock_top: float, refine_tolerance: float | None = None,
                         model: F64 | None = None, spacing: tuple[float, float] | None = None,
                         region: NDArray[np.bool_] | None = None,
-                        decimals: int = 4) -> StagePath:
+                        scallop_tolerance: float | None = None, decimals: int = 4) -> StagePath:
     """Tool path of one scan-line stage.
 
     Parameters
@@ -228,18 +273,28 @@ def scanline_stage_path(part: ZMap, stage: ScanlineStage, index: int, cutting: C
         Where the stage cuts, on the nodes of the model the path is computed on (e.g. its
         rest regions): only the stretches of lines over it are cut
         (:func:`~zwcore.toolpath._scan_links.region_stretches`); default everywhere.
+    scallop_tolerance : float, optional
+        For a finishing pass on the input's nodes, without a region: the pass's moves are
+        swept over the part's nodes and segments added where they leave more than this
+        above what its CL allows (:mod:`~zwcore.toolpath._scallop`), up to
+        :data:`SCALLOP_ROUNDS` times.
 
     Returns
     -------
     StagePath
         ``figures``: ``lines`` (cut whole), ``extra_segments`` (the plan's), ``segments``
-        (entered from above: extra segments and region stretches), ``points_before_thinning``,
-        ``points``, ``max_lift``.
+        (entered from above: extra segments and region stretches), ``scallop_segments``
+        (added from the simulated scallop), ``points_before_thinning``, ``points``,
+        ``max_lift``.
     """
     tool = stage.tool
     mdl = stage.model if model is None else model
     sx, sy = stage.spacing if spacing is None else spacing
     cl = cl_heights(ZMap(mdl, part.x0, part.y0, sx, sy), tool)
+    # the CL on the part's own nodes (a finishing pass): the scallop pass can compare with it
+    on_nodes = (abs(sx - part.dx) <= 1e-9 * part.dx and abs(sy - part.dy) <= 1e-9 * part.dy
+                and cl.shape[0] >= part.shape[0] and cl.shape[1] >= part.shape[1])
+    cl_nodes = cl  # before any transposition
     if region is not None and region.shape != mdl.shape:
         raise InvalidInputError("region", f"must be a grid of the model's shape {mdl.shape}, "
                                 f"got {region.shape}")
@@ -269,24 +324,37 @@ def scanline_stage_path(part: ZMap, stage: ScanlineStage, index: int, cutting: C
     pts, max_lift, n_raw, per_line = _full_lines(cl, lines.offset[full] / sy, sx, sy, extent,
                                                  ext, poly)
     parts = [Moves.lines(pts[:1], kind=RAPID), Moves.lines(pts[1:])] if len(pts) else []
+    entered = _Entered(part, tool, cl, sx, sy, poly, along_x, lines.offset[full], per_line,
+                       (du, dv, shape_uv), stock_top, clearance, decimals)
     if len(seg_off):
-        seg_pts, sizes, lift, n = _segments(cl, seg_off, seg_a, seg_b, sx, sy, poly)
-        max_lift, n_raw = max(max_lift, lift), n_raw + n
-        first = seg_pts[np.cumsum(sizes) - sizes]
-        uv = (first[:, :2] - [part.x0, part.y0]) if along_x else (
-            first[:, 1::-1] - [part.y0, part.x0])
-        top = np.maximum(entry_heights(uv, lines.offset[full], per_line, du, dv, shape_uv,
-                                       tool.radius, stock_top), first[:, 2])
-        scale = 10.0 ** decimals
-        air = np.minimum(clearance, np.ceil((top + 0.5) * scale) / scale)
         if len(pts):  # up from the last whole line's exit
             parts.append(Moves.lines(np.array([[pts[-1, 0], pts[-1, 1], clearance]]),
                                      kind=RAPID))
-        parts.append(_segment_moves(seg_pts, sizes, air, clearance))
+        parts.append(entered(seg_off, seg_a, seg_b))
+    n_scallop = 0
+    if scallop_tolerance is not None and region is None and on_nodes:
+        env = np.full(part.shape, np.inf)
+        node_cl = np.ascontiguousarray(cl_nodes[:part.shape[0], :part.shape[1]])
+        best = finishing_closing(part, tool, node_cl)
+        p0, p1 = _feed_pairs(pts, entered.points)
+        for _ in range(SCALLOP_ROUNDS):
+            new = scallop_segments(part, tool, env, p0, p1, best, node_cl, scallop_tolerance,
+                                   along_x)
+            if not len(new[0]):
+                break
+            seen = len(entered.points)
+            if not seen and len(pts):
+                parts.append(Moves.lines(np.array([[pts[-1, 0], pts[-1, 1], clearance]]),
+                                         kind=RAPID))
+            parts.append(entered(*new, fine=True))
+            n_scallop += len(new[0])
+            p0, p1 = _feed_pairs(np.zeros((0, 3)), entered.points[seen:])
+    max_lift, n_raw = max(max_lift, entered.max_lift), n_raw + entered.n_raw
     moves = Moves.concat(parts)
     start = np.array([moves.end[0, 0], moves.end[0, 1], clearance]) if len(moves) else \
         np.array([part.x0, part.y0, clearance])
     figures = {"lines": float(full.sum()), "extra_segments": float(stage.extra_segments),
-               "segments": float(len(seg_off)), "points_before_thinning": float(n_raw),
+               "segments": float(len(seg_off)), "scallop_segments": float(n_scallop),
+               "points_before_thinning": float(n_raw),
                "points": float(len(moves)), "max_lift": max_lift}
     return StagePath(index, "scanline", tool, cutting, start, moves, figures)
