@@ -59,9 +59,9 @@ def rushmore() -> None:
     print(f"verification: gouge {chk.gouge:.2e} mm, moves below part {chk.below_part_moves}, "
           f"rapids in material {chk.rapid_in_material:.2e} mm, final over part max "
           f"{chk.final_over_part_max:.3f} / p95 {chk.final_over_part_p95:.4f} mm")
-    print("| stage | tool | level | lines | extra | points | feed m | air m | rapid m | "
-          "min | over model p95 mm |")
-    print("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |")
+    print("| stage | tool | level | lines | segments | scallop | points | feed m | air m | "
+          "rapid m | min | over model p95 mm |")
+    print("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |")
     merged = iter(chk.stages)
     sc = None
     for i, (st, p, fig) in enumerate(zip(plan.stages, tp.stages, tp.stage_figures(),
@@ -70,7 +70,8 @@ def rushmore() -> None:
             sc = next(merged)
         assert sc is not None
         print(f"| {i} | {st.tool.id} | {st.level} | {p.figures['lines']:.0f} | "
-              f"{p.figures['extra_segments']:.0f} | {p.figures['points']:.0f} | "
+              f"{p.figures['segments']:.0f} | {p.figures['scallop_segments']:.0f} | "
+              f"{p.figures['points']:.0f} | "
               f"{fig['feed_length'] / 1000:.2f} | {sc.air_feed_length / 1000:.2f} | "
               f"{fig['rapid_length'] / 1000:.2f} | {fig['time_min']:.1f} | "
               f"{sc.over_model_p95 if sc.over_model_p95 is not None else float('nan'):.3f} |")
