@@ -6,6 +6,7 @@ swept, and a stage restricted to a hand-made region mask, simulated from its pro
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -204,3 +205,25 @@ def test_finishing_closing_and_its_argmin_against_the_brute_envelope():
     d2 = ((ci - i) * part.dy) ** 2 + ((ck - k) * part.dx) ** 2
     left = cl[ci, ck] + tool.radius - np.sqrt(tool.radius ** 2 - d2)
     np.testing.assert_allclose(left, best[i, k], atol=1e-12)
+
+
+RUSHMORE = Path(__file__).resolve().parents[2] / "shared" / "data" / "mount_rush_zmap_0.1mm.npy"
+
+
+@pytest.mark.skipif(not RUSHMORE.exists(), reason="shared data not available")
+def test_mount_rushmore_crop_program_read_back_and_simulated_never_gouges():
+    # a 12.8 x 25.6 mm window of the face at 0.1 mm, planned as a part of its own: the
+    # program's own text read back and simulated at the input resolution
+    z = np.load(RUSHMORE).astype(np.float64)[150:279, 300:557]
+    part = ZMap(z, 0.0, 0.0, 0.1, 0.1)
+    plan = plan_scanline(part)
+    tp = scanline_toolpaths(part, plan)
+    chk = tp.check
+    assert chk is not None
+    assert chk.gouge <= 1e-9 and chk.below_part_moves == 0 and chk.rapid_in_material == 0.0
+    prog = parse_program(tp.program)
+    assert prog.ended and prog.arc_radius_mismatch == 0.0
+    # every tool of the plan runs, in the plan's order, and its stretch's stock ends above
+    # the part everywhere
+    assert len(chk.stages) == len({s.tool.id for s in plan.stages})
+    assert np.all(chk.machined >= part.z - 1e-9)
