@@ -227,3 +227,22 @@ def test_mount_rushmore_crop_program_read_back_and_simulated_never_gouges():
     # the part everywhere
     assert len(chk.stages) == len({s.tool.id for s in plan.stages})
     assert np.all(chk.machined >= part.z - 1e-9)
+
+
+@pytest.mark.parametrize("coords", [
+    (1.03, 1.03, 0.44, 1.03, 1.03, 1.03),  # vertical, a row exactly R = 1.03 below the tip
+    (1.016, 0.52375, 0.52375, -3.75e-200, 0.52375, -3.75e-200),
+    (0.9153, 0.9153, 2.3698, 3.0, 1.98886, 0.9153)])
+def test_sweep_at_rows_exactly_a_radius_away(coords):
+    # with fused multiply-adds R^2 - d^2 came out just below 0 there: a NaN column bound
+    # made a range wrap around (a crash); now the nodes are the sampled envelope's
+    from tests.test_toolpath import sampled_envelope
+    frame = GridFrame(-4.0, -4.0, 0.25, 0.25, (33, 33))
+    p0, p1 = np.array(coords[:3]), np.array(coords[3:])
+    r = float(coords[1]) if coords[1] > 0.3 else 0.5237533164272623
+    for ball in (True, False):
+        stock = np.full(frame.shape, 100.0)
+        sweep_moves(frame, p0[None], p1[None], r, ball, stock)
+        oracle = sampled_envelope(frame, p0, p1, r, ball)
+        hit = np.isfinite(oracle)
+        assert np.all(stock[hit] <= oracle[hit] + 1e-9)

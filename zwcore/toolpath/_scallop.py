@@ -111,8 +111,8 @@ def node_drop_cutter(part: ZMap, tool: Tool, x: F64, y: F64) -> F64:
     (``-inf`` where it reaches none), ``(n,)``."""
     out = np.empty(len(x))
     _drop_kernel(np.ascontiguousarray(x, np.float64), np.ascontiguousarray(y, np.float64),
-                 np.ascontiguousarray(part.z, np.float64), part.x0, part.y0, part.dx, part.dy,
-                 tool.radius, tool.kind == "ball", out)
+                 np.ascontiguousarray(part.z, np.float64), float(part.x0), float(part.y0),
+                 float(part.dx), float(part.dy), float(tool.radius), tool.kind == "ball", out)
     return out
 
 

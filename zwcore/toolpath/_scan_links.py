@@ -92,7 +92,8 @@ def entry_heights(entries: F64, line_v: F64, line_paths: list[F64], du: float, d
               if len(line_v) else np.zeros((0, n_u)))
     out = np.empty(len(entries))
     _entry_kernel(np.ascontiguousarray(entries, np.float64), np.ascontiguousarray(line_v,
-                  np.float64), z_line, du, dv, shape_uv[0], shape_uv[1], float(radius),
+                  np.float64), np.ascontiguousarray(z_line, np.float64), float(du), float(dv),
+                  int(shape_uv[0]), int(shape_uv[1]), float(radius),
                   float(stock_top), out)
     return out
 

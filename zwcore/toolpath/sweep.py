@@ -156,7 +156,8 @@ def _sweep_kernel(x0: float, y0: float, dx: float, dy: float, p0: F64, p1: F64, 
             dyo = max(0.0, ylo - qy, qy - yhi)
             if dyo > rr:
                 continue
-            w = math.sqrt(rr * rr - dyo * dyo)
+            # (clamped: with fused multiply-adds a row exactly R away can come out just below 0)
+            w = math.sqrt(max(rr * rr - dyo * dyo, 0.0))
             ta, tb = 0.0, 1.0
             if abs(ay) > 1e-12:
                 ta, tb = (qy - rr - sy) / ay, (qy + rr - sy) / ay
@@ -164,6 +165,8 @@ def _sweep_kernel(x0: float, y0: float, dx: float, dy: float, p0: F64, p1: F64, 
             xa, xb = sx + ax * ta, sx + ax * tb
             ka = max(k0, math.ceil((min(xa, xb) - w - x0) / dx))
             kb = min(k1, math.floor((max(xa, xb) + w - x0) / dx))
+            if kb < ka:  # never a range from a huge negative bound (it would wrap around)
+                continue
             for k in range(ka, kb + 1):
                 wxs[m] = sx - (x0 + k * dx)
                 wys[m] = sy - qy
@@ -225,8 +228,10 @@ def sweep_moves(frame: GridFrame, p0: F64, p1: F64, radius: F64 | float, ball: b
     p0 = np.ascontiguousarray(p0, dtype=np.float64).reshape(-1, 3)
     p1 = np.ascontiguousarray(p1, dtype=np.float64).reshape(-1, 3)
     n = len(p0)
-    r = np.ascontiguousarray(np.broadcast_to(np.asarray(radius, np.float64), (n,)))
-    app = np.ascontiguousarray(np.broadcast_to(np.asarray(apply, bool), (n,)))
+    # fresh writable copies (a broadcast view of one element would be read-only: another
+    # numba signature)
+    r = np.array(np.broadcast_to(np.asarray(radius, np.float64), (n,)), dtype=np.float64)
+    app = np.array(np.broadcast_to(np.asarray(apply, bool), (n,)), dtype=np.bool_)
     if stock.shape != frame.shape or not stock.flags.c_contiguous:
         raise ValueError("stock must be a C-contiguous grid of the frame's shape")
     refg = stock if ref is None else np.ascontiguousarray(ref, dtype=np.float64)
@@ -235,7 +240,11 @@ def sweep_moves(frame: GridFrame, p0: F64, p1: F64, radius: F64 | float, ball: b
     if not n:
         return over_s, over_r
     ny = frame.shape[0]
-    args = (frame.x0, frame.y0, frame.dx, frame.dy)
+    # one signature for every caller: numba's disk cache is shared by processes (xdist
+    # workers, service workers), and two processes adding different signatures at once
+    # can leave an index pointing at the other's machine code
+    args = (float(frame.x0), float(frame.y0), float(frame.dx), float(frame.dy))
+    ball = bool(ball)
     threads = min(SWEEP_THREADS, max(1, n // MIN_MOVES_PER_THREAD), ny)
     if threads == 1:
         _sweep_kernel(*args, p0, p1, r, ball, app, stock, refg, over_s, over_r, 0, ny)
