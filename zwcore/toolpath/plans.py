@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -146,7 +146,8 @@ def scanline_toolpaths(part: ZMap, plan: ScanlinePlan, cl_heights: CLHeights = s
                        cutting: Mapping[str, CuttingData] | None = None,
                        clearance: float | None = None, rapid_feed: float = 15_000.0,
                        verify: bool = True, max_bytes: int | None = None,
-                       reach: NDArray[np.bool_] | None = None) -> Toolpaths:
+                       reach: NDArray[np.bool_] | None = None,
+                       regions: Sequence[NDArray[np.bool_] | None] | None = None) -> Toolpaths:
     """Scan-line paths of every stage of a plan, the program and its simulation.
 
     Parameters
@@ -166,16 +167,25 @@ def scanline_toolpaths(part: ZMap, plan: ScanlinePlan, cl_heights: CLHeights = s
         Largest program (:class:`~zwcore.errors.LimitExceededError` beyond it).
     reach : (ny, nx) bool, optional
         Where the finishing tolerance applies.
+    regions : sequence of (my, mx) bool or None, optional
+        Per stage, where it cuts on its model's nodes (e.g. its rest regions); ``None``
+        (or a ``None`` entry): everywhere.
     """
     clear = _clearance(clearance, plan.stock_top)
     tools = list(dict.fromkeys(s.tool for s in plan.stages))
     data = tool_numbers(tools, cutting)
     settings = ProgramSettings(clearance=clear, rapid_feed=rapid_feed)
+    if regions is not None and len(regions) != len(plan.stages):
+        raise InvalidInputError("regions", f"one per stage ({len(plan.stages)}), got "
+                                f"{len(regions)}")
     t = time.perf_counter()
-    stock = np.full(part.shape, plan.stock_top)
     stages = [scanline_stage_path(part, st, i, data[st.tool.id], cl_heights, clearance=clear,
-                                  chord_tolerance=CHORD_FRACTION * plan.tolerance, stock=stock,
-                                  refine_tolerance=_refine_tolerance(plan, st))
+                                  chord_tolerance=CHORD_FRACTION * plan.tolerance,
+                                  stock_top=plan.stock_top,
+                                  refine_tolerance=_refine_tolerance(plan, st),
+                                  region=None if regions is None else regions[i],
+                                  scallop_tolerance=(plan.tolerance if i == len(plan.stages) - 1
+                                                     else None))
               for i, st in enumerate(plan.stages)]
     timings = [("paths", time.perf_counter() - t)]
     models = [bilinear_at_fine_nodes(st.model, round(st.spacing[0] / part.dx), part.shape)

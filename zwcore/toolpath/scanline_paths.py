@@ -21,15 +21,22 @@ from collections.abc import Callable
 import numpy as np
 from numpy.typing import NDArray
 
+from zwcore.errors import InvalidInputError
 from zwcore.grid.tools import Tool
 from zwcore.grid.zmap import ZMap
-from zwcore.scanline.results import ScanLines, ScanlineStage
+from zwcore.scanline.results import ScanlineStage
 from zwcore.sim import drop_cutter
-from zwcore.toolpath._polyline import lift_out_of_part, refine_against_part, thin
-from zwcore.toolpath.program import RAPID, CuttingData, Moves, StagePath
-from zwcore.toolpath.sweep import GridFrame, sweep_moves
+from zwcore.toolpath._polyline import PartGouge, follow_part
+from zwcore.toolpath._scallop import fine_points, finishing_closing, scallop_segments
+from zwcore.toolpath._scan_links import entry_heights, region_stretches
+from zwcore.toolpath.program import LINE, RAPID, CuttingData, Moves, StagePath
 
 __all__ = ["CLHeights", "scanline_stage_path", "sim_cl_heights"]
+
+#: Smallest block (input nodes a side) of the gouge measure's coarse first look.
+BLOCK_MIN = 1
+#: Rounds of scallop lines on a finishing pass (each halves the spacing where it is added).
+SCALLOP_ROUNDS = 2
 
 F64 = NDArray[np.float64]
 
@@ -52,20 +59,48 @@ def _raster(cl: F64, rows: F64) -> F64:
     return (1.0 - t) * cl[r0] + t * cl[r1]
 
 
-def _along(line: F64, sx: float, start: float, stop: float) -> tuple[F64, F64]:
-    """Points of one segment along a CL row: model columns inside, ends interpolated."""
-    cols = np.arange(len(line)) * sx
-    inner = cols[(cols > start) & (cols < stop)]
-    u = np.concatenate([[start], inner, [stop]])
-    return u, np.interp(u, cols, line)
+def _segment_points(cl: F64, offset: F64, start: F64, stop: F64, sx: float, sy: float
+                    ) -> tuple[F64, F64, F64, NDArray[np.int64]]:
+    """Points of line segments on the CL grid: each segment's ends and the model columns
+    strictly inside it, heights bilinear between the CL rows and columns.
+
+    Returns
+    -------
+    u, v, z : (m,) float64
+    sizes : (n,) int64
+        Points per segment (in order).
+    """
+    nr, nc = cl.shape
+    c_lo = np.floor(start / sx).astype(np.int64) + 1
+    c_hi = np.minimum(np.ceil(stop / sx).astype(np.int64) - 1, nc - 1)
+    inner = np.maximum(c_hi - c_lo + 1, 0)
+    sizes = inner + 2
+    first = np.cumsum(sizes) - sizes
+    owner = np.repeat(np.arange(len(offset)), sizes)
+    j = np.arange(int(sizes.sum())) - first[owner]
+    u = (c_lo[owner] + j - 1) * sx
+    u[first] = start
+    u[first + sizes - 1] = stop
+    rows = offset / sy
+    r0 = np.clip(np.floor(rows).astype(np.int64), 0, nr - 1)
+    r1 = np.minimum(r0 + 1, nr - 1)
+    t = (rows - r0)[owner]
+    k = np.clip(np.floor(u / sx).astype(np.int64), 0, max(nc - 2, 0))
+    f = np.clip(u / sx - k, 0.0, 1.0)
+    k1 = np.minimum(k + 1, nc - 1)
+    a, b = r0[owner], r1[owner]
+    left = (1.0 - t) * cl[a, k] + t * cl[b, k]
+    right = (1.0 - t) * cl[a, k1] + t * cl[b, k1]
+    return u, offset[owner], (1.0 - f) * left + f * right, sizes
 
 
 class _Polyline:
     """Builds a path (xy rounded to the output) through the refine, thin and lift steps."""
 
     def __init__(self, part: ZMap, tool: Tool, along_x: bool, chord: float, decimals: int,
-                 refine: float, min_len: float):
+                 refine: float, min_len: float, block: int = 1):
         self.part, self.tool, self.along_x = part, tool, along_x
+        self.measure = PartGouge(part, tool, block)
         self.chord, self.decimals = chord, decimals
         self.refine, self.min_len = refine, min_len
 
@@ -74,17 +109,17 @@ class _Polyline:
         part, dec = self.part, self.decimals
         x, y = (u, v) if self.along_x else (v, u)
         pts = np.column_stack([np.round(part.x0 + x, dec), np.round(part.y0 + y, dec), z])
-        pts, su, fx = refine_against_part(pts, su, fixed, breaks, part, self.tool, self.refine,
-                                          self.min_len)
-        pts[:, :2] = np.round(pts[:, :2], dec)
-        keep = thin(su, pts[:, 2], fx, self.chord)
-        out, lift = lift_out_of_part(pts[keep], part, self.tool, decimals=dec)
-        return out, lift, su[keep]
+        out, su, lift = follow_part(pts, su, fixed, breaks, self.measure, chord=self.chord,
+                                    refine=self.refine, min_len=self.min_len, decimals=dec)
+        return out, lift, su
 
 
 def _full_lines(cl: F64, rows: F64, sx: float, sy: float, extent: float, ext: float,
-                poly: _Polyline) -> tuple[F64, float, int]:
-    """Whole lines, zig-zag, run past both stock edges (links in air beside the stock)."""
+                poly: _Polyline) -> tuple[F64, float, int, list[F64]]:
+    """Whole lines, zig-zag, run past both stock edges (links in air beside the stock);
+    also each line's final ``(u, z)`` polyline, ``u`` increasing."""
+    if not len(rows):
+        return np.zeros((0, 3)), 0.0, 0, []
     z = _raster(cl, rows)
     cols = np.arange(z.shape[1]) * sx
     u_in = np.concatenate([cols[cols < extent], [extent]])
@@ -106,22 +141,19 @@ def _full_lines(cl: F64, rows: F64, sx: float, sy: float, extent: float, ext: fl
     breaks[n_pts + 1::n_pts + 2] = True  # the links between lines
     pts, lift, _ = poly.points(u_all.ravel(), v_all.ravel(), z_all.ravel(), su.ravel(),
                                fixed.ravel(), breaks)
-    return pts, lift, int(z.size)
+    # a line keeps its offset through the thinning and the splits; links change it
+    x, y = pts[:, 0] - poly.part.x0, pts[:, 1] - poly.part.y0
+    ua, va = (x, y) if poly.along_x else (y, x)
+    per_line = np.split(np.column_stack([ua, pts[:, 2]]), np.flatnonzero(np.diff(va) != 0) + 1)
+    per_line = [q[::-1] if n % 2 else q for n, q in enumerate(per_line)]
+    return pts, lift, int(z.size), per_line
 
 
-def _extra_segments(cl: F64, lines: ScanLines, extra: NDArray[np.intp], sx: float, sy: float,
-                    poly: _Polyline) -> tuple[list[F64], float, int]:
-    """The extra segments as one polyline (breaks between them) through the refine, thin
-    and lift steps, then split again."""
-    rows = _raster(cl, lines.offset[extra] / sy)
-    us, zs, vs = [], [], []
-    for n, j in enumerate(extra):
-        u, z = _along(rows[n], sx, float(lines.start[j]), float(lines.stop[j]))
-        us.append(u)
-        zs.append(z)
-        vs.append(np.full(len(u), lines.offset[j]))
-    sizes = np.array([len(u) for u in us])
-    u, z, v = np.concatenate(us), np.concatenate(zs), np.concatenate(vs)
+def _segments(raw: tuple[F64, F64, F64, NDArray[np.int64]], poly: _Polyline
+              ) -> tuple[F64, NDArray[np.int64], float, int]:
+    """Line segments (extra lines, region pieces) as one polyline (breaks between them)
+    through the thin and lift steps; returns the points and how many belong to each."""
+    u, v, z, sizes = raw
     ends = np.cumsum(sizes)
     fixed = np.zeros(len(u), bool)
     fixed[ends - 1] = fixed[ends - sizes] = True
@@ -132,25 +164,84 @@ def _extra_segments(cl: F64, lines: ScanLines, extra: NDArray[np.intp], sx: floa
     pts, lift, su_kept = poly.points(u, v, z, su, fixed, breaks)
     # segment n's parameters lie in [n * span + u.min(), (n + 1) * span + u.min())
     owner = np.floor((su_kept - u.min()) / span).astype(np.int64)
-    cuts = np.searchsorted(owner, np.arange(1, len(sizes)))
-    return np.split(pts, cuts), lift, len(u)
+    kept = np.bincount(owner, minlength=len(sizes)).astype(np.int64)
+    return pts, kept, lift, len(u)
 
 
-def _entry_height(stock: F64, part: ZMap, xy: F64, radius: float) -> float:
-    """Highest stock within the tool's reach of ``xy``: a rapid down to above it is in air."""
-    k0 = max(0, int(np.floor((xy[0] - radius - part.x0) / part.dx)))
-    k1 = min(part.shape[1], int(np.ceil((xy[0] + radius - part.x0) / part.dx)) + 1)
-    i0 = max(0, int(np.floor((xy[1] - radius - part.y0) / part.dy)))
-    i1 = min(part.shape[0], int(np.ceil((xy[1] + radius - part.y0) / part.dy)) + 1)
-    window = stock[i0:i1, k0:k1]
-    return float(window.max()) if window.size else -np.inf
+def _segment_moves(pts: F64, sizes: NDArray[np.int64], entry_z: F64, clearance: float
+                   ) -> Moves:
+    """Each segment (``sizes`` points of ``pts`` in turn): a rapid at the clearance over its
+    start, a rapid down to ``entry_z``, its moves (the first at the plunge feed), a rapid up
+    to the clearance."""
+    last = np.cumsum(sizes) - 1
+    above = pts[last - sizes + 1].copy()
+    down = above.copy()
+    up = pts[last].copy()
+    above[:, 2], down[:, 2], up[:, 2] = clearance, entry_z, clearance
+    # rows per segment: 2 entry rapids, the segment, 1 retract
+    per = sizes + 3
+    first = np.cumsum(per) - per
+    n = int(per.sum())
+    end = np.empty((n, 3))
+    kind = np.full(n, LINE, np.int8)
+    plunge = np.zeros(n, bool)
+    end[first], end[first + 1], end[first + 2 + sizes] = above, down, up
+    kind[first] = kind[first + 1] = kind[first + 2 + sizes] = RAPID
+    plunge[first + 2] = True
+    body = np.repeat(first + 2, sizes) + (np.arange(int(sizes.sum()))
+                                          - np.repeat(np.cumsum(sizes) - sizes, sizes))
+    end[body] = pts
+    return Moves(kind, end, np.full((n, 2), np.nan), plunge)
+
+
+def _feed_pairs(pts: F64, segs: list[F64]) -> tuple[F64, F64]:
+    """Start and end points of the feed moves of a polyline and of segments."""
+    chains = [c for c in [pts, *segs] if len(c) > 1]
+    if not chains:
+        return np.zeros((0, 3)), np.zeros((0, 3))
+    return (np.vstack([c[:-1] for c in chains]), np.vstack([c[1:] for c in chains]))
+
+
+class _Entered:
+    """Builds segments entered from above (extra lines, region stretches, scallop lines):
+    their points through the thin and lift steps, the entry rapids to above the stock
+    bounded from the stage's whole lines, and the retracts; keeps every segment's points."""
+
+    def __init__(self, part: ZMap, tool: Tool, cl: F64, sx: float, sy: float, poly: _Polyline,
+                 along_x: bool, line_v: F64, per_line: list[F64],
+                 grid: tuple[float, float, tuple[int, int]], stock_top: float,
+                 clearance: float, decimals: int):
+        self.part, self.tool, self.cl, self.sx, self.sy, self.poly = part, tool, cl, sx, sy, poly
+        self.along_x, self.line_v, self.per_line, self.grid = along_x, line_v, per_line, grid
+        self.stock_top, self.clearance, self.decimals = stock_top, clearance, decimals
+        self.points: list[F64] = []
+        self.max_lift, self.n_raw = 0.0, 0
+
+    def __call__(self, off: F64, a: F64, b: F64, fine: bool = False) -> Moves:
+        """Segments ``off, a, b``: CL from the stage's grid, or (``fine``) from the node
+        drop-cutter every quarter of an input step."""
+        part, (du, dv, shape_uv) = self.part, self.grid
+        raw = (fine_points(part, self.tool, off, a, b, self.along_x, 0.25 * min(du, dv))
+               if fine else _segment_points(self.cl, off, a, b, self.sx, self.sy))
+        seg_pts, sizes, lift, n = _segments(raw, self.poly)
+        self.max_lift, self.n_raw = max(self.max_lift, lift), self.n_raw + n
+        self.points += np.split(seg_pts, np.cumsum(sizes)[:-1])
+        first = seg_pts[np.cumsum(sizes) - sizes]
+        uv = (first[:, :2] - [part.x0, part.y0]) if self.along_x else (
+            first[:, 1::-1] - [part.y0, part.x0])
+        top = np.maximum(entry_heights(uv, self.line_v, self.per_line, du, dv, shape_uv,
+                                       self.tool.radius, self.stock_top), first[:, 2])
+        scale = 10.0 ** self.decimals
+        air = np.minimum(self.clearance, np.ceil((top + 0.5) * scale) / scale)
+        return _segment_moves(seg_pts, sizes, air, self.clearance)
 
 
 def scanline_stage_path(part: ZMap, stage: ScanlineStage, index: int, cutting: CuttingData,
                         cl_heights: CLHeights, *, clearance: float, chord_tolerance: float,
-                        stock: F64, refine_tolerance: float | None = None,
+                        stock_top: float, refine_tolerance: float | None = None,
                         model: F64 | None = None, spacing: tuple[float, float] | None = None,
-                        decimals: int = 4) -> StagePath:
+                        region: NDArray[np.bool_] | None = None,
+                        scallop_tolerance: float | None = None, decimals: int = 4) -> StagePath:
     """Tool path of one scan-line stage.
 
     Parameters
@@ -168,9 +259,9 @@ def scanline_stage_path(part: ZMap, stage: ScanlineStage, index: int, cutting: C
         Safe height, mm.
     chord_tolerance : float
         Thinning tolerance, mm (> 0).
-    stock : (ny, nx) float64
-        The stock before the stage at the part's nodes; lowered in place by the stage's
-        moves (extra segments are entered from above the stock they meet).
+    stock_top : float
+        The stock before the program: segments are entered from above the stock, bounded
+        by it and by the stage's whole lines (:func:`~zwcore.toolpath._scan_links.entry_heights`).
     refine_tolerance : float, optional
         Segments whose gouge against the part exceeds this are split (down to a sixteenth
         of the part's spacing) before the lift; default ``chord_tolerance``. A roughing
@@ -178,53 +269,92 @@ def scanline_stage_path(part: ZMap, stage: ScanlineStage, index: int, cutting: C
     model, spacing : optional
         Another model to compute the path on (e.g. the part itself, for comparisons);
         default: the stage's.
+    region : (my, mx) bool, optional
+        Where the stage cuts, on the nodes of the model the path is computed on (e.g. its
+        rest regions): only the stretches of lines over it are cut
+        (:func:`~zwcore.toolpath._scan_links.region_stretches`); default everywhere.
+    scallop_tolerance : float, optional
+        For a finishing pass on the input's nodes, without a region: the pass's moves are
+        swept over the part's nodes and segments added where they leave more than this
+        above what its CL allows (:mod:`~zwcore.toolpath._scallop`), up to
+        :data:`SCALLOP_ROUNDS` times.
 
     Returns
     -------
     StagePath
-        ``figures``: ``lines``, ``extra_segments``, ``points_before_thinning``,
-        ``points``, ``max_lift``.
+        ``figures``: ``lines`` (cut whole), ``extra_segments`` (the plan's), ``segments``
+        (entered from above: extra segments and region stretches), ``scallop_segments``
+        (added from the simulated scallop), ``points_before_thinning``, ``points``,
+        ``max_lift``.
     """
     tool = stage.tool
     mdl = stage.model if model is None else model
     sx, sy = stage.spacing if spacing is None else spacing
     cl = cl_heights(ZMap(mdl, part.x0, part.y0, sx, sy), tool)
+    # the CL on the part's own nodes (a finishing pass): the scallop pass can compare with it
+    on_nodes = (abs(sx - part.dx) <= 1e-9 * part.dx and abs(sy - part.dy) <= 1e-9 * part.dy
+                and cl.shape[0] >= part.shape[0] and cl.shape[1] >= part.shape[1])
+    cl_nodes = cl  # before any transposition
+    if region is not None and region.shape != mdl.shape:
+        raise InvalidInputError("region", f"must be a grid of the model's shape {mdl.shape}, "
+                                f"got {region.shape}")
     along_x = stage.scan_direction == "x"
     if not along_x:  # work as if lines ran along x
         cl, sx, sy = cl.T, sy, sx
+        region = None if region is None else region.T
     ny, nx = part.shape
-    extent = (nx - 1) * part.dx if along_x else (ny - 1) * part.dy
+    du, dv, shape_uv = ((part.dx, part.dy, (nx, ny)) if along_x else
+                        (part.dy, part.dx, (ny, nx)))
+    extent = (shape_uv[0] - 1) * du
     lines = stage.lines
     full = (lines.start <= 1e-9) & (lines.stop >= extent - 1e-9)
+    seg_off, seg_a, seg_b = lines.offset[~full], lines.start[~full], lines.stop[~full]
+    if region is not None:  # whole lines inside the region zig-zag, the rest are segments
+        li, a, b = region_stretches(region, lines.offset, lines.start, lines.stop, sx, sy)
+        zig = full[li] & (a <= lines.start[li] + 1e-9) & (b >= lines.stop[li] - 1e-9)
+        full = np.zeros(len(full), bool)
+        full[li[zig]] = True
+        seg_off, seg_a, seg_b = lines.offset[li[~zig]], a[~zig], b[~zig]
     refine = chord_tolerance if refine_tolerance is None else refine_tolerance
     min_len = min(part.dx, part.dy) / 16.0 if refine_tolerance is None else 0.25 * min(sx, sy)
-    poly = _Polyline(part, tool, along_x, chord_tolerance, decimals, refine, min_len)
+    # the gouge measure's coarse look: blocks of a quarter of the model's spacing
+    block = max(BLOCK_MIN, round(0.25 * min(sx / du, sy / dv)))
+    poly = _Polyline(part, tool, along_x, chord_tolerance, decimals, refine, min_len, block)
     ext = tool.radius + max(part.dx, part.dy)
-    pts, max_lift, n_raw = _full_lines(cl, lines.offset[full] / sy, sx, sy, extent, ext, poly)
-    frame = GridFrame(part.x0, part.y0, part.dx, part.dy, part.shape)
-    ball = tool.kind == "ball"
-    parts = [Moves.lines(pts[:1], kind=RAPID), Moves.lines(pts[1:])]
-    sweep_moves(frame, pts[:-1], pts[1:], tool.radius, ball, stock)
-    extra = np.flatnonzero(~full)
-    if len(extra):
-        segs, lift, n = _extra_segments(cl, lines, extra, sx, sy, poly)
-        max_lift, n_raw = max(max_lift, lift), n_raw + n
-        # entered from above the stock the whole lines left (later segments only lower it)
-        scale = 10.0 ** decimals
-        # up from the last whole line's exit, then from segment to segment at the clearance
-        parts.append(Moves.lines(np.array([[pts[-1, 0], pts[-1, 1], clearance]]), kind=RAPID))
-        for seg in segs:
-            top = max(_entry_height(stock, part, seg[0, :2], tool.radius), seg[0, 2])
-            air = min(clearance, np.ceil((top + 0.5) * scale) / scale)
-            entry = np.array([[seg[0, 0], seg[0, 1], clearance], [seg[0, 0], seg[0, 1], air]])
-            parts += [Moves.lines(entry, kind=RAPID),
-                      Moves.lines(seg, plunge=np.arange(len(seg)) == 0),
-                      Moves.lines(np.array([[seg[-1, 0], seg[-1, 1], clearance]]), kind=RAPID)]
-        cut = np.vstack([np.vstack([g[:1], g[:-1]]) for g in segs])
-        sweep_moves(frame, cut, np.vstack(segs), tool.radius, ball, stock)
-    start = np.array([pts[0, 0], pts[0, 1], clearance])
+    pts, max_lift, n_raw, per_line = _full_lines(cl, lines.offset[full] / sy, sx, sy, extent,
+                                                 ext, poly)
+    parts = [Moves.lines(pts[:1], kind=RAPID), Moves.lines(pts[1:])] if len(pts) else []
+    entered = _Entered(part, tool, cl, sx, sy, poly, along_x, lines.offset[full], per_line,
+                       (du, dv, shape_uv), stock_top, clearance, decimals)
+    if len(seg_off):
+        if len(pts):  # up from the last whole line's exit
+            parts.append(Moves.lines(np.array([[pts[-1, 0], pts[-1, 1], clearance]]),
+                                     kind=RAPID))
+        parts.append(entered(seg_off, seg_a, seg_b))
+    n_scallop = 0
+    if scallop_tolerance is not None and region is None and on_nodes:
+        env = np.full(part.shape, np.inf)
+        node_cl = np.ascontiguousarray(cl_nodes[:part.shape[0], :part.shape[1]])
+        best = finishing_closing(part, tool, node_cl)
+        p0, p1 = _feed_pairs(pts, entered.points)
+        for _ in range(SCALLOP_ROUNDS):
+            new = scallop_segments(part, tool, env, p0, p1, best, node_cl, scallop_tolerance,
+                                   along_x)
+            if not len(new[0]):
+                break
+            seen = len(entered.points)
+            if not seen and len(pts):
+                parts.append(Moves.lines(np.array([[pts[-1, 0], pts[-1, 1], clearance]]),
+                                         kind=RAPID))
+            parts.append(entered(*new, fine=True))
+            n_scallop += len(new[0])
+            p0, p1 = _feed_pairs(np.zeros((0, 3)), entered.points[seen:])
+    max_lift, n_raw = max(max_lift, entered.max_lift), n_raw + entered.n_raw
     moves = Moves.concat(parts)
-    figures = {"lines": float(full.sum()), "extra_segments": float(len(extra)),
-               "points_before_thinning": float(n_raw), "points": float(len(moves)),
-               "max_lift": max_lift}
+    start = np.array([moves.end[0, 0], moves.end[0, 1], clearance]) if len(moves) else \
+        np.array([part.x0, part.y0, clearance])
+    figures = {"lines": float(full.sum()), "extra_segments": float(stage.extra_segments),
+               "segments": float(len(seg_off)), "scallop_segments": float(n_scallop),
+               "points_before_thinning": float(n_raw),
+               "points": float(len(moves)), "max_lift": max_lift}
     return StagePath(index, "scanline", tool, cutting, start, moves, figures)

@@ -112,7 +112,11 @@ def _as_segments(prog: ParsedProgram, a: int, b: int, sagitta: float
     """Straight pieces of moves ``a..b-1`` in program order: ``p0, p1, radius growth,
     owner move``; arcs become chords, moves from an unknown position are left out."""
     idx = np.arange(a, b)
-    idx = idx[np.isfinite(prog.start[idx]).all(axis=1) & np.isfinite(prog.end[idx]).all(axis=1)]
+    known = np.isfinite(prog.start[a:b]).all(axis=1) & np.isfinite(prog.end[a:b]).all(axis=1)
+    arc = prog.motion[a:b] >= 2
+    if known.all() and not arc.any():  # views, no copies
+        return prog.start[a:b], prog.end[a:b], np.zeros(b - a), idx
+    idx = idx[known]
     arcs = idx[prog.motion[idx] >= 2]
     if not len(arcs):
         return prog.start[idx], prog.end[idx], np.zeros(len(idx)), idx
@@ -136,8 +140,8 @@ def _stage(stock: F64, part: ZMap, prog: ParsedProgram, a: int, b: int, tool: To
     rapid = prog.motion[owner] == 0
     over_stock, over_part = sweep_moves(frame, p0, p1, tool.radius + grow, tool.kind == "ball",
                                         stock, ref=part.z, apply=~rapid)
-    met = np.zeros(len(prog.motion), bool)
-    met[owner[over_stock > CUT_EPS]] = True
+    met = np.zeros(b - a, bool)
+    met[owner[over_stock > CUT_EPS] - a] = True
     below = np.unique(owner[over_part > CUT_EPS])
     lengths = np.linalg.norm(prog.end[a:b] - prog.start[a:b], axis=1)
     lengths = np.where(np.isfinite(lengths), lengths, 0.0)
@@ -153,7 +157,7 @@ def _stage(stock: F64, part: ZMap, prog: ParsedProgram, a: int, b: int, tool: To
         rapid_in_material=float(rapid_pen.max()) if len(rapid_pen) and rapid_pen.max() > TIE_EPS
         else 0.0,
         removed_volume=float((before - stock).sum() * part.cell_area),
-        air_feed_length=float(lengths[feed & ~met[a:b]].sum()),
+        air_feed_length=float(lengths[feed & ~met].sum()),
         feed_length=float(lengths[feed].sum()), below_part_moves=len(below))
 
 

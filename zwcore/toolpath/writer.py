@@ -13,6 +13,8 @@ from __future__ import annotations
 from collections.abc import Iterable, Iterator
 
 import numpy as np
+from numba import njit
+from numpy.typing import NDArray
 
 from zwcore.toolpath.program import ARC_CCW, ARC_CW, RAPID, ProgramSettings, StagePath
 
@@ -27,59 +29,107 @@ def _num(v: float, decimals: int) -> str:
     return s[1:] if s.startswith("-") and float(s) == 0.0 else s
 
 
+@njit(cache=True, nogil=True)
+def _put_fixed(out: NDArray[np.uint8], at: int, v: int, decimals: int) -> int:
+    """Write the integer ``v`` scaled by ``10**-decimals`` as ``[-]d.ddd``; new offset."""
+    if v < 0:
+        out[at] = 45  # '-'
+        at += 1
+        v = -v
+    n, w = 1, v // 10  # digits, at least decimals + 1 (a leading 0 before the point)
+    while w > 0:
+        n += 1
+        w //= 10
+    n = max(n, decimals + 1)
+    width = n + (1 if decimals > 0 else 0)
+    pos = at + width - 1
+    for k in range(n):  # from the last digit backwards, the point after ``decimals`` of them
+        if k == decimals and decimals > 0:
+            out[pos] = 46  # '.'
+            pos -= 1
+        out[pos] = 48 + v % 10
+        v //= 10
+        pos -= 1
+    return at + width
+
+
+@njit(cache=True, nogil=True)
+def _blocks_text(codes: NDArray[np.int8], xyzij: NDArray[np.int64], feed10: NDArray[np.int64],
+                 decimals: int, out: NDArray[np.uint8]) -> int:
+    """``G0c X Y Z [I J] [F]`` blocks, one a line; ``feed10 < 0``: no ``F``; bytes used."""
+    at = 0
+    letters = (88, 89, 90, 73, 74)  # X Y Z I J
+    for n in range(len(codes)):
+        c = codes[n]
+        out[at], out[at + 1], out[at + 2] = 71, 48, 48 + c  # G0c
+        at += 3
+        words = 5 if c >= 2 else 3
+        for w in range(words):
+            out[at], out[at + 1] = 32, letters[w]
+            at = _put_fixed(out, at + 2, xyzij[n, w], decimals)
+        if feed10[n] >= 0:
+            out[at], out[at + 1] = 32, 70  # ' F'
+            at = _put_fixed(out, at + 2, feed10[n], 1)
+        out[at] = 10
+        at += 1
+    return at
+
+
+def _body(codes: NDArray[np.int8], xyzij: NDArray[np.int64], feed10: NDArray[np.int64],
+          decimals: int) -> Iterator[str]:
+    """The motion blocks as text, :data:`CHUNK_BLOCKS` at a time."""
+    # a word: ' ', letter, sign, the digits of the largest value, '.', at least decimals + 1
+    digits = len(str(int(np.abs(xyzij).max(initial=0)))) + decimals + 4
+    fdigits = len(str(int(feed10.max(initial=0)))) + 5
+    width = 4 + 5 * digits + fdigits
+    for a in range(0, len(codes), CHUNK_BLOCKS):
+        b = min(a + CHUNK_BLOCKS, len(codes))
+        out = np.empty((b - a) * width, np.uint8)
+        used = _blocks_text(codes[a:b], xyzij[a:b], feed10[a:b], decimals, out)
+        yield out[:used].tobytes().decode("ascii")
+
+
 def _stage_blocks(path: StagePath, settings: ProgramSettings) -> Iterator[str]:
+    """The stage's text: setup blocks one per item, then its motion blocks in chunks (each
+    item ends without a line feed except the chunks, which end with one)."""
     dec = settings.decimals
     cd, tool = path.cutting, path.tool
     clear = _num(settings.clearance, dec)
     yield (f"(stage {path.index}: {path.kind}, tool {tool.id}, {tool.kind} D{tool.diameter:g},"
-           f" T{cd.tool_number})")
-    yield f"T{cd.tool_number} M6"
-    yield f"S{cd.spindle_rpm:.0f} M3"
-    yield f"G00 G43 H{cd.tool_number} Z{clear}"
+           f" T{cd.tool_number})\n")
+    yield f"T{cd.tool_number} M6\n"
+    yield f"S{cd.spindle_rpm:.0f} M3\n"
+    yield f"G00 G43 H{cd.tool_number} Z{clear}\n"
     sx, sy = round(float(path.start[0]), dec), round(float(path.start[1]), dec)
-    yield f"G00 X{_num(sx, dec)} Y{_num(sy, dec)}"
+    yield f"G00 X{_num(sx, dec)} Y{_num(sy, dec)}\n"
     mv = path.moves
     end = np.round(mv.end, dec) + 0.0  # + 0.0 turns -0.0 into 0.0
     prev = np.vstack([[sx, sy, round(settings.clearance, dec)], end[:-1]])
     ij = np.round(mv.center - prev[:, :2], dec) + 0.0
     moved = np.any(np.abs(end - prev) > 0.5 * 10.0 ** -dec, axis=1)
     keep = moved | (mv.kind >= ARC_CW)
-    feeds = np.where(mv.plunge, cd.plunge_feed, cd.feed)
-    fmt = f"%.{dec}f"
-    line_fmt = f"G0%d X{fmt} Y{fmt} Z{fmt}"
-    arc_fmt = f"G0%d X{fmt} Y{fmt} Z{fmt} I{fmt} J{fmt}"
-    last_f = None
     codes = np.where(mv.kind == RAPID, 0, np.where(mv.kind == ARC_CCW, 3, np.where(
-        mv.kind == ARC_CW, 2, 1)))
-    rows = end.tolist()
-    ijs = ij.tolist()
-    for n in np.flatnonzero(keep).tolist():
-        code = int(codes[n])
-        x, y, z = rows[n]
-        if code >= 2:
-            text = arc_fmt % (code, x, y, z, ijs[n][0], ijs[n][1])
-        else:
-            text = line_fmt % (code, x, y, z)
-        if code != 0 and feeds[n] != last_f:
-            last_f = feeds[n]
-            text += f" F{last_f:.1f}"
-        yield text
-    yield f"G00 Z{clear}"
-    yield "M5"
+        mv.kind == ARC_CW, 2, 1))).astype(np.int8)[keep]
+    feeds = np.where(mv.plunge, cd.plunge_feed, cd.feed)[keep]
+    # F where the feed of a feed block differs from the previous feed block's
+    fed = np.flatnonzero(codes != 0)
+    change = np.ones(len(fed), bool)
+    change[1:] = feeds[fed[1:]] != feeds[fed[:-1]]
+    feed10 = np.full(len(codes), -1, np.int64)
+    feed10[fed[change]] = np.rint(np.round(feeds[fed[change]], 1) * 10.0).astype(np.int64)
+    scale = 10.0 ** dec
+    xyzij = np.rint(np.column_stack([end, np.nan_to_num(ij)])[keep] * scale).astype(np.int64)
+    yield from _body(codes, xyzij, feed10, dec)
+    yield f"G00 Z{clear}\n"
+    yield "M5\n"
 
 
 def iter_program(paths: Iterable[StagePath], settings: ProgramSettings) -> Iterator[str]:
     """The program as chunks of text (for streaming); their concatenation is the program."""
-    head = ["%", "(zwplan tool paths)", "G17 G21 G90 G94"]
-    buf: list[str] = head
+    yield "%\n(zwplan tool paths)\nG17 G21 G90 G94\n"
     for path in paths:
-        for block in _stage_blocks(path, settings):
-            buf.append(block)
-            if len(buf) >= CHUNK_BLOCKS:
-                yield "\n".join(buf) + "\n"
-                buf = []
-    buf += ["M30", "%"]
-    yield "\n".join(buf) + "\n"
+        yield from _stage_blocks(path, settings)
+    yield "M30\n%\n"
 
 
 def program_text(paths: Iterable[StagePath], settings: ProgramSettings) -> str:

@@ -1,0 +1,248 @@
+"""The pieces that make scan-line tool paths fast (issue 12), each against an independent
+computation: the band thinning against its definition, the coarse gouge look and the
+threaded sweep against the plain exact sweep, the entry heights against the stock really
+swept, and a stage restricted to a hand-made region mask, simulated from its program."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import zwcore.toolpath.sweep as sweep_mod
+from zwcore import ZMap, default_tools, plan_scanline
+from zwcore.grid.tools import Tool
+from zwcore.toolpath import parse_program, scanline_toolpaths, simulate_program
+from zwcore.toolpath._polyline import PartGouge, thin
+from zwcore.toolpath._scan_links import entry_heights, region_stretches
+from zwcore.toolpath.sweep import GridFrame, sweep_moves
+
+
+def _wavy(n: int, dx: float, seed: int) -> ZMap:
+    rng = np.random.default_rng(seed)
+    y, x = np.mgrid[0:n, 0:n] * dx
+    z = sum(rng.uniform(-3, 3) * np.sin(x / rng.uniform(1, 6) + rng.uniform(0, 6))
+            * np.cos(y / rng.uniform(1, 6)) for _ in range(3))
+    return ZMap(z, rng.uniform(-5, 5), rng.uniform(-5, 5), dx, dx)
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.lists(st.floats(-2, 2), min_size=3, max_size=80), st.floats(1e-3, 0.5),
+       st.floats(0.0, 0.5))
+def test_thinning_keeps_every_dropped_point_in_the_band(zs, above, below):
+    z = np.cumsum(np.asarray(zs))
+    u = np.arange(len(z), dtype=float) * 0.3
+    fixed = np.zeros(len(z), bool)
+    fixed[len(z) // 2] = True
+    keep = thin(u, z, fixed, above, below)
+    assert keep[0] and keep[-1] and keep[len(z) // 2]
+    k = np.flatnonzero(keep)
+    chord = np.interp(u, u[k], z[k])
+    gap = chord - z  # > 0: the chord passes over the point
+    assert gap.min() >= -below - 1e-9 and gap.max() <= above + 1e-9
+
+
+@settings(max_examples=15, deadline=None)
+@given(st.integers(0, 10_000), st.sampled_from([2, 3, 5]), st.booleans())
+def test_the_coarse_gouge_look_changes_no_value_that_matters(seed, block, ball):
+    part = _wavy(61, 0.25, seed)
+    rng = np.random.default_rng(seed)
+    tool = Tool("T", "ball" if ball else "flat", rng.uniform(0.5, 4.0), 20.0)
+    lo = np.array([part.x0, part.y0, part.z.min() - 1])
+    hi = np.array([part.x0 + 15, part.y0 + 15, part.z.max() + 2])
+    p0 = rng.uniform(lo, hi, (300, 3))
+    p1 = p0 + rng.normal(0, 1.5, (300, 3))
+    fine = PartGouge(part, tool, 1)(p0, p1)
+    look = PartGouge(part, tool, block)(p0, p1)
+    # exact wherever a move gouges; elsewhere a bound that says it does not
+    hit = fine > 0
+    np.testing.assert_array_equal(look[hit], fine[hit])
+    assert np.all(look[~hit] <= 0) and np.all((look > 0) == hit)
+
+
+@pytest.mark.parametrize("apply", [True, False])
+def test_threaded_sweep_is_the_single_thread_sweep(monkeypatch, apply):
+    part = _wavy(81, 0.2, 3)
+    frame = GridFrame(part.x0, part.y0, part.dx, part.dy, part.shape)
+    rng = np.random.default_rng(7)
+    lo = np.array([part.x0, part.y0, part.z.min()])
+    hi = np.array([part.x0 + 16, part.y0 + 16, part.z.max()])
+    p0 = rng.uniform(lo, hi, (900, 3))
+    p1 = p0 + rng.normal(0, 1.0, (900, 3))
+    flags = rng.random(900) < 0.8 if apply else False
+    results = []
+    for threads in (1, 3):
+        monkeypatch.setattr(sweep_mod, "SWEEP_THREADS", threads)
+        monkeypatch.setattr(sweep_mod, "MIN_MOVES_PER_THREAD", 50)
+        stock = np.full(part.shape, part.z.max() + 1.0)
+        over_s, over_r = sweep_moves(frame, p0, p1, 1.3, True, stock, ref=part.z, apply=flags)
+        results.append((stock, over_s, over_r))
+    for a, b in zip(*results, strict=True):
+        np.testing.assert_array_equal(a, b)
+
+
+@settings(max_examples=15, deadline=None)
+@given(st.integers(0, 10_000), st.floats(0.3, 2.0))
+def test_entry_heights_bound_the_stock_the_whole_lines_leave(seed, radius):
+    # whole lines along u at a pick-feed under the radius, swept exactly over a stock; the
+    # bound from the lines' paths alone is never below the stock within reach of an entry
+    part = _wavy(51, 0.2, seed)
+    rng = np.random.default_rng(seed)
+    n = part.shape[1]
+    u = np.arange(n) * part.dx
+    pick = rng.uniform(0.3, 1.6) * radius
+    offsets = np.arange(0.0, (part.shape[0] - 1) * part.dy + 1e-9, pick)
+    top = part.z.max() + 1.0
+    stock = np.full(part.shape, top)
+    frame = GridFrame(0.0, 0.0, part.dx, part.dy, part.shape)
+    paths = []
+    for v in offsets:
+        z = np.interp(u, u, part.z[min(round(v / part.dy), part.shape[0] - 1)]) + rng.uniform(
+            0, 0.5)
+        pts = np.column_stack([u, np.full(n, v), z])
+        sweep_moves(frame, pts[:-1], pts[1:], radius, True, stock)
+        paths.append(np.column_stack([u, z]))
+    entries = rng.uniform([0, 0], [(n - 1) * part.dx, (part.shape[0] - 1) * part.dy], (40, 2))
+    bound = entry_heights(entries, offsets, paths, part.dx, part.dy, (n, part.shape[0]),
+                          radius, top)
+    yy, xx = np.mgrid[0:part.shape[0], 0:n]
+    for (eu, ev), b in zip(entries, bound, strict=True):
+        near = np.hypot(xx * part.dx - eu, yy * part.dy - ev) < radius
+        assert stock[near].max() <= b + 1e-9
+
+
+def test_region_stretches_follow_the_mask():
+    region = np.zeros((5, 9), bool)
+    region[2, 3:5] = True  # model nodes 3 and 4 of row 2
+    li, a, b = region_stretches(region, np.array([2.0, 3.0, 1.5]), np.zeros(3),
+                                np.full(3, 8.0), 1.0, 1.0)
+    # row 2: cells 2..4 touch nodes 3-4; row 3 none; row 1.5 lies between rows 1 and 2
+    np.testing.assert_array_equal(li, [0, 2])
+    np.testing.assert_allclose(a, [2.0, 2.0])
+    np.testing.assert_allclose(b, [5.0, 5.0])
+
+
+def test_a_region_mask_restricts_the_cut_and_keeps_every_guarantee():
+    part = _wavy(65, 0.25, 11)
+    plan = plan_scanline(part, default_tools("ball"), tolerance=0.05)
+    # a hand-made mask: a disc in the middle of each stage's model
+    regions = []
+    for s in plan.stages:
+        my, mx = s.model.shape
+        yy, xx = np.mgrid[0:my, 0:mx]
+        cx, cy = 8.0 / s.spacing[0], 8.0 / s.spacing[1]
+        regions.append(np.hypot((xx - cx) * s.spacing[0], (yy - cy) * s.spacing[1]) < 4.0)
+    tp = scanline_toolpaths(part, plan, regions=regions)
+    chk = tp.check
+    assert chk is not None
+    assert chk.gouge <= 1e-9 and chk.below_part_moves == 0 and chk.rapid_in_material == 0.0
+    # read the program back independently: the feed moves stay over the disc, grown by a
+    # model cell (a cut cell touches a node of the region), and the tool's reach leaves
+    # the stock untouched beyond it
+    prog = parse_program(tp.program)
+    feed = prog.motion > 0
+    cell = max(max(s.spacing) for s in plan.stages)
+    centre = np.array([part.x0 + 8.0, part.y0 + 8.0])
+    assert np.hypot(*(prog.end[feed, :2] - centre).T).max() <= 4.0 + math.sqrt(2) * cell + 1e-6
+    ny, nx = part.shape
+    yy, xx = np.mgrid[0:ny, 0:nx]
+    far = np.hypot(part.x0 + xx * part.dx - centre[0], part.y0 + yy * part.dy - centre[1])
+    reach = 4.0 + math.sqrt(2) * cell + max(s.tool.radius for s in plan.stages) + 1e-6
+    table = {p.cutting.tool_number: p.tool for p in tp.stages}
+    sim = simulate_program(prog, table, part, plan.stock_top, tolerance=plan.tolerance)
+    assert np.all(sim.machined[far > reach] == plan.stock_top)
+    assert (sim.machined < plan.stock_top).any()
+    assert any(p.figures["segments"] > 0 for p in tp.stages)
+    for p, r in zip(tp.stages, regions, strict=True):  # an empty region: nothing to cut
+        assert r.any() or len(p.moves) == 0
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.integers(0, 10_000))
+def test_segment_points_are_the_cl_rows_interpolated(seed):
+    # oracle: per segment, the CL row interpolated between grid rows, then np.interp along it
+    from zwcore.toolpath.scanline_paths import _segment_points
+    rng = np.random.default_rng(seed)
+    cl = rng.normal(size=(9, 13))
+    sx, sy = 0.5, 0.7
+    n = 6
+    offset = rng.uniform(0, 8 * sy, n)
+    a = rng.uniform(0, 12 * sx, n)
+    b = np.minimum(a + rng.uniform(0.01, 4.0, n), 12 * sx)
+    u, v, z, sizes = _segment_points(cl, offset, a, b, sx, sy)
+    cols = np.arange(13) * sx
+    pos = 0
+    for k in range(n):
+        r = offset[k] / sy
+        r0 = int(np.floor(r))
+        r1 = min(r0 + 1, 8)
+        row = (1 - (r - r0)) * cl[r0] + (r - r0) * cl[r1]
+        want_u = np.concatenate([[a[k]], cols[(cols > a[k]) & (cols < b[k])], [b[k]]])
+        got = slice(pos, pos + sizes[k])
+        np.testing.assert_allclose(u[got], want_u, atol=1e-12)
+        np.testing.assert_allclose(z[got], np.interp(want_u, cols, row), atol=1e-12)
+        assert np.all(v[got] == offset[k])
+        pos += sizes[k]
+    assert pos == len(u)
+
+
+def test_finishing_closing_and_its_argmin_against_the_brute_envelope():
+    from tests.test_toolpath import brute_cl, brute_envelope
+    from zwcore.toolpath._scallop import _best_positions, finishing_closing
+    part = _wavy(41, 0.25, 5)
+    tool = Tool("B", "ball", 2.0, 10.0)
+    cl = brute_cl(part, tool)
+    best = finishing_closing(part, tool, cl)
+    np.testing.assert_allclose(best, brute_envelope(cl, part, tool), atol=1e-12)
+    # the argmin position leaves exactly that over its node
+    rng = np.random.default_rng(1)
+    i, k = rng.integers(0, 41, 50), rng.integers(0, 41, 50)
+    ci, ck = _best_positions(part, tool, cl, i, k)
+    d2 = ((ci - i) * part.dy) ** 2 + ((ck - k) * part.dx) ** 2
+    left = cl[ci, ck] + tool.radius - np.sqrt(tool.radius ** 2 - d2)
+    np.testing.assert_allclose(left, best[i, k], atol=1e-12)
+
+
+RUSHMORE = Path(__file__).resolve().parents[2] / "shared" / "data" / "mount_rush_zmap_0.1mm.npy"
+
+
+@pytest.mark.skipif(not RUSHMORE.exists(), reason="shared data not available")
+def test_mount_rushmore_crop_program_read_back_and_simulated_never_gouges():
+    # a 12.8 x 25.6 mm window of the face at 0.1 mm, planned as a part of its own: the
+    # program's own text read back and simulated at the input resolution
+    z = np.load(RUSHMORE).astype(np.float64)[150:279, 300:557]
+    part = ZMap(z, 0.0, 0.0, 0.1, 0.1)
+    plan = plan_scanline(part)
+    tp = scanline_toolpaths(part, plan)
+    chk = tp.check
+    assert chk is not None
+    assert chk.gouge <= 1e-9 and chk.below_part_moves == 0 and chk.rapid_in_material == 0.0
+    prog = parse_program(tp.program)
+    assert prog.ended and prog.arc_radius_mismatch == 0.0
+    # every tool of the plan runs, in the plan's order, and its stretch's stock ends above
+    # the part everywhere
+    assert len(chk.stages) == len({s.tool.id for s in plan.stages})
+    assert np.all(chk.machined >= part.z - 1e-9)
+
+
+@pytest.mark.parametrize("coords", [
+    (1.03, 1.03, 0.44, 1.03, 1.03, 1.03),  # vertical, a row exactly R = 1.03 below the tip
+    (1.016, 0.52375, 0.52375, -3.75e-200, 0.52375, -3.75e-200),
+    (0.9153, 0.9153, 2.3698, 3.0, 1.98886, 0.9153)])
+def test_sweep_at_rows_exactly_a_radius_away(coords):
+    # with fused multiply-adds R^2 - d^2 came out just below 0 there: a NaN column bound
+    # made a range wrap around (a crash); now the nodes are the sampled envelope's
+    from tests.test_toolpath import sampled_envelope
+    frame = GridFrame(-4.0, -4.0, 0.25, 0.25, (33, 33))
+    p0, p1 = np.array(coords[:3]), np.array(coords[3:])
+    r = float(coords[1]) if coords[1] > 0.3 else 0.5237533164272623
+    for ball in (True, False):
+        stock = np.full(frame.shape, 100.0)
+        sweep_moves(frame, p0[None], p1[None], r, ball, stock)
+        oracle = sampled_envelope(frame, p0, p1, r, ball)
+        hit = np.isfinite(oracle)
+        assert np.all(stock[hit] <= oracle[hit] + 1e-9)
