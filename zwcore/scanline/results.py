@@ -131,6 +131,13 @@ class ScanlineStage:
     model : (my, mx) float64
         Node values of the stage model; node ``(c, d)`` at
         ``(x0 + d*sx, y0 + c*sy)`` with ``(sx, sy) = spacing``. Bilinear.
+
+    Tool choice by reach and rest regions (issue 11, parts 2 and 3; additive):
+
+    region : (my, mx) bool or None
+        Where this stage's ball machines, on the stage model's own nodes
+        (``model.shape``): tool positions only at ``True`` nodes. ``None``: the
+        whole part.
     """
 
     tool: Tool
@@ -163,6 +170,8 @@ class ScanlineStage:
     extra_segments: int
     lines: ScanLines = field(repr=False)
     model: F64 = field(repr=False)
+    # --- tool choice by reach and rest regions (issue 11, parts 2-3) ---
+    region: NDArray[np.bool_] | None = field(default=None, repr=False)
 
     @property
     def passes(self) -> int:
