@@ -1,0 +1,378 @@
+"""Ball reach against a z-map's nodes: drop-cutter and closing by branch and bound.
+
+The *nodal* meaning: the part is its node samples, a ball position is a node ``c``
+with its tip at ``CL(c) = max over nodes q with |q - c| <= R of z(q) - h(|q - c|)``
+(``h(d) = R - sqrt(R² - d²)``, the ball above its tip), and the ball leaves at
+node ``p`` the closing ``min over positions c with |p - c| <= R of CL(c) + h(|p - c|)``.
+That is what the tool-path layer sweeps (tools against the part's nodes), and it
+gives the known answers (an R 8 ball centred on an R 8 spherical pocket reaches
+every node), where the bilinear interpolant's rim chords would hold it 0.5 mm up.
+
+Both are computed exactly (to float rounding) by branch and bound over a pyramid
+of block extremes: a block of ``2^l x 2^l`` nodes bounds ``z(q) - h`` from above by
+its largest height less ``h`` at its nearest point (``CL``), and ``CL + h`` from
+below by its smallest ``CL`` plus ``h`` at its nearest point (closing). Blocks that
+cannot beat the best value found so far are skipped; each query starts from its
+neighbour's answer (contact node or best position), which is usually already the
+answer, so a query visits a few dozen blocks whatever the ball's footprint (a Ø20
+ball at 0.1 mm spans 31,000 nodes). Queries run only at the nodes asked for.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+from numpy.typing import NDArray
+
+F64 = NDArray[np.float64]
+I64 = NDArray[np.int64]
+
+__all__ = ["nodal_closing", "nodal_drop_cutter", "pyramid"]
+
+#: Entries of a query's block stack (top blocks plus four per level per branch).
+_STACK = 4096
+
+
+def pyramid(z: F64, levels: int, high: bool) -> tuple[F64, I64]:
+    """Block maxima (``high``) or minima of ``z`` over ``2^l x 2^l`` blocks, l = 0..levels.
+
+    Returns
+    -------
+    flat : (n,) float64
+        All levels one after the other, row-major.
+    meta : (levels + 1, 3) int64
+        Offset, rows and columns of each level in ``flat``.
+    """
+    fill = -np.inf if high else np.inf
+    pick = np.maximum if high else np.minimum
+    parts = [np.ascontiguousarray(z, dtype=np.float64)]
+    for _ in range(levels):
+        a = parts[-1]
+        ny, nx = a.shape
+        py, px = ny + (ny & 1), nx + (nx & 1)
+        b = np.full((py, px), fill)
+        b[:ny, :nx] = a
+        parts.append(pick(pick(b[0::2, 0::2], b[0::2, 1::2]), pick(b[1::2, 0::2], b[1::2, 1::2])))
+    meta = np.zeros((levels + 1, 3), dtype=np.int64)
+    off = 0
+    for lv, a in enumerate(parts):
+        meta[lv] = (off, a.shape[0], a.shape[1])
+        off += a.size
+    return np.concatenate([a.ravel() for a in parts]), meta
+
+
+def levels_for(radius: float, dx: float, dy: float) -> int:
+    """Pyramid levels so that the top blocks are about half the ball's footprint."""
+    n = max(1.0, radius / min(dx, dy))
+    return max(0, int(math.floor(math.log2(n))))
+
+
+@njit(cache=True, nogil=True)
+def _gap(lo: int, hi: int, at: int) -> int:
+    if at < lo:
+        return lo - at
+    if at > hi:
+        return at - hi
+    return 0
+
+
+@njit(cache=True, nogil=True)
+def _cl_kernel(z: F64, flat: F64, meta: I64, radius: float, dx: float, dy: float,
+               rows: I64, cols: I64, cl: F64, contact: I64) -> None:
+    ny, nx = z.shape
+    r2 = radius * radius
+    top = meta.shape[0] - 1
+    ra = int(math.floor(radius / dy))
+    rb = int(math.floor(radius / dx))
+    st_l = np.empty(_STACK, dtype=np.int64)
+    st_i = np.empty(_STACK, dtype=np.int64)
+    st_k = np.empty(_STACK, dtype=np.int64)
+    qi, qk = -1, -1
+    for n in range(rows.size):
+        i, k = rows[n], cols[n]
+        best = z[i, k]
+        bi, bk = i, k
+        if qi >= 0:  # the neighbour's contact node: usually this position's too
+            d2 = ((qi - i) * dy) ** 2 + ((qk - k) * dx) ** 2
+            if d2 <= r2:
+                v = z[qi, qk] - (radius - math.sqrt(r2 - d2))
+                if v > best:
+                    best, bi, bk = v, qi, qk
+        sp = 0
+        s = 1 << top
+        for ti in range(max(0, i - ra) // s, min(ny - 1, i + ra) // s + 1):
+            for tk in range(max(0, k - rb) // s, min(nx - 1, k + rb) // s + 1):
+                st_l[sp], st_i[sp], st_k[sp] = top, ti, tk
+                sp += 1
+        while sp > 0:
+            sp -= 1
+            lv, a, b = st_l[sp], st_i[sp], st_k[sp]
+            s = 1 << lv
+            da = _gap(a * s, min(a * s + s - 1, ny - 1), i)
+            db = _gap(b * s, min(b * s + s - 1, nx - 1), k)
+            d2 = (da * dy) ** 2 + (db * dx) ** 2
+            if d2 > r2:
+                continue
+            off, _, mx = meta[lv, 0], meta[lv, 1], meta[lv, 2]
+            ub = flat[off + a * mx + b] - (radius - math.sqrt(r2 - d2))
+            if ub <= best:
+                continue
+            if lv == 0:
+                best, bi, bk = ub, a, b
+                continue
+            cy, cx = meta[lv - 1, 1], meta[lv - 1, 2]
+            for ca in range(2 * a, min(2 * a + 2, cy)):
+                for cb in range(2 * b, min(2 * b + 2, cx)):
+                    st_l[sp], st_i[sp], st_k[sp] = lv - 1, ca, cb
+                    sp += 1
+        cl[i, k] = best
+        contact[i, k] = bi * nx + bk
+        qi, qk = bi, bk
+
+
+@njit(cache=True, nogil=True)
+def _close_kernel(z: F64, cl: F64, flat: F64, meta: I64, radius: float, dx: float, dy: float,
+                  rows: I64, cols: I64, stop: float, out: F64) -> None:
+    ny, nx = z.shape
+    r2 = radius * radius
+    top = meta.shape[0] - 1
+    ra = int(math.floor(radius / dy))
+    rb = int(math.floor(radius / dx))
+    st_l = np.empty(_STACK, dtype=np.int64)
+    st_i = np.empty(_STACK, dtype=np.int64)
+    st_k = np.empty(_STACK, dtype=np.int64)
+    pi, pk = -1, -1  # best position of the previous query
+    for n in range(rows.size):
+        i, k = rows[n], cols[n]
+        floor = z[i, k] + stop
+        best = cl[i, k]
+        ci, ck = i, k
+        if pi >= 0:  # the neighbour's best position, and shifted by the step between them
+            for ti, tk in ((pi, pk), (pi + i - rows[n - 1], pk + k - cols[n - 1])):
+                if 0 <= ti < ny and 0 <= tk < nx:
+                    d2 = ((ti - i) * dy) ** 2 + ((tk - k) * dx) ** 2
+                    if d2 <= r2:
+                        v = cl[ti, tk] + (radius - math.sqrt(r2 - d2))
+                        if v < best:
+                            best, ci, ck = v, ti, tk
+        if best > floor:
+            sp = 0
+            s = 1 << top
+            for ti in range(max(0, i - ra) // s, min(ny - 1, i + ra) // s + 1):
+                for tk in range(max(0, k - rb) // s, min(nx - 1, k + rb) // s + 1):
+                    st_l[sp], st_i[sp], st_k[sp] = top, ti, tk
+                    sp += 1
+            while sp > 0 and best > floor:
+                sp -= 1
+                lv, a, b = st_l[sp], st_i[sp], st_k[sp]
+                s = 1 << lv
+                da = _gap(a * s, min(a * s + s - 1, ny - 1), i)
+                db = _gap(b * s, min(b * s + s - 1, nx - 1), k)
+                d2 = (da * dy) ** 2 + (db * dx) ** 2
+                if d2 > r2:
+                    continue
+                off, _, mx = meta[lv, 0], meta[lv, 1], meta[lv, 2]
+                lb = flat[off + a * mx + b] + (radius - math.sqrt(r2 - d2))
+                if lb >= best:
+                    continue
+                if lv == 0:
+                    best, ci, ck = lb, a, b
+                    continue
+                cy, cx = meta[lv - 1, 1], meta[lv - 1, 2]
+                for ca in range(2 * a, min(2 * a + 2, cy)):
+                    for cb in range(2 * b, min(2 * b + 2, cx)):
+                        st_l[sp], st_i[sp], st_k[sp] = lv - 1, ca, cb
+                        sp += 1
+        out[i, k] = best
+        pi, pk = ci, ck
+
+
+#: Footprints (nodes) up to which a plain scan of the ball's nodes beats the search.
+BRUTE_NODES = 400
+
+
+def _disc(radius: float, dx: float, dy: float) -> tuple[I64, I64, F64]:
+    """Node offsets (rows, columns) within the ball and ``h`` there."""
+    ra, rb = int(math.floor(radius / dy)), int(math.floor(radius / dx))
+    a, b = np.mgrid[-ra:ra + 1, -rb:rb + 1]
+    d2 = (a * dy) ** 2 + (b * dx) ** 2
+    inside = d2 <= radius * radius
+    h = radius - np.sqrt(np.maximum(radius * radius - d2[inside], 0.0))
+    return a[inside].astype(np.int64), b[inside].astype(np.int64), h
+
+
+@njit(cache=True, nogil=True)
+def _cl_brute(z: F64, oa: I64, ob: I64, oh: F64, rows: I64, cols: I64, cl: F64,
+              contact: I64) -> None:
+    ny, nx = z.shape
+    for n in range(rows.size):
+        i, k = rows[n], cols[n]
+        best = -np.inf
+        at = -1
+        for m in range(oa.size):
+            a, b = i + oa[m], k + ob[m]
+            if 0 <= a < ny and 0 <= b < nx:
+                v = z[a, b] - oh[m]
+                if v > best:
+                    best, at = v, a * nx + b
+        cl[i, k] = best
+        contact[i, k] = at
+
+
+@njit(cache=True, nogil=True)
+def _close_brute(cl: F64, oa: I64, ob: I64, oh: F64, rows: I64, cols: I64, out: F64) -> None:
+    ny, nx = cl.shape
+    for n in range(rows.size):
+        i, k = rows[n], cols[n]
+        best = np.inf
+        for m in range(oa.size):
+            a, b = i + oa[m], k + ob[m]
+            if 0 <= a < ny and 0 <= b < nx:
+                v = cl[a, b] + oh[m]
+                if v < best:
+                    best = v
+        out[i, k] = best
+
+
+def nodal_drop_cutter(z: F64, radius: float, dx: float, dy: float,
+                      positions: NDArray[np.bool_] | None = None) -> tuple[F64, I64]:
+    """Exact nodal drop-cutter CL of a ball at the asked positions.
+
+    Parameters
+    ----------
+    z : (ny, nx) float64
+        Part heights at the nodes.
+    radius, dx, dy : float
+        Ball radius and node spacing, mm.
+    positions : (ny, nx) bool, optional
+        Positions to compute (default: all).
+
+    Returns
+    -------
+    cl : (ny, nx) float64
+        ``max over nodes q within radius of z(q) - h(|q - c|)``; +inf where not asked.
+    contact : (ny, nx) int64
+        Flat index of a node the ball touches (-1 where not asked).
+    """
+    z = np.ascontiguousarray(z, dtype=np.float64)
+    mask = np.ones(z.shape, dtype=bool) if positions is None else positions
+    rows, cols = np.nonzero(mask)
+    cl = np.full(z.shape, np.inf)
+    contact = np.full(z.shape, -1, dtype=np.int64)
+    oa, ob, oh = _disc(radius, dx, dy)
+    if oa.size <= BRUTE_NODES:
+        _cl_brute(z, oa, ob, oh, rows.astype(np.int64), cols.astype(np.int64), cl, contact)
+        return cl, contact
+    flat, meta = pyramid(z, levels_for(radius, dx, dy), high=True)
+    _cl_kernel(z, flat, meta, float(radius), float(dx), float(dy), rows.astype(np.int64),
+               cols.astype(np.int64), cl, contact)
+    return cl, contact
+
+
+def nodal_closing(z: F64, cl: F64, radius: float, dx: float, dy: float,
+                  nodes: NDArray[np.bool_], stop: float = 0.0) -> F64:
+    """What balls at the CL positions leave at the asked nodes.
+
+    Parameters
+    ----------
+    z : (ny, nx) float64
+    cl : (ny, nx) float64
+        Tip heights (+inf: no ball there); every position within ``radius`` of an
+        asked node must be given for the result to be the closing.
+    radius, dx, dy : float
+    nodes : (ny, nx) bool
+        Nodes to evaluate.
+    stop : float
+        A node's search ends once a position leaves at most ``stop`` over ``z`` there
+        (the result is then within ``stop`` of the exact value, never below ``z``).
+
+    Returns
+    -------
+    (ny, nx) float64
+        ``min over positions c within radius of cl(c) + h(|p - c|)`` at asked nodes,
+        ``z`` elsewhere.
+    """
+    z = np.ascontiguousarray(z, dtype=np.float64)
+    rows, cols = np.nonzero(nodes)
+    out = z.copy()
+    oa, ob, oh = _disc(radius, dx, dy)
+    if oa.size <= BRUTE_NODES:
+        _close_brute(np.ascontiguousarray(cl), oa, ob, oh, rows.astype(np.int64),
+                     cols.astype(np.int64), out)
+        return out
+    flat, meta = pyramid(cl, levels_for(radius, dx, dy), high=False)
+    _close_kernel(z, np.ascontiguousarray(cl), flat, meta, float(radius), float(dx), float(dy),
+                  rows.astype(np.int64), cols.astype(np.int64), float(stop), out)
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _refine_kernel(z: F64, dx: float, dy: float, radius: float, rows: I64, cols: I64,
+                   rest: F64) -> None:
+    ny, nx = z.shape
+    r2 = radius * radius
+    for n in range(rows.size):
+        i, k = rows[n], cols[n]
+        # the surface normal at p from central (one-sided at the edge) differences
+        i0, i1 = max(i - 1, 0), min(i + 1, ny - 1)
+        k0, k1 = max(k - 1, 0), min(k + 1, nx - 1)
+        gy = (z[i1, k] - z[i0, k]) / (max(i1 - i0, 1) * dy)
+        gx = (z[i, k1] - z[i, k0]) / (max(k1 - k0, 1) * dx)
+        if not (math.isfinite(gx) and math.isfinite(gy)):
+            continue
+        s = radius / math.sqrt(1.0 + gx * gx + gy * gy)
+        # the ball touching p along the normal has its axis here (node units)
+        cy0, cx0 = i - gy * s / dy, k - gx * s / dx
+        best = rest[i, k]
+        for a in range(-2, 3):
+            for b in range(-2, 3):
+                cy, cx = cy0 + 0.25 * a, cx0 + 0.25 * b
+                dp2 = ((cy - i) * dy) ** 2 + ((cx - k) * dx) ** 2
+                if dp2 > r2:
+                    continue
+                top = -np.inf
+                for q in range(max(0, int(math.ceil(cy - radius / dy))),
+                               min(ny - 1, int(math.floor(cy + radius / dy))) + 1):
+                    ey = ((q - cy) * dy) ** 2
+                    for m in range(max(0, int(math.ceil(cx - radius / dx))),
+                                   min(nx - 1, int(math.floor(cx + radius / dx))) + 1):
+                        d2 = ey + ((m - cx) * dx) ** 2
+                        if d2 <= r2:
+                            v = z[q, m] - (radius - math.sqrt(r2 - d2))
+                            if v > top:
+                                top = v
+                left = top + (radius - math.sqrt(r2 - dp2)) - z[i, k]
+                if left < best:
+                    best = max(left, 0.0)
+        rest[i, k] = best
+
+
+def refine_rest(z: F64, dx: float, dy: float, radius: float, rest: F64,
+                nodes: NDArray[np.bool_]) -> F64:
+    """Rest at the asked nodes with a ball between the nodes as well (in place).
+
+    Node positions leave *position cusps* between them, large where a concave surface
+    nearly fits the ball (its contact points spread out). The machine moves
+    continuously, so at each asked node the ball is also tried along the node's
+    surface normal (and around it, a quarter and half node off), with its drop-cutter
+    height against the nodes: the rest there is the least found.
+
+    Parameters
+    ----------
+    z : (ny, nx) float64
+    dx, dy, radius : float
+    rest : (ny, nx) float64
+        Rest from node positions; lowered in place.
+    nodes : (ny, nx) bool
+
+    Returns
+    -------
+    (ny, nx) float64
+        ``rest``.
+    """
+    rows, cols = np.nonzero(nodes)
+    _refine_kernel(np.ascontiguousarray(z, dtype=np.float64), float(dx), float(dy),
+                   float(radius), rows.astype(np.int64), cols.astype(np.int64), rest)
+    return rest
