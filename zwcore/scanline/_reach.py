@@ -92,7 +92,7 @@ def concave_radii(z: F64, dx: float, dy: float) -> F64:
         left = (centre - bwd) / step
         curv = (right - left) / step
         s = _minmod(left, right)
-        with np.errstate(divide="ignore", invalid="ignore"):
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             rho = np.where(curv > 0.0, (1.0 + s * s) ** 1.5 / curv, np.inf)
         # an edge node has no neighbour outside: no curvature across the edge
         if da:
@@ -174,5 +174,5 @@ def ball_reach(z: F64, dx: float, dy: float, radius: float, tolerance: float,
     cl, _ = nodal_drop_cutter(zp, radius, dx, dy, positions)
     closed = nodal_closing(zp, cl, radius, dx, dy, bandp, stop=STOP_SHARE * tolerance)
     np.maximum(closed[pa:pa + z.shape[0], pb:pb + z.shape[1]] - z, 0.0, out=rest)
-    refine_rest(z, dx, dy, radius, rest, rest > tolerance)
+    refine_rest(z, dx, dy, radius, rest, rest > tolerance, tolerance)
     return BallReach(radius, rest, band, int(positions.sum()))

@@ -310,7 +310,7 @@ def nodal_closing(z: F64, cl: F64, radius: float, dx: float, dy: float,
 
 @njit(cache=True, nogil=True)
 def _refine_kernel(z: F64, dx: float, dy: float, radius: float, rows: I64, cols: I64,
-                   rest: F64) -> None:
+                   rest: F64, slack: float) -> None:
     ny, nx = z.shape
     r2 = radius * radius
     for n in range(rows.size):
@@ -326,37 +326,47 @@ def _refine_kernel(z: F64, dx: float, dy: float, radius: float, rows: I64, cols:
         # the ball touching p along the normal has its axis here (node units)
         cy0, cx0 = i - gy * s / dy, k - gx * s / dx
         best = rest[i, k]
-        for a in range(-2, 3):
-            for b in range(-2, 3):
-                cy, cx = cy0 + 0.25 * a, cx0 + 0.25 * b
-                dp2 = ((cy - i) * dy) ** 2 + ((cx - k) * dx) ** 2
-                if dp2 > r2:
+        # along the normal first; the ring around it only where that found a cusp
+        # (a real corner leaves about as much there as at the node positions)
+        for t in range(25):
+            if t == 0:
+                a, b = 0, 0
+            else:
+                if best > rest[i, k] - 0.5 * slack:
+                    break
+                a, b = (t - 1) // 5 - 2, (t - 1) % 5 - 2
+                if a == 0 and b == 0:
                     continue
-                top = -np.inf
-                for q in range(max(0, int(math.ceil(cy - radius / dy))),
-                               min(ny - 1, int(math.floor(cy + radius / dy))) + 1):
-                    ey = ((q - cy) * dy) ** 2
-                    for m in range(max(0, int(math.ceil(cx - radius / dx))),
-                                   min(nx - 1, int(math.floor(cx + radius / dx))) + 1):
-                        d2 = ey + ((m - cx) * dx) ** 2
-                        if d2 <= r2:
-                            v = z[q, m] - (radius - math.sqrt(r2 - d2))
-                            if v > top:
-                                top = v
-                left = top + (radius - math.sqrt(r2 - dp2)) - z[i, k]
-                if left < best:
-                    best = max(left, 0.0)
+            cy, cx = cy0 + 0.25 * a, cx0 + 0.25 * b
+            dp2 = ((cy - i) * dy) ** 2 + ((cx - k) * dx) ** 2
+            if dp2 > r2:
+                continue
+            top = -np.inf
+            for q in range(max(0, int(math.ceil(cy - radius / dy))),
+                           min(ny - 1, int(math.floor(cy + radius / dy))) + 1):
+                ey = ((q - cy) * dy) ** 2
+                for m in range(max(0, int(math.ceil(cx - radius / dx))),
+                               min(nx - 1, int(math.floor(cx + radius / dx))) + 1):
+                    d2 = ey + ((m - cx) * dx) ** 2
+                    if d2 <= r2:
+                        v = z[q, m] - (radius - math.sqrt(r2 - d2))
+                        if v > top:
+                            top = v
+            left = top + (radius - math.sqrt(r2 - dp2)) - z[i, k]
+            if left < best:
+                best = max(left, 0.0)
         rest[i, k] = best
 
 
 def refine_rest(z: F64, dx: float, dy: float, radius: float, rest: F64,
-                nodes: NDArray[np.bool_]) -> F64:
+                nodes: NDArray[np.bool_], slack: float) -> F64:
     """Rest at the asked nodes with a ball between the nodes as well (in place).
 
     Node positions leave *position cusps* between them, large where a concave surface
     nearly fits the ball (its contact points spread out). The machine moves
     continuously, so at each asked node the ball is also tried along the node's
-    surface normal (and around it, a quarter and half node off), with its drop-cutter
+    surface normal (and, where that finds a cusp, around it a quarter and half a
+    node off), with its drop-cutter
     height against the nodes: the rest there is the least found.
 
     Parameters
@@ -366,6 +376,9 @@ def refine_rest(z: F64, dx: float, dy: float, radius: float, rest: F64,
     rest : (ny, nx) float64
         Rest from node positions; lowered in place.
     nodes : (ny, nx) bool
+    slack : float
+        The ring around the normal is tried only where the normal itself lowered the
+        rest by at least half of this (a cusp, not a corner), mm.
 
     Returns
     -------
@@ -374,5 +387,6 @@ def refine_rest(z: F64, dx: float, dy: float, radius: float, rest: F64,
     """
     rows, cols = np.nonzero(nodes)
     _refine_kernel(np.ascontiguousarray(z, dtype=np.float64), float(dx), float(dy),
-                   float(radius), rows.astype(np.int64), cols.astype(np.int64), rest)
+                   float(radius), rows.astype(np.int64), cols.astype(np.int64), rest,
+                   float(slack))
     return rest
