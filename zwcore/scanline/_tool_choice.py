@@ -37,8 +37,8 @@ from zwcore.grid.sampling import bilinear_at_fine_nodes
 from zwcore.grid.tools import Tool
 from zwcore.grid.zmap import ZMap
 from zwcore.scanline._models import Target
+from zwcore.scanline._reach import ball_reach
 from zwcore.scanline._regions import Chain
-from zwcore.sim._nodal import nodal_closing, nodal_drop_cutter
 
 __all__ = ["REST_FLUTE_SHARE", "REST_MAX_CELLS", "Level", "Stage", "StageReach", "ball_rest",
            "choose", "levels"]
@@ -51,7 +51,11 @@ REST_FLUTE_SHARE = 0.25
 
 #: The rest of an oversized roughing ball is simulated only where it spans at most
 #: this many nodes of its level each way (beyond, the concave-radius rule decides).
-REST_MAX_CELLS = 16
+REST_MAX_CELLS = 8
+
+#: Roughing rest is simulated to this resolution, mm (it is compared with a quarter of a
+#: flute length).
+REST_RESOLUTION = 1e-3
 
 
 @dataclass
@@ -142,15 +146,13 @@ def levels(zmap: ZMap, depth: int, targets: list[Target], smoothing: float,
 def ball_rest(lev: Level, radius: float) -> float:
     """Largest height of material a ball of ``radius`` leaves in the level model's valleys.
 
-    Nodal closing on the level's own nodes (:mod:`zwcore.sim._nodal`: the tip rests at
-    ``max_y (A(x+y) - h(y))`` over the ball's footprint and cuts down to
-    ``min_y (tip(x-y) + h(y))``), minus ``A``, over the nodes inside the input.
+    The ball's simulated reach on the level's own nodes
+    (:func:`zwcore.scanline._reach.ball_reach`: the nodal closing, exact where the
+    model bends more sharply than the ball and within ``2R`` of it, with a ball between
+    nodes where node positions leave cusps), over the nodes inside the input.
     """
-    cl, _ = nodal_drop_cutter(lev.model, radius, lev.sx, lev.sy)
-    closed = nodal_closing(lev.model, cl, radius, lev.sx, lev.sy,
-                           np.ones(lev.model.shape, dtype=bool))
-    rest = (closed - lev.model)[: lev.extent[0], : lev.extent[1]]
-    return max(float(rest.max()), 0.0)
+    model = lev.model[: lev.extent[0], : lev.extent[1]]
+    return float(ball_reach(model, lev.sx, lev.sy, radius, REST_RESOLUTION).rest.max())
 
 
 def _finishing(levels: list[Level], chain: Chain, tolerance: float) -> list[Stage]:

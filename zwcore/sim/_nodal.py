@@ -190,49 +190,83 @@ def _close_kernel(z: F64, cl: F64, flat: F64, meta: I64, radius: float, dx: floa
 
 
 #: Footprints (nodes) up to which a plain scan of the ball's nodes beats the search.
-BRUTE_NODES = 400
+BRUTE_NODES = 800
 
 
-def _disc(radius: float, dx: float, dy: float) -> tuple[I64, I64, F64]:
-    """Node offsets (rows, columns) within the ball and ``h`` there."""
+def _disc(radius: float, dx: float, dy: float) -> tuple[I64, F64]:
+    """Half-width in columns of the ball's nodes on each row offset, and ``h`` there.
+
+    Returns
+    -------
+    half : (2A + 1,) int64
+        Row offset ``a`` spans columns ``-half[a - A] .. half[a - A]``.
+    h : (2A + 1, 2B + 1) float64
+        ``h`` at offset ``(a, b)`` (``+inf`` outside the ball).
+    """
     ra, rb = int(math.floor(radius / dy)), int(math.floor(radius / dx))
     a, b = np.mgrid[-ra:ra + 1, -rb:rb + 1]
     d2 = (a * dy) ** 2 + (b * dx) ** 2
     inside = d2 <= radius * radius
-    h = radius - np.sqrt(np.maximum(radius * radius - d2[inside], 0.0))
-    return a[inside].astype(np.int64), b[inside].astype(np.int64), h
+    h = np.where(inside, radius - np.sqrt(np.maximum(radius * radius - d2, 0.0)), np.inf)
+    half = np.where(inside, np.abs(b), -1).max(axis=1).astype(np.int64)
+    return half, np.ascontiguousarray(h)
 
 
 @njit(cache=True, nogil=True)
-def _cl_brute(z: F64, oa: I64, ob: I64, oh: F64, rows: I64, cols: I64, cl: F64,
+def _cl_brute(z: F64, half: I64, hh: F64, rows: I64, cols: I64, cl: F64,
               contact: I64) -> None:
     ny, nx = z.shape
+    ra = (half.size - 1) // 2
+    rb = (hh.shape[1] - 1) // 2
     for n in range(rows.size):
         i, k = rows[n], cols[n]
         best = -np.inf
         at = -1
-        for m in range(oa.size):
-            a, b = i + oa[m], k + ob[m]
-            if 0 <= a < ny and 0 <= b < nx:
-                v = z[a, b] - oh[m]
-                if v > best:
-                    best, at = v, a * nx + b
+        for a in range(max(-ra, -i), min(ra, ny - 1 - i) + 1):
+            w = half[a + ra]
+            if w < 0:
+                continue
+            b0, b1 = max(-w, -k), min(w, nx - 1 - k)
+            row = z[i + a]
+            hr = hh[a + ra]
+            top = -np.inf
+            for b in range(b0, b1 + 1):
+                top = max(top, row[k + b] - hr[b + rb])
+            if top > best:
+                best = top
+                at = i + a
+        if at >= 0:  # the contact column on the winning row
+            a = at - i
+            w = half[a + ra]
+            row = z[at]
+            hr = hh[a + ra]
+            for b in range(max(-w, -k), min(w, nx - 1 - k) + 1):
+                if row[k + b] - hr[b + rb] == best:
+                    at = at * nx + k + b
+                    break
         cl[i, k] = best
         contact[i, k] = at
 
 
 @njit(cache=True, nogil=True)
-def _close_brute(cl: F64, oa: I64, ob: I64, oh: F64, rows: I64, cols: I64, out: F64) -> None:
+def _close_brute(cl: F64, half: I64, hh: F64, rows: I64, cols: I64, out: F64) -> None:
     ny, nx = cl.shape
+    ra = (half.size - 1) // 2
+    rb = (hh.shape[1] - 1) // 2
     for n in range(rows.size):
         i, k = rows[n], cols[n]
         best = np.inf
-        for m in range(oa.size):
-            a, b = i + oa[m], k + ob[m]
-            if 0 <= a < ny and 0 <= b < nx:
-                v = cl[a, b] + oh[m]
-                if v < best:
-                    best = v
+        for a in range(max(-ra, -i), min(ra, ny - 1 - i) + 1):
+            w = half[a + ra]
+            if w < 0:
+                continue
+            b0, b1 = max(-w, -k), min(w, nx - 1 - k)
+            row = cl[i + a]
+            hr = hh[a + ra]
+            low = np.inf
+            for b in range(b0, b1 + 1):
+                low = min(low, row[k + b] + hr[b + rb])
+            best = min(best, low)
         out[i, k] = best
 
 
@@ -261,9 +295,9 @@ def nodal_drop_cutter(z: F64, radius: float, dx: float, dy: float,
     rows, cols = np.nonzero(mask)
     cl = np.full(z.shape, np.inf)
     contact = np.full(z.shape, -1, dtype=np.int64)
-    oa, ob, oh = _disc(radius, dx, dy)
-    if oa.size <= BRUTE_NODES:
-        _cl_brute(z, oa, ob, oh, rows.astype(np.int64), cols.astype(np.int64), cl, contact)
+    half, hh = _disc(radius, dx, dy)
+    if int((2 * half + 1).clip(0).sum()) <= BRUTE_NODES:
+        _cl_brute(z, half, hh, rows.astype(np.int64), cols.astype(np.int64), cl, contact)
         return cl, contact
     flat, meta = pyramid(z, levels_for(radius, dx, dy), high=True)
     _cl_kernel(z, flat, meta, float(radius), float(dx), float(dy), rows.astype(np.int64),
@@ -297,9 +331,9 @@ def nodal_closing(z: F64, cl: F64, radius: float, dx: float, dy: float,
     z = np.ascontiguousarray(z, dtype=np.float64)
     rows, cols = np.nonzero(nodes)
     out = z.copy()
-    oa, ob, oh = _disc(radius, dx, dy)
-    if oa.size <= BRUTE_NODES:
-        _close_brute(np.ascontiguousarray(cl), oa, ob, oh, rows.astype(np.int64),
+    half, hh = _disc(radius, dx, dy)
+    if int((2 * half + 1).clip(0).sum()) <= BRUTE_NODES:
+        _close_brute(np.ascontiguousarray(cl), half, hh, rows.astype(np.int64),
                      cols.astype(np.int64), out)
         return out
     flat, meta = pyramid(cl, levels_for(radius, dx, dy), high=False)
