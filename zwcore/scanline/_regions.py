@@ -20,9 +20,11 @@ to its rest region, so nothing a coarse lattice skips is left unassigned. A pair
 balls is compared on the coarser ball's lattice.
 
 Which chain: the one with the shortest estimated finishing cut length,
-``sum over balls of region area / pick-feed`` (the pick-feed that holds ``tolerance``
-on a flat, ``2 sqrt(2 R tol - tol²)``) plus :data:`TOOL_CHANGE_MM` per tool change,
-by dynamic programming over (previous ball, next ball) pairs.
+``sum over balls of region area x passes / pick-feed`` (the pick-feed that holds
+``tolerance`` on a flat, ``2 sqrt(2 R tol - tol²)``; a rest ball takes the material
+the previous ball left in layers of its flute length, so a node under a deep rest
+counts once per layer) plus :data:`TOOL_CHANGE_MM` per tool change, by dynamic
+programming over (previous ball, next ball) pairs.
 """
 
 from __future__ import annotations
@@ -201,11 +203,36 @@ class _Reach:
                                      mode="nearest")
         return np.maximum(self.z, up)
 
-    def seed(self, prev: float, nxt: float) -> B8:
-        """Fine nodes where ball ``prev`` leaves material ``nxt`` does better on by > tol."""
+    def layers(self, prev: float, flute: float, region: B8) -> float:
+        """Node passes a ball with ``flute`` needs over ``region`` after ball ``prev``: one,
+        or as many as its flutes need to take the rest ``prev`` leaves there."""
         k = lattice(prev, self.dx, self.dy)
-        better = (self.rest(prev, k) - self.rest(nxt, k)) > self.tol
-        return self.fine_mask(better, k) | self.safety(k)
+        rest = self.rest(prev, k)
+        ny, nx = self.z.shape
+        near = rest[np.ix_(np.minimum((np.arange(ny) + k // 2) // k, rest.shape[0] - 1),
+                           np.minimum((np.arange(nx) + k // 2) // k, rest.shape[1] - 1))]
+        passes = np.maximum(np.ceil(near[region] / flute), 1.0)
+        return float(passes.sum())
+
+    def seed(self, prev: float, nxt: float) -> B8:
+        """Fine nodes where ball ``prev`` leaves material ``nxt`` does better on by > tol.
+
+        Compared on the smaller ball's lattice (the finer one), the larger ball's rest
+        interpolated bilinearly between its lattice nodes (rest, not surface: a chord
+        of the surface over a concave wall is no rest)."""
+        kp = lattice(prev, self.dx, self.dy)
+        kn = lattice(nxt, self.dx, self.dy)
+        mine = self.rest(nxt, kn)
+        theirs = self.rest(prev, kp)
+        if kp != kn:
+            f = kp // kn
+            my, mx = mine.shape
+            yi = np.minimum(np.arange(my) / f, theirs.shape[0] - 1)
+            xi = np.minimum(np.arange(mx) / f, theirs.shape[1] - 1)
+            theirs = ndimage.map_coordinates(theirs, np.meshgrid(yi, xi, indexing="ij"),
+                                             order=1, mode="nearest")
+        better = (theirs - mine) > self.tol
+        return self.fine_mask(better, kn) | self.safety(kp)
 
 
 def _boxes(region: B8, dx: float, dy: float) -> tuple[int, tuple[Box, ...]]:
@@ -242,7 +269,8 @@ def _plan(balls: list[Tool], reach: _Reach, area: float, cell: float
             done = False
             region = _within(seed, balls[i].radius, reach.dx, reach.dy)
             regions[(j, i)] = region
-            cost = float(region.sum()) * cell / pf[i] + TOOL_CHANGE_MM + best[i]
+            layers = reach.layers(balls[j].radius, balls[i].flute_length, region)
+            cost = layers * cell / pf[i] + TOOL_CHANGE_MM + best[i]
             options.append((cost, i))
         if done:
             options.append((0.0, None))
