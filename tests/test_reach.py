@@ -7,6 +7,7 @@ geometry (where a ball's region may lie) and that brute force.
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import numpy as np
@@ -21,7 +22,7 @@ from zwcore.grid.tools import Tool, default_tools
 from zwcore.grid.zmap import ZMap
 from zwcore.scanline._reach import ball_reach
 from zwcore.scanline.planner import plan_scanline
-from zwcore.sim._nodal import nodal_closing, nodal_drop_cutter, refine_rest
+from zwcore.sim import nodal_closing, nodal_drop_cutter, refine_rest
 
 BALLS = default_tools("ball")
 
@@ -68,7 +69,7 @@ def test_nodal_closing_is_the_brute_force_one(z: np.ndarray, dx: float, dy: floa
     ref = brute_closing(z, radius, dx, dy)
     np.testing.assert_allclose(out, ref, rtol=0, atol=1e-9)
     # the contact node is one the ball at its CL touches
-    ny, nx = z.shape
+    _ny, nx = z.shape
     ci, ck = np.divmod(contact, nx)
     ii, kk = np.indices(z.shape)
     d = np.hypot((ci - ii) * dy, (ck - kk) * dx)
@@ -211,7 +212,7 @@ def test_fillet_gets_a_small_ball_only_along_it() -> None:
     assert fin[-1].tool.radius <= 3.0 and fin[-1].region is not None
     assert plan.reach is not None and plan.reach.unreachable_area == 0.0
     x = np.arange(zmap.shape[1]) * zmap.dx
-    for prev, s in zip(fin, fin[1:]):
+    for prev, s in itertools.pairwise(fin):
         assert s.region is not None and s.region.any()
         cols = x[s.region.any(axis=0)]
         # the previous ball leaves material only within its radius of the fillet (it
@@ -275,7 +276,7 @@ def test_rest_regions_nest_and_cover_where_the_previous_ball_leaves_material() -
                                 Tool("C", "ball", 2.0, 4.0)])
     fin = _finishing(plan)
     assert len(fin) >= 2
-    for prev, s in zip(fin, fin[1:]):
+    for prev, s in itertools.pairwise(fin):
         # nodes where the previous ball leaves more than the tolerance and this one
         # does better by more than it (brute force, node positions): in the region
         left = brute_closing(zmap.z, prev.tool.radius, zmap.dx, zmap.dy, pad=True) - zmap.z
@@ -290,7 +291,7 @@ def test_rest_regions_nest_and_cover_where_the_previous_ball_leaves_material() -
 
 
 def test_plan_response_reports_regions(client) -> None:  # type: ignore[no-untyped-def]
-    zmap, x0, xt = _fillet(45.0, h=0.25)
+    zmap, _x0, _xt = _fillet(45.0, h=0.25)
     grid = {"x0": 5.0, "y0": -2.0, "dx": 0.25, "dy": 0.25, "z": zmap.z.tolist()}
     r = client.post("/v1/plans/scanline", json={"grid": grid, "include_models": True})
     assert r.status_code == 200, r.text

@@ -30,9 +30,9 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import ndimage
 
-from zwcore.sim._nodal import nodal_closing, nodal_drop_cutter, refine_rest
+from zwcore.sim import nodal_closing, nodal_drop_cutter, refine_rest
 
-__all__ = ["BallReach", "ball_reach", "concave_radii"]
+__all__ = ["BallReach", "ball_reach", "concave_radii", "within_distance"]
 
 F64 = NDArray[np.float64]
 B8 = NDArray[np.bool_]
@@ -103,7 +103,7 @@ def concave_radii(z: F64, dx: float, dy: float) -> F64:
     return out
 
 
-def _within(seed: B8, distance: float, dx: float, dy: float) -> B8:
+def within_distance(seed: B8, distance: float, dx: float, dy: float) -> B8:
     """Nodes within ``distance`` (mm, Euclidean) of a seed node, conservatively.
 
     On blocks of ``k x k`` nodes (``k`` about a quarter of the distance in cells) and
@@ -114,7 +114,7 @@ def _within(seed: B8, distance: float, dx: float, dy: float) -> B8:
     # only the seed's bounding box grown by the distance can be reached
     rows = np.flatnonzero(seed.any(axis=1))
     cols = np.flatnonzero(seed.any(axis=0))
-    ga, gb = int(math.ceil(distance / dy)) + 1, int(math.ceil(distance / dx)) + 1
+    ga, gb = math.ceil(distance / dy) + 1, math.ceil(distance / dx) + 1
     r0, r1 = max(0, rows[0] - ga), min(seed.shape[0], rows[-1] + ga + 1)
     c0, c1 = max(0, cols[0] - gb), min(seed.shape[1], cols[-1] + gb + 1)
     out = np.zeros(seed.shape, dtype=bool)
@@ -160,17 +160,17 @@ def ball_reach(z: F64, dx: float, dy: float, radius: float, tolerance: float,
     if rho is None:
         rho = concave_radii(z, dx, dy)
     tight = rho < radius
-    band = _within(tight, 2.0 * radius, dx, dy)
+    band = within_distance(tight, 2.0 * radius, dx, dy)
     rest = np.zeros(z.shape)
     if not band.any():
         return BallReach(radius, rest, band, 0)
     # Positions may lie beyond the grid (the tool runs past the part's edge), over the
     # part's edge heights continued outwards (stock or fixture there, as the roughing
     # levels assume): a ball cannot dive beside the edge and touch it from the side.
-    pa, pb = int(math.floor(radius / dy)) + 1, int(math.floor(radius / dx)) + 1
+    pa, pb = math.floor(radius / dy) + 1, math.floor(radius / dx) + 1
     zp = np.pad(z, ((pa, pa), (pb, pb)), mode="edge")
     bandp = np.pad(band, ((pa, pa), (pb, pb)))
-    positions = _within(bandp, radius, dx, dy)
+    positions = within_distance(bandp, radius, dx, dy)
     cl, _ = nodal_drop_cutter(zp, radius, dx, dy, positions)
     closed = nodal_closing(zp, cl, radius, dx, dy, bandp, stop=STOP_SHARE * tolerance)
     np.maximum(closed[pa:pa + z.shape[0], pb:pb + z.shape[1]] - z, 0.0, out=rest)

@@ -37,7 +37,7 @@ from numpy.typing import NDArray
 from scipy import ndimage
 
 from zwcore.grid.tools import Tool
-from zwcore.scanline._reach import _within, ball_reach, concave_radii
+from zwcore.scanline._reach import within_distance, ball_reach, concave_radii
 
 __all__ = ["TOOL_CHANGE_MM", "Chain", "ChainStage", "finishing_chain", "flat_pick_feed"]
 
@@ -173,7 +173,7 @@ class _Reach:
                 self._safety[k] = np.zeros(self.z.shape, dtype=bool)
             else:
                 sharp = self.rho < SHARP_SHARE * k * max(self.dx, self.dy)
-                self._safety[k] = _within(sharp, k * math.hypot(self.dx, self.dy),
+                self._safety[k] = within_distance(sharp, k * math.hypot(self.dx, self.dy),
                                           self.dx, self.dy)
         return self._safety[k]
 
@@ -267,7 +267,7 @@ def _plan(balls: list[Tool], reach: _Reach, area: float, cell: float
             if not seed.any():
                 continue
             done = False
-            region = _within(seed, balls[i].radius, reach.dx, reach.dy)
+            region = within_distance(seed, balls[i].radius, reach.dx, reach.dy)
             regions[(j, i)] = region
             layers = reach.layers(balls[j].radius, balls[i].flute_length, region)
             cost = layers * cell / pf[i] + TOOL_CHANGE_MM + best[i]
@@ -309,6 +309,7 @@ def finishing_chain(z: F64, dx: float, dy: float, balls: list[Tool], tolerance: 
     stages = []
     surface = z
     left = np.zeros(z.shape, dtype=bool)
+    boxes: tuple[Box, ...]
     for n, j in enumerate(chain):
         tool = balls[j]
         k = lattice(tool.radius, dx, dy)
@@ -356,4 +357,5 @@ def _reason(n: int, tool: Tool, balls: list[Tool], chain: list[int], above: B8, 
     prev = balls[chain[n - 1]]
     return (f"simulated reach: rest of {prev.id} (more than {tolerance:g} mm, and {tool.id} "
             f"leaves at least {tolerance:g} mm less there) grown by its radius: "
-            f"{100 * frac:.3g} % of the part; {100 * left:.3g} % still above the tolerance after it")
+            f"{100 * frac:.3g} % of the part; {100 * left:.3g} % still above the tolerance "
+            f"after it")

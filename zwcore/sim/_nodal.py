@@ -66,7 +66,7 @@ def pyramid(z: F64, levels: int, high: bool) -> tuple[F64, I64]:
 def levels_for(radius: float, dx: float, dy: float) -> int:
     """Pyramid levels so that the top blocks are about half the ball's footprint."""
     n = max(1.0, radius / min(dx, dy))
-    return max(0, int(math.floor(math.log2(n))))
+    return max(0, math.floor(math.log2(n)))
 
 
 @njit(cache=True, nogil=True)
@@ -84,8 +84,8 @@ def _cl_kernel(z: F64, flat: F64, meta: I64, radius: float, dx: float, dy: float
     ny, nx = z.shape
     r2 = radius * radius
     top = meta.shape[0] - 1
-    ra = int(math.floor(radius / dy))
-    rb = int(math.floor(radius / dx))
+    ra = math.floor(radius / dy)
+    rb = math.floor(radius / dx)
     st_l = np.empty(_STACK, dtype=np.int64)
     st_i = np.empty(_STACK, dtype=np.int64)
     st_k = np.empty(_STACK, dtype=np.int64)
@@ -138,8 +138,8 @@ def _close_kernel(z: F64, cl: F64, flat: F64, meta: I64, radius: float, dx: floa
     ny, nx = z.shape
     r2 = radius * radius
     top = meta.shape[0] - 1
-    ra = int(math.floor(radius / dy))
-    rb = int(math.floor(radius / dx))
+    ra = math.floor(radius / dy)
+    rb = math.floor(radius / dx)
     st_l = np.empty(_STACK, dtype=np.int64)
     st_i = np.empty(_STACK, dtype=np.int64)
     st_k = np.empty(_STACK, dtype=np.int64)
@@ -203,7 +203,7 @@ def _disc(radius: float, dx: float, dy: float) -> tuple[I64, F64]:
     h : (2A + 1, 2B + 1) float64
         ``h`` at offset ``(a, b)`` (``+inf`` outside the ball).
     """
-    ra, rb = int(math.floor(radius / dy)), int(math.floor(radius / dx))
+    ra, rb = math.floor(radius / dy), math.floor(radius / dx)
     a, b = np.mgrid[-ra:ra + 1, -rb:rb + 1]
     d2 = (a * dy) ** 2 + (b * dx) ** 2
     inside = d2 <= radius * radius
@@ -376,11 +376,11 @@ def _refine_kernel(z: F64, dx: float, dy: float, radius: float, rows: I64, cols:
             if dp2 > r2:
                 continue
             top = -np.inf
-            for q in range(max(0, int(math.ceil(cy - radius / dy))),
-                           min(ny - 1, int(math.floor(cy + radius / dy))) + 1):
+            for q in range(max(0, math.ceil(cy - radius / dy)),
+                           min(ny - 1, math.floor(cy + radius / dy)) + 1):
                 ey = ((q - cy) * dy) ** 2
-                for m in range(max(0, int(math.ceil(cx - radius / dx))),
-                               min(nx - 1, int(math.floor(cx + radius / dx))) + 1):
+                for m in range(max(0, math.ceil(cx - radius / dx)),
+                               min(nx - 1, math.floor(cx + radius / dx)) + 1):
                     d2 = ey + ((m - cx) * dx) ** 2
                     if d2 <= r2:
                         v = z[q, m] - (radius - math.sqrt(r2 - d2))
