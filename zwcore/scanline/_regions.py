@@ -37,7 +37,7 @@ from numpy.typing import NDArray
 from scipy import ndimage
 
 from zwcore.grid.tools import Tool
-from zwcore.scanline._reach import within_distance, ball_reach, concave_radii
+from zwcore.scanline._reach import ball_reach, concave_radii, within_distance
 
 __all__ = ["TOOL_CHANGE_MM", "Chain", "ChainStage", "finishing_chain", "flat_pick_feed"]
 
