@@ -10,6 +10,15 @@ The stage models and every earlier figure stayed the same; the body gained
 ``path_length``, ``path_length_whole_strips`` and ``extra_segments`` per stage
 and the reason text says the extra lines run over the stretches that need them
 (checked against the old body, field by field, before re-pinning).
+
+Re-pinned on purpose again: ``scanline`` for issue 11, parts 2-3 (tool choice by
+simulated reach, rest regions). The old digest already failed on main before this
+change (drift of the figures since the last pin); this change alters the plan on
+purpose: the finishing ball of this part comes from its simulated reach, the
+roughing balls' rest is simulated, and every stage gained the region fields
+(``region_area_fraction``, ``region_boxes``, ``region_count``,
+``estimated_cut_length``, ``reach_rest_max``, ``reach_reason``, ``region``) and the
+body a ``reach`` summary. The task id is unchanged (same request).
 """
 
 from __future__ import annotations
@@ -52,7 +61,7 @@ PINNED: dict[str, tuple[str, str]] = {
     "mrr": ("b1500866fbd1fdfbf5316dd1ae2173f8c32f5260c9b4e878b3c9f6dba7610746",
             "31de2fbd8ee47e1e6593e88134fd959409089d4da283a17bb109a8c8cb758d00"),
     "scanline": ("0d373fe45ad19e3b0af762cc5bf3f023ae1ecd34c414f499db31a0f7bee50cc5",
-                 "96390587b90063e86e0f98a771257ee7bd1d4b19e49f2dfab32bf35d3063c0a3"),
+                 "88fe30bfd471df539e7eb6d48ed5e081da502ee6860174477047815598b60d08"),
     "contour": ("af4786a3c0c89d765d85abbeb7289898a35f887b14e5abbe03ef564b2b881010",
                 "f790a92b32701ef29a3902d847750f4f75f4a6a57c6834812cb9d5a0fb379987"),
     # (re-pinned twice: issue 14 names results by operation id, ``fit_arcs``; issue 15
