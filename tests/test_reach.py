@@ -318,3 +318,17 @@ def test_plan_response_reports_regions(client) -> None:  # type: ignore[no-untyp
         assert max(b.y_max for b in s.region_boxes) == pytest.approx(-2.0 + ys.max() * 0.25)
     r = client.post("/v1/plans/scanline", json={"grid": grid})
     assert all(s["region"] is None for s in r.json()["stages"])
+
+
+def test_r8_pocket_program_with_the_d16_ball_is_gouge_free() -> None:
+    # The tool paths of the reach-chosen plan: the exact sweep never cuts the part
+    # (the scallop part of the R 8 pocket's tool-path test is a strict xfail there).
+    from tests.test_toolpath import brute_cl, hemisphere_pocket
+    from zwcore.toolpath import scanline_toolpaths
+
+    part = hemisphere_pocket()
+    plan = plan_scanline(part, BALLS, tolerance=0.01)
+    assert plan.stages[-1].tool.id == "BEM-D16"
+    chk = scanline_toolpaths(part, plan, brute_cl).check
+    assert chk is not None
+    assert chk.gouge <= 1e-9 and chk.below_part_moves == 0 and chk.rapid_in_material == 0.0

@@ -36,6 +36,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import ndimage
 
+from zwcore.grid.sampling import bilinear_at_fine_nodes
 from zwcore.grid.tools import Tool
 from zwcore.scanline._reach import ball_reach, concave_radii, within_distance
 
@@ -128,6 +129,8 @@ class Chain:
     needed_radius : float
         Smallest concave radius of the part there (a ball would need to be no
         larger), mm; inf when nothing is left.
+    by_main : dict of str to float
+        The least estimated cut length with each ball as the main one, mm.
     """
 
     stages: list[ChainStage]
@@ -136,6 +139,7 @@ class Chain:
     unreachable_area: float
     unreachable_max: float
     needed_radius: float
+    by_main: dict[str, float] = field(default_factory=dict)
 
 
 def lattice(radius: float, dx: float, dy: float) -> int:
@@ -155,6 +159,7 @@ class _Reach:
         self._rest: dict[tuple[float, int], F64] = {}
         self._rho: dict[int, F64] = {1: self.rho}
         self._safety: dict[int, B8] = {}
+        self._upsampled: dict[tuple[float, int], F64] = {}
 
     def rest(self, radius: float, k: int) -> F64:
         key = (radius, k)
@@ -222,15 +227,15 @@ class _Reach:
         of the surface over a concave wall is no rest)."""
         kp = lattice(prev, self.dx, self.dy)
         kn = lattice(nxt, self.dx, self.dy)
-        mine = self.rest(nxt, kn)
         theirs = self.rest(prev, kp)
+        if not (theirs > self.tol).any():
+            return self.safety(kp)
+        mine = self.rest(nxt, kn)
         if kp != kn:
-            f = kp // kn
-            my, mx = mine.shape
-            yi = np.minimum(np.arange(my) / f, theirs.shape[0] - 1)
-            xi = np.minimum(np.arange(mx) / f, theirs.shape[1] - 1)
-            theirs = ndimage.map_coordinates(theirs, np.meshgrid(yi, xi, indexing="ij"),
-                                             order=1, mode="nearest")
+            key = (prev, kn)
+            if key not in self._upsampled:
+                self._upsampled[key] = bilinear_at_fine_nodes(theirs, kp // kn, mine.shape)
+            theirs = self._upsampled[key]
         better = (theirs - mine) > self.tol
         return self.fine_mask(better, kn) | self.safety(kp)
 
@@ -251,8 +256,9 @@ def _boxes(region: B8, dx: float, dy: float) -> tuple[int, tuple[Box, ...]]:
 
 
 def _plan(balls: list[Tool], reach: _Reach, area: float, cell: float
-          ) -> tuple[list[int], float, dict[tuple[int, int], B8]]:
-    """The chain (indices into ``balls``, largest first) of least estimated cut length."""
+          ) -> tuple[list[int], list[float], dict[tuple[int, int], B8]]:
+    """The chain (indices into ``balls``, largest first) of least estimated cut length,
+    and the least total with each ball as the main one."""
     tol = reach.tol
     n = len(balls)
     pf = [flat_pick_feed(b.radius, tol) for b in balls]
@@ -280,7 +286,7 @@ def _plan(balls: list[Tool], reach: _Reach, area: float, cell: float
     chain = [main]
     while after[chain[-1]] is not None:
         chain.append(after[chain[-1]])  # type: ignore[arg-type]
-    return chain, totals[main], regions
+    return chain, totals, regions
 
 
 def finishing_chain(z: F64, dx: float, dy: float, balls: list[Tool], tolerance: float
@@ -304,7 +310,8 @@ def finishing_chain(z: F64, dx: float, dy: float, balls: list[Tool], tolerance: 
     cell = dx * dy
     area = float(ny * nx) * cell
     reach = _Reach(z, dx, dy, tolerance)
-    chain, total, regions = _plan(balls, reach, area, cell)
+    chain, totals, regions = _plan(balls, reach, area, cell)
+    total = totals[chain[0]]
     pf = [flat_pick_feed(balls[j].radius, tolerance) for j in chain]
     stages = []
     surface = z
@@ -344,7 +351,8 @@ def finishing_chain(z: F64, dx: float, dy: float, balls: list[Tool], tolerance: 
     return Chain(stages, total, smallest, float(out.sum()) * cell,
                  float(rest[rest > tolerance].max()) if out.any() and (rest > tolerance).any()
                  else 0.0,
-                 float(reach.rho[out].min()) if out.any() else math.inf)
+                 float(reach.rho[out].min()) if out.any() else math.inf,
+                 {b.id: t for b, t in zip(balls, totals, strict=True)})
 
 
 def _reason(n: int, tool: Tool, balls: list[Tool], chain: list[int], above: B8, frac: float,
