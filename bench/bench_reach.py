@@ -79,14 +79,15 @@ def rushmore(tol: float) -> None:
               f"{s.region_area_fraction * area:.0f} | {s.estimated_cut_length:.0f} | "
               f"{s.region_count} |")
     small = r.finishing_tools[-1]
-    last = [s for s in plan.stages if s.tool.id == small][0]  # type: ignore[attr-defined]
+    last = next(s for s in plan.stages if s.tool.id == small)  # type: ignore[attr-defined]
     print(f"  finishing cut length {r.finishing_cut_length:.0f} mm against "
           f"{r.smallest_ball_cut_length:.0f} mm with the smallest ball everywhere: "
           f"factor {r.smallest_ball_cut_length / r.finishing_cut_length:.2f}")
     if len(r.finishing_tools) > 1:
+        whole = area / flat_pick_feed(last.tool.radius, tol)
         print(f"  {small} alone: {last.estimated_cut_length:.0f} mm in its regions against "
-              f"{area / flat_pick_feed(last.tool.radius, tol):.0f} mm over the whole part: "
-              f"factor {area / flat_pick_feed(last.tool.radius, tol) / last.estimated_cut_length:.2f}")
+              f"{whole:.0f} mm over the whole part: "
+              f"factor {whole / last.estimated_cut_length:.2f}")
     print(f"  unreachable by every ball: {r.unreachable_area:.1f} mm², up to "
           f"{r.unreachable_max_height:.2f} mm")
     for note in plan.notes:  # type: ignore[attr-defined]
