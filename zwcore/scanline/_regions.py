@@ -29,6 +29,7 @@ programming over (previous ball, next ball) pairs.
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass, field
 
@@ -208,36 +209,49 @@ class _Reach:
                                      mode="nearest")
         return np.maximum(self.z, up)
 
-    def layers(self, prev: float, flute: float, region: B8) -> float:
-        """Node passes a ball with ``flute`` needs over ``region`` after ball ``prev``: one,
-        or as many as its flutes need to take the rest ``prev`` leaves there."""
-        k = lattice(prev, self.dx, self.dy)
-        rest = self.rest(prev, k)
-        ny, nx = self.z.shape
-        near = rest[np.ix_(np.minimum((np.arange(ny) + k // 2) // k, rest.shape[0] - 1),
-                           np.minimum((np.arange(nx) + k // 2) // k, rest.shape[1] - 1))]
-        passes = np.maximum(np.ceil(near[region] / flute), 1.0)
-        return float(passes.sum())
+    def _compare(self, prev: float, nxt: float) -> tuple[B8, F64, int]:
+        """On the smaller ball's (finer) lattice ``kn``: where ``nxt`` does better than
+        ``prev`` by more than the tolerance, and ``prev``'s rest there.
 
-    def seed(self, prev: float, nxt: float) -> B8:
-        """Fine nodes where ball ``prev`` leaves material ``nxt`` does better on by > tol.
-
-        Compared on the smaller ball's lattice (the finer one), the larger ball's rest
-        interpolated bilinearly between its lattice nodes (rest, not surface: a chord
-        of the surface over a concave wall is no rest)."""
+        The larger ball's rest is interpolated bilinearly between its lattice nodes
+        (rest, not surface: a chord of the surface over a concave wall is no rest)."""
         kp = lattice(prev, self.dx, self.dy)
         kn = lattice(nxt, self.dx, self.dy)
         theirs = self.rest(prev, kp)
-        if not (theirs > self.tol).any():
-            return self.safety(kp)
         mine = self.rest(nxt, kn)
         if kp != kn:
             key = (prev, kn)
             if key not in self._upsampled:
                 self._upsampled[key] = bilinear_at_fine_nodes(theirs, kp // kn, mine.shape)
             theirs = self._upsampled[key]
-        better = (theirs - mine) > self.tol
-        return self.fine_mask(better, kn) | self.safety(kp)
+        return (theirs - mine) > self.tol, theirs, kn
+
+    def seed(self, prev: float, nxt: float) -> B8:
+        """Fine nodes where ball ``prev`` leaves material ``nxt`` does better on by > tol
+        (and detail too sharp for ``prev``'s lattice)."""
+        better, _, kn = self._compare(prev, nxt)
+        return self.fine_mask(better, kn) | self.safety(lattice(prev, self.dx, self.dy))
+
+    def cost(self, prev: float, nxt: Tool) -> float | None:
+        """Estimated node passes (times the cell area: mm²) of ball ``nxt`` over its rest
+        region after ``prev``, on ``nxt``'s lattice (None: no region): one pass per node,
+        or as many as its flutes need for the rest ``prev`` leaves there."""
+        better, theirs, kn = self._compare(prev, nxt.radius)
+        kp = lattice(prev, self.dx, self.dy)
+        if kp > 1:
+            key = (-float(kp), kn)
+            if key not in self._upsampled:  # the fine safety nodes, on the lattice
+                fine = self.safety(kp)
+                pooled = fine[::kn, ::kn].copy() if kn > 1 else fine
+                if kn > 1:
+                    pooled |= ndimage.maximum_filter(fine, size=kn)[::kn, ::kn]
+                self._upsampled[key] = pooled.astype(np.float64)
+            better = better | (self._upsampled[key] > 0.0)
+        if not better.any():
+            return None
+        region = within_distance(better, nxt.radius, kn * self.dx, kn * self.dy)
+        passes = np.maximum(np.ceil(theirs[region] / nxt.flute_length), 1.0)
+        return float(passes.sum()) * kn * kn * self.dx * self.dy
 
 
 def _boxes(region: B8, dx: float, dy: float) -> tuple[int, tuple[Box, ...]]:
@@ -267,18 +281,11 @@ def _plan(balls: list[Tool], reach: _Reach, area: float, cell: float
     after: list[int | None] = [None] * n
     for j in range(n - 1, -1, -1):
         options: list[tuple[float, int | None]] = []
-        done = True
         for i in range(j + 1, n):
-            seed = reach.seed(balls[j].radius, balls[i].radius)
-            if not seed.any():
-                continue
-            done = False
-            region = within_distance(seed, balls[i].radius, reach.dx, reach.dy)
-            regions[(j, i)] = region
-            layers = reach.layers(balls[j].radius, balls[i].flute_length, region)
-            cost = layers * cell / pf[i] + TOOL_CHANGE_MM + best[i]
-            options.append((cost, i))
-        if done:
+            passes = reach.cost(balls[j].radius, balls[i])
+            if passes is not None:
+                options.append((passes / pf[i] + TOOL_CHANGE_MM + best[i], i))
+        if not options:
             options.append((0.0, None))
         best[j], after[j] = min(options, key=lambda o: (o[0], -1 if o[1] is None else o[1]))
     totals = [area / pf[j] + best[j] for j in range(n)]
@@ -286,6 +293,9 @@ def _plan(balls: list[Tool], reach: _Reach, area: float, cell: float
     chain = [main]
     while after[chain[-1]] is not None:
         chain.append(after[chain[-1]])  # type: ignore[arg-type]
+    for j, i in itertools.pairwise(chain):  # the chain's regions on the input nodes
+        regions[(j, i)] = within_distance(reach.seed(balls[j].radius, balls[i].radius),
+                                          balls[i].radius, reach.dx, reach.dy)
     return chain, totals, regions
 
 
