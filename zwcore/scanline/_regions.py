@@ -37,7 +37,6 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import ndimage
 
-from zwcore.grid.sampling import bilinear_at_fine_nodes
 from zwcore.grid.tools import Tool
 from zwcore.scanline._reach import ball_reach, concave_radii, within_distance
 
@@ -222,7 +221,7 @@ class _Reach:
         if kp != kn:
             key = (prev, kn)
             if key not in self._upsampled:
-                self._upsampled[key] = bilinear_at_fine_nodes(theirs, kp // kn, mine.shape)
+                self._upsampled[key] = _upsample_where(theirs, kp // kn, mine.shape, self.tol)
             theirs = self._upsampled[key]
         return (theirs - mine) > self.tol, theirs, kn
 
@@ -252,6 +251,38 @@ class _Reach:
         region = within_distance(better, nxt.radius, kn * self.dx, kn * self.dy)
         passes = np.maximum(np.ceil(theirs[region] / nxt.flute_length), 1.0)
         return float(passes.sum()) * kn * kn * self.dx * self.dy
+
+
+def _weights(f: int, n: int, m: int) -> tuple[NDArray[np.intp], NDArray[np.intp], F64]:
+    idx = np.arange(n)
+    lo = idx // f
+    return lo, np.minimum(lo + 1, m - 1), (idx % f) / f
+
+
+def _upsample_where(coarse: F64, f: int, shape: tuple[int, int], tol: float) -> F64:
+    """``bilinear_at_fine_nodes(coarse, f, shape)`` where a cell corner exceeds ``tol``,
+    0 elsewhere (there the interpolant is at most ``tol`` anyway): a large ball's rest
+    usually covers a small part of the grid."""
+    big = coarse > tol
+    if not big.any():
+        return np.zeros(shape)
+    cells = big.copy()  # cells (by their lower corner) with a corner above tol
+    cells[:-1] |= big[1:]
+    cells[:, :-1] |= cells[:, 1:].copy()
+    rows = np.minimum(np.arange(shape[0]) // f, coarse.shape[0] - 1)
+    cols = np.minimum(np.arange(shape[1]) // f, coarse.shape[1] - 1)
+    ii, kk = np.nonzero(cells[np.ix_(rows, cols)])
+    out = np.zeros(shape)
+    if ii.size == 0:
+        return out
+    (lo_y, hi_y, ty), (lo_x, hi_x, tx) = (_weights(f, shape[0], coarse.shape[0]),
+                                          _weights(f, shape[1], coarse.shape[1]))
+    a0, a1, wa = lo_y[ii], hi_y[ii], ty[ii]
+    b0, b1, wb = lo_x[kk], hi_x[kk], tx[kk]
+    top = coarse[a0, b0] * (1.0 - wb) + coarse[a0, b1] * wb
+    low = coarse[a1, b0] * (1.0 - wb) + coarse[a1, b1] * wb
+    out[ii, kk] = top * (1.0 - wa) + low * wa
+    return out
 
 
 def _boxes(region: B8, dx: float, dy: float) -> tuple[int, tuple[Box, ...]]:
