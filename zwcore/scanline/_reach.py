@@ -27,8 +27,8 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
 from numba import njit
+from numpy.typing import NDArray
 from scipy import ndimage
 
 from zwcore.sim import nodal_closing, nodal_drop_cutter, refine_rest
