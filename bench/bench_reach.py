@@ -25,7 +25,8 @@ sys.path.insert(0, str(ROOT / "bench"))
 from bench_scanline_core import synthetic  # noqa: E402
 
 from zwcore import ZMap, plan_scanline  # noqa: E402
-from zwcore.scanline._regions import flat_pick_feed  # noqa: E402
+from zwcore.grid.tools import default_tools  # noqa: E402
+from zwcore.scanline._regions import finishing_chain, flat_pick_feed  # noqa: E402
 
 DATA = ROOT.parent / "shared" / "data" / "mount_rush_zmap_0.1mm.npy"
 
@@ -88,6 +89,9 @@ def rushmore(tol: float) -> None:
         print(f"  {small} alone: {last.estimated_cut_length:.0f} mm in its regions against "
               f"{whole:.0f} mm over the whole part: "
               f"factor {whole / last.estimated_cut_length:.2f}")
+    chain = finishing_chain(z, 0.1, 0.1, list(default_tools("ball")), tol)
+    print("  least estimated finishing cut length with each ball as the main one, mm: "
+          + ", ".join(f"{k} {v:.0f}" for k, v in chain.by_main.items()))
     print(f"  unreachable by every ball: {r.unreachable_area:.1f} mm², up to "
           f"{r.unreachable_max_height:.2f} mm")
     for note in plan.notes:  # type: ignore[attr-defined]

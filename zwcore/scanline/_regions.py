@@ -218,11 +218,8 @@ class _Reach:
         kn = lattice(nxt, self.dx, self.dy)
         theirs = self.rest(prev, kp)
         mine = self.rest(nxt, kn)
-        if kp != kn:
-            key = (prev, kn)
-            if key not in self._upsampled:
-                self._upsampled[key] = _upsample_where(theirs, kp // kn, mine.shape, self.tol)
-            theirs = self._upsampled[key]
+        if kp != kn:  # (not cached: a full-size array per pair would cost memory)
+            theirs = _upsample_where(theirs, kp // kn, mine.shape, self.tol)
         return (theirs - mine) > self.tol, theirs, kn
 
     def seed(self, prev: float, nxt: float) -> B8:
@@ -312,7 +309,12 @@ def _plan(balls: list[Tool], reach: _Reach, area: float, cell: float
     after: list[int | None] = [None] * n
     for j in range(n - 1, -1, -1):
         options: list[tuple[float, int | None]] = []
-        for i in range(j + 1, n):
+        # cheapest continuations first: once a tool change plus the rest of the chain
+        # alone costs more than the best option, no later ball can win
+        for i in sorted(range(j + 1, n), key=lambda m: (best[m], m)):
+            least = min((o[0] for o in options), default=math.inf)
+            if TOOL_CHANGE_MM + best[i] >= least:
+                break
             passes = reach.cost(balls[j].radius, balls[i])
             if passes is not None:
                 options.append((passes / pf[i] + TOOL_CHANGE_MM + best[i], i))
