@@ -40,7 +40,7 @@ from zwcore.scanline._reach import ball_reach
 from zwcore.scanline._regions import Chain
 
 __all__ = ["REST_FLUTE_SHARE", "REST_MAX_CELLS", "Level", "Stage", "StageReach", "ball_rest",
-           "choose", "levels"]
+           "choose", "finishing_stages", "levels"]
 
 F64 = NDArray[np.float64]
 
@@ -154,7 +154,7 @@ def ball_rest(lev: Level, radius: float) -> float:
     return float(ball_reach(model, lev.sx, lev.sy, radius, REST_RESOLUTION).rest.max())
 
 
-def _finishing(levels: list[Level], chain: Chain, tolerance: float) -> list[Stage]:
+def finishing_stages(levels: list[Level], chain: Chain, tolerance: float) -> list[Stage]:
     """The finishing stages (main ball first), their targets stepping down to the part.
 
     Stage ``i``'s target is the chain's simulated surface after its ball where that
@@ -191,7 +191,7 @@ def _finishing(levels: list[Level], chain: Chain, tolerance: float) -> list[Stag
 def choose(levels: list[Level], library: Sequence[Tool], notes: list[str],
            chain: Chain, tolerance: float) -> list[Stage]:
     """Stages from coarse to fine; radii non-increasing; the finishing chain last."""
-    finishing = _finishing(levels, chain, tolerance)
+    finishing = finishing_stages(levels, chain, tolerance)
     if chain.unreachable_area > 0.0:
         last = chain.stages[-1].tool
         need = chain.needed_radius

@@ -68,7 +68,7 @@ from zwcore.scanline._checks import PassSpec, axis_weights, eval_rows, figures
 from zwcore.scanline._models import nested_targets
 from zwcore.scanline._passes import StripPlan, cell_cross_slopes, plan_strips, scallop_height
 from zwcore.scanline._regions import Chain, finishing_chain
-from zwcore.scanline._tool_choice import Stage, ball_rest, choose, levels
+from zwcore.scanline._tool_choice import Stage, ball_rest, choose, finishing_stages, levels
 from zwcore.scanline.results import ReachSummary, ScanlineChecks, ScanlinePlan, ScanlineStage
 
 __all__ = [
@@ -376,8 +376,10 @@ def _stages(zmap: ZMap, mrr: Multiresolution, first: int, ceiling: float, g: flo
         targets = nested_targets(approx, part, first, st, g)
         levs = levels(zmap, depth, targets, smoothing, library, cache)
         by_index = {lev.index: lev for lev in levs}
-        finishing = {id(c) for c in chosen if c.level.index == depth}
-        chosen = [c if id(c) in finishing else c._replace(
+        # the finishing targets are capped by the finest roughing target: rebuilt too
+        finishing = {c.tool.id: c for c in finishing_stages(levs, chain, tol)}
+        chosen = [finishing[c.tool.id]._replace(merged=c.merged) if c.level.index == depth
+                  else c._replace(
                       level=by_index[c.level.index],
                       rest=ball_rest(by_index[c.level.index], c.tool.radius) if c.rest > 0.0
                       else c.rest)
