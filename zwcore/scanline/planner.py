@@ -17,17 +17,18 @@ Everything comes off one lifted single-knot MRR of the part:
    wherever that was already below the level before. Without the clip every
    coarse level of a walled part rose above the stock and was skipped, and
    the whole part was machined with the finishing ball.
-3. Tool choice per level from its target (:mod:`zwcore.scanline._tool_choice`,
-   with :mod:`zwcore.grid.curvature`): the largest library ball whose radius
-   is at most the target's smallest concave radius. Levels are taken from the
-   finest (the part, which fixes the finishing tool) towards the coarsest; a
-   coarser level becomes a stage only when it admits a strictly larger ball
-   than the stage after it, so radii never grow in machining order; a level
-   that admits the same ball merges into the finer stage. A roughing level may
-   also take a ball larger than its concave radius when the material that ball
-   cannot reach there (a grey closing of the target by the ball, on the
-   level's nodes) is at most a quarter of the next stage's flute length: steep
-   walls make every coarse model sharp at its own grid scale.
+3. Tool choice (:mod:`zwcore.scanline._tool_choice`). Finishing: the balls and
+   their regions from simulated reach on the part's nodes
+   (:mod:`zwcore.scanline._regions`, :mod:`zwcore.scanline._reach`): a main ball over
+   the whole part, then smaller balls each in its rest region, chosen for the least
+   estimated finishing cut length; their targets step down from what the main ball
+   leaves to the part, all at the part's level. Roughing: levels are taken from the
+   finest towards the coarsest; a coarser level becomes a stage only when it admits a
+   strictly larger ball than the stage after it, so radii never grow in machining
+   order; a level that admits the same ball merges into the finer stage. A level
+   admits a ball whose simulated rest on its nodes is at most a quarter of the next
+   stage's flute length (balls spanning up to ``REST_MAX_CELLS`` level cells), or,
+   beyond, one that fits its smallest concave radius (:mod:`zwcore.grid.curvature`).
 4. Flute-length lift (Fig. 6) on the stage's own nodes:
    ``M_k = max(T_j, M_{k-1} + h_{k-1} + e_{k-1} - L_k + g)``, where
    ``h_{k-1}`` and ``e_{k-1}`` are the previous pass's scallop and rest
