@@ -160,6 +160,8 @@ class _Reach:
         self._rho: dict[int, F64] = {1: self.rho}
         self._safety: dict[int, B8] = {}
         self._upsampled: dict[tuple[float, int], F64] = {}
+        self._last_prev = math.nan
+        self._upsampled_prev: dict[int, F64] = {}
 
     def rest(self, radius: float, k: int) -> F64:
         key = (radius, k)
@@ -218,8 +220,13 @@ class _Reach:
         kn = lattice(nxt, self.dx, self.dy)
         theirs = self.rest(prev, kp)
         mine = self.rest(nxt, kn)
-        if kp != kn:  # (not cached: a full-size array per pair would cost memory)
-            theirs = _upsample_where(theirs, kp // kn, mine.shape, self.tol)
+        if kp != kn:  # cached for the latest larger ball only (full-size arrays)
+            if self._last_prev != prev:
+                self._last_prev, self._upsampled_prev = prev, {}
+            if kn not in self._upsampled_prev:
+                self._upsampled_prev[kn] = _upsample_where(theirs, kp // kn, mine.shape,
+                                                           self.tol)
+            theirs = self._upsampled_prev[kn]
         return (theirs - mine) > self.tol, theirs, kn
 
     def seed(self, prev: float, nxt: float) -> B8:
