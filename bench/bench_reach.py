@@ -49,9 +49,15 @@ def sizes(tol: float) -> None:
     for n in (513, 1025, 2049):
         best, reach, plan = _timed(synthetic(n), tol, 3 if n < 2049 else 2)
         times[n] = (best, reach)
+        r = plan.reach  # type: ignore[attr-defined]
+        regions = ", ".join(f"{s.tool.id} {100 * s.region_area_fraction:.1f} %"
+                            for s in plan.stages  # type: ignore[attr-defined]
+                            if s.region is not None and s.pass_index == 1)
         print(f"  {n}x{n}: plan {best:.3f} s, reach {reach:.3f} s, finishing "
-              f"{' > '.join(plan.reach.finishing_tools)}, tools "  # type: ignore[attr-defined]
-              f"{' > '.join(plan.tool_sequence)}")  # type: ignore[attr-defined]
+              f"{' > '.join(r.finishing_tools)} (regions: {regions or 'none'}), "
+              f"cut {r.finishing_cut_length:.0f} mm vs {r.smallest_ball_cut_length:.0f} mm "
+              f"with the smallest ball everywhere (factor "
+              f"{r.smallest_ball_cut_length / r.finishing_cut_length:.2f})")
     for a, b in ((513, 1025), (1025, 2049)):
         print(f"  ratio {b}/{a} (cells x4): plan {times[b][0] / times[a][0]:.2f}, "
               f"reach {times[b][1] / times[a][1]:.2f}")
