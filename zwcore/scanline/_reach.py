@@ -63,7 +63,7 @@ class BallReach:
     positions: int
 
 
-@njit(cache=True, nogil=True)
+@njit("void(f8[:, :], f8, f8, f8[:, :])", cache=True, nogil=True)
 def _concave_kernel(z: F64, dx: float, dy: float, out: F64) -> None:
     ny, nx = z.shape
     diag = math.hypot(dx, dy)

@@ -16,6 +16,10 @@ cannot beat the best value found so far are skipped; each query starts from its
 neighbour's answer (contact node or best position), which is usually already the
 answer, so a query visits a few dozen blocks whatever the ball's footprint (a Ø20
 ball at 0.1 mm spans 31,000 nodes). Queries run only at the nodes asked for.
+
+The kernels are compiled (or loaded from numba's cache) when this module is imported,
+not at the first plan: loading holds the interpreter lock for a good fraction of a
+second, which a service must not spend while it answers requests.
 """
 
 from __future__ import annotations
@@ -69,7 +73,7 @@ def levels_for(radius: float, dx: float, dy: float) -> int:
     return max(0, math.floor(math.log2(n)))
 
 
-@njit(cache=True, nogil=True)
+@njit("i8(i8, i8, i8)", cache=True, nogil=True)
 def _gap(lo: int, hi: int, at: int) -> int:
     if at < lo:
         return lo - at
@@ -78,7 +82,7 @@ def _gap(lo: int, hi: int, at: int) -> int:
     return 0
 
 
-@njit(cache=True, nogil=True)
+@njit("void(f8[:, :], f8[:], i8[:, :], f8, f8, f8, i8[:], i8[:], f8[:, :], i8[:, :])", cache=True, nogil=True)
 def _cl_kernel(z: F64, flat: F64, meta: I64, radius: float, dx: float, dy: float,
                rows: I64, cols: I64, cl: F64, contact: I64) -> None:
     ny, nx = z.shape
@@ -132,7 +136,7 @@ def _cl_kernel(z: F64, flat: F64, meta: I64, radius: float, dx: float, dy: float
         qi, qk = bi, bk
 
 
-@njit(cache=True, nogil=True)
+@njit("void(f8[:, :], f8[:, :], f8[:], i8[:, :], f8, f8, f8, i8[:], i8[:], f8, f8[:, :])", cache=True, nogil=True)
 def _close_kernel(z: F64, cl: F64, flat: F64, meta: I64, radius: float, dx: float, dy: float,
                   rows: I64, cols: I64, stop: float, out: F64) -> None:
     ny, nx = z.shape
@@ -212,7 +216,7 @@ def _disc(radius: float, dx: float, dy: float) -> tuple[I64, F64]:
     return half, np.ascontiguousarray(h)
 
 
-@njit(cache=True, nogil=True)
+@njit("void(f8[:, :], i8[:], f8[:, :], i8[:], i8[:], f8[:, :], i8[:, :])", cache=True, nogil=True)
 def _cl_brute(z: F64, half: I64, hh: F64, rows: I64, cols: I64, cl: F64,
               contact: I64) -> None:
     ny, nx = z.shape
@@ -248,7 +252,7 @@ def _cl_brute(z: F64, half: I64, hh: F64, rows: I64, cols: I64, cl: F64,
         contact[i, k] = at
 
 
-@njit(cache=True, nogil=True)
+@njit("void(f8[:, :], i8[:], f8[:, :], i8[:], i8[:], f8[:, :])", cache=True, nogil=True)
 def _close_brute(cl: F64, half: I64, hh: F64, rows: I64, cols: I64, out: F64) -> None:
     ny, nx = cl.shape
     ra = (half.size - 1) // 2
@@ -342,7 +346,7 @@ def nodal_closing(z: F64, cl: F64, radius: float, dx: float, dy: float,
     return out
 
 
-@njit(cache=True, nogil=True)
+@njit("void(f8[:, :], f8, f8, f8, i8[:], i8[:], f8[:, :], f8)", cache=True, nogil=True)
 def _refine_kernel(z: F64, dx: float, dy: float, radius: float, rows: I64, cols: I64,
                    rest: F64, slack: float) -> None:
     ny, nx = z.shape
