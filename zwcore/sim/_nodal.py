@@ -82,7 +82,11 @@ def _gap(lo: int, hi: int, at: int) -> int:
     return 0
 
 
-@njit("void(f8[:, :], f8[:], i8[:, :], f8, f8, f8, i8[:], i8[:], f8[:, :], i8[:, :])", cache=True, nogil=True)
+_SIG_CL = "void(f8[:, :], f8[:], i8[:, :], f8, f8, f8, i8[:], i8[:], f8[:, :], i8[:, :])"
+_SIG_CLOSE = "void(f8[:, :], f8[:, :], f8[:], i8[:, :], f8, f8, f8, i8[:], i8[:], f8, f8[:, :])"
+
+
+@njit(_SIG_CL, cache=True, nogil=True)
 def _cl_kernel(z: F64, flat: F64, meta: I64, radius: float, dx: float, dy: float,
                rows: I64, cols: I64, cl: F64, contact: I64) -> None:
     ny, nx = z.shape
@@ -136,7 +140,7 @@ def _cl_kernel(z: F64, flat: F64, meta: I64, radius: float, dx: float, dy: float
         qi, qk = bi, bk
 
 
-@njit("void(f8[:, :], f8[:, :], f8[:], i8[:, :], f8, f8, f8, i8[:], i8[:], f8, f8[:, :])", cache=True, nogil=True)
+@njit(_SIG_CLOSE, cache=True, nogil=True)
 def _close_kernel(z: F64, cl: F64, flat: F64, meta: I64, radius: float, dx: float, dy: float,
                   rows: I64, cols: I64, stop: float, out: F64) -> None:
     ny, nx = z.shape
