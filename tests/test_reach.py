@@ -333,3 +333,15 @@ def test_r8_pocket_program_with_the_d16_ball_is_gouge_free() -> None:
     chk = scanline_toolpaths(part, plan, brute_cl).check
     assert chk is not None
     assert chk.gouge <= 1e-9 and chk.below_part_moves == 0 and chk.rapid_in_material == 0.0
+
+
+def test_read_only_grids_are_accepted() -> None:
+    # A stored z-map (grid_task) arrives read-only; the compiled kernels take copies.
+    zmap, _, _ = _fillet(45.0, h=0.5)
+    z = zmap.z.copy()
+    z.flags.writeable = False
+    cl, _ = nodal_drop_cutter(z, 2.0, 0.5, 0.5)
+    cl.flags.writeable = False
+    out = nodal_closing(z, cl, 2.0, 0.5, 0.5, np.ones(z.shape, dtype=bool))
+    np.testing.assert_allclose(out, brute_closing(zmap.z, 2.0, 0.5, 0.5), atol=1e-9)
+    assert plan_scanline(ZMap(z, dx=0.5, dy=0.5)).checks.ok

@@ -108,7 +108,8 @@ def concave_radii(z: F64, dx: float, dy: float) -> F64:
         bowl's rim does not); none across the grid's edge.
     """
     out = np.empty(z.shape)
-    _concave_kernel(np.ascontiguousarray(z, dtype=np.float64), float(dx), float(dy), out)
+    z = np.require(z, dtype=np.float64, requirements=["C", "W"])  # (a read-only grid: copied)
+    _concave_kernel(z, float(dx), float(dy), out)
     return out
 
 

@@ -39,6 +39,12 @@ __all__ = ["nodal_closing", "nodal_drop_cutter", "pyramid"]
 _STACK = 4096
 
 
+def _plain(a: NDArray[np.floating]) -> F64:
+    """``a`` as a writable C-ordered float64 array (the kernels' signatures; a read-only
+    input, a stored grid say, is copied)."""
+    return np.require(a, dtype=np.float64, requirements=["C", "W"])
+
+
 def pyramid(z: F64, levels: int, high: bool) -> tuple[F64, I64]:
     """Block maxima (``high``) or minima of ``z`` over ``2^l x 2^l`` blocks, l = 0..levels.
 
@@ -298,7 +304,7 @@ def nodal_drop_cutter(z: F64, radius: float, dx: float, dy: float,
     contact : (ny, nx) int64
         Flat index of a node the ball touches (-1 where not asked).
     """
-    z = np.ascontiguousarray(z, dtype=np.float64)
+    z = _plain(z)
     mask = np.ones(z.shape, dtype=bool) if positions is None else positions
     rows, cols = np.nonzero(mask)
     cl = np.full(z.shape, np.inf)
@@ -336,16 +342,17 @@ def nodal_closing(z: F64, cl: F64, radius: float, dx: float, dy: float,
         ``min over positions c within radius of cl(c) + h(|p - c|)`` at asked nodes,
         ``z`` elsewhere.
     """
-    z = np.ascontiguousarray(z, dtype=np.float64)
+    z = _plain(z)
+    cl = _plain(cl)
     rows, cols = np.nonzero(nodes)
     out = z.copy()
     half, hh = _disc(radius, dx, dy)
     if int((2 * half + 1).clip(0).sum()) <= BRUTE_NODES:
-        _close_brute(np.ascontiguousarray(cl), half, hh, rows.astype(np.int64),
+        _close_brute(cl, half, hh, rows.astype(np.int64),
                      cols.astype(np.int64), out)
         return out
     flat, meta = pyramid(cl, levels_for(radius, dx, dy), high=False)
-    _close_kernel(z, np.ascontiguousarray(cl), flat, meta, float(radius), float(dx), float(dy),
+    _close_kernel(z, cl, flat, meta, float(radius), float(dx), float(dy),
                   rows.astype(np.int64), cols.astype(np.int64), float(stop), out)
     return out
 
@@ -428,7 +435,7 @@ def refine_rest(z: F64, dx: float, dy: float, radius: float, rest: F64,
         ``rest``.
     """
     rows, cols = np.nonzero(nodes)
-    _refine_kernel(np.ascontiguousarray(z, dtype=np.float64), float(dx), float(dy),
+    _refine_kernel(_plain(z), float(dx), float(dy),
                    float(radius), rows.astype(np.int64), cols.astype(np.int64), rest,
                    float(slack))
     return rest
