@@ -66,13 +66,15 @@ def test_a_process_past_its_deadline_is_terminated_and_replaced() -> None:
 
 
 def _slow_polygon(n: int, seed: int) -> list[list[float]]:
-    """A noisy sine at the noise's own tolerance: still seconds of fitting (issue 15
-    made the coarse polygons of issue 14 fast, so they no longer hold a worker, and its
-    compiled kernels made this curve ten times faster: ``500 n`` points; n = 40: 5,400
-    segments, 2 s of fitting on the 2-core test machine; n = 60: 15,000 segments, 10 s)."""
+    """A noisy sine at a fifth of the noise as tolerance: still seconds of fitting
+    (issue 15 made the coarse polygons of issue 14 fast, so they no longer hold a
+    worker, and its compiled kernels made the sine at the noise's own tolerance ten
+    times faster; here the chain follows the noise, a segment every point or two:
+    ``100 n`` points; n = 40: 3,200 segments, 3 s of fitting on the 2-core test machine;
+    n = 80: about 10 s)."""
     rng = np.random.default_rng(seed)
-    t = np.linspace(0.0, 12.0 * np.pi, 500 * n)
-    pts = np.c_[5.0 * t, 10.0 * np.sin(t)] + rng.uniform(-0.01, 0.01, (len(t), 2))
+    t = np.linspace(0.0, 12.0 * np.pi, 100 * n)
+    pts = np.c_[5.0 * t, 10.0 * np.sin(t)] + rng.uniform(-0.05, 0.05, (len(t), 2))
     return [[float(x), float(y)] for x, y in pts]
 
 
@@ -88,7 +90,7 @@ def test_slow_arc_fits_neither_starve_grid_work_nor_outlive_the_deadline() -> No
            "ZW_COMPUTE_TIMEOUT_SECONDS": "3"}
     with live_server(env) as server, concurrent.futures.ThreadPoolExecutor(5) as ex:
         def post_arcs(seed: int) -> httpx.Response:
-            body = {"points": _slow_polygon(60, seed), "tolerance": SLOW_TOLERANCE}
+            body = {"points": _slow_polygon(80, seed), "tolerance": SLOW_TOLERANCE}
             return httpx.post(server.url + "/v1/arcs", json=body, timeout=60)
 
         flood = [ex.submit(post_arcs, seed) for seed in range(4)]
