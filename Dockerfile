@@ -19,9 +19,13 @@ WORKDIR /src
 COPY pyproject.toml README.md ./
 COPY zwcore/ zwcore/
 COPY service/ service/
+# numba compiles the kernels once here (about 10 s of CPU) into a cache the runtime
+# reads: the installed package is read-only for the service's user, and without the
+# cache every server start would compile them again.
+ENV NUMBA_CACHE_DIR=/opt/venv/numba-cache
 RUN pip install --upgrade pip setuptools wheel \
  && pip install . \
- && python -c "import service.main, zwcore"
+ && python -c "import service.main, zwcore, zwcore.arcs.warmup"
 
 # --- runtime: the virtualenv only, run as an unprivileged user ---------------
 FROM python:3.11-slim AS runtime
@@ -29,6 +33,7 @@ FROM python:3.11-slim AS runtime
 ENV PATH=/opt/venv/bin:$PATH \
     PYTHONDONTWRITEBYTECODE=1 \
     PYTHONUNBUFFERED=1 \
+    NUMBA_CACHE_DIR=/opt/venv/numba-cache \
     ZW_DATA_DIR=/data
 
 RUN groupadd --system --gid 10001 zwplan \
