@@ -15,15 +15,6 @@ The stage models and every earlier figure stayed the same; the body gained
 ``path_length``, ``path_length_whole_strips`` and ``extra_segments`` per stage
 and the reason text says the extra lines run over the stretches that need them
 (checked against the old body, field by field, before re-pinning).
-
-Re-pinned on purpose again: ``scanline`` for issue 11, parts 2-3 (tool choice by
-simulated reach, rest regions). The old digest already failed on main before this
-change (drift of the figures since the last pin); this change alters the plan on
-purpose: the finishing ball of this part comes from its simulated reach, the
-roughing balls' rest is simulated, and every stage gained the region fields
-(``region_area_fraction``, ``region_boxes``, ``region_count``,
-``estimated_cut_length``, ``reach_rest_max``, ``reach_reason``, ``region``) and the
-body a ``reach`` summary. The task id is unchanged (same request).
 """
 
 from __future__ import annotations

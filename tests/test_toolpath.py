@@ -271,12 +271,6 @@ def _verify_scanline(part: ZMap, tolerance: float):
     return plan, tp, left, reach
 
 
-@pytest.mark.xfail(strict=True, reason="issue 11 parts 2-3: the R 8 pocket is now finished "
-                   "by the Ø16 ball (it reaches every node, the issue's known answer), and scan "
-                   "lines of a ball that nearly fits a concave surface leave scallops grown by "
-                   "rho / (rho - R): lines off the centre leave up to 0.38 mm where the scallop "
-                   "rule (slope across the lines only) predicts 0.01; the pick-feed must follow "
-                   "the concave radius or come from simulation")
 def test_scanline_program_on_the_r8_pocket_is_gouge_free_and_within_tolerance():
     part = hemisphere_pocket()
     plan, tp, left, reach = _verify_scanline(part, 0.01)

@@ -54,8 +54,6 @@ class PassSpec:
     concave_radius: float
     clipped: int
     raised: int
-    #: Where the pass's ball machines, on ``model``'s nodes (None: everywhere).
-    region: NDArray[np.bool_] | None = None
 
     @property
     def leaves(self) -> float:
@@ -170,7 +168,7 @@ def _stage(p: PassSpec, index: tuple[int, int], cut_max: float, volume: float, a
         pick_feed_max=sp.pick_feed_max, reduced_strips=sp.reduced_strips,
         clipped_nodes=p.clipped, raised_nodes=p.raised, path_length=sp.path_length,
         path_length_whole_strips=sp.path_length_whole_strips, extra_segments=sp.extra_segments,
-        lines=sp.lines, model=p.model, region=p.region)
+        lines=sp.lines, model=p.model)
 
 
 def figures(part: F64, depth: int, dx: float, dy: float, passes: Sequence[PassSpec],

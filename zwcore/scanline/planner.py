@@ -17,18 +17,17 @@ Everything comes off one lifted single-knot MRR of the part:
    wherever that was already below the level before. Without the clip every
    coarse level of a walled part rose above the stock and was skipped, and
    the whole part was machined with the finishing ball.
-3. Tool choice (:mod:`zwcore.scanline._tool_choice`). Finishing: the balls and
-   their regions from simulated reach on the part's nodes
-   (:mod:`zwcore.scanline._regions`, :mod:`zwcore.scanline._reach`): a main ball over
-   the whole part, then smaller balls each in its rest region, chosen for the least
-   estimated finishing cut length; their targets step down from what the main ball
-   leaves to the part, all at the part's level. Roughing: levels are taken from the
-   finest towards the coarsest; a coarser level becomes a stage only when it admits a
-   strictly larger ball than the stage after it, so radii never grow in machining
-   order; a level that admits the same ball merges into the finer stage. A level
-   admits a ball whose simulated rest on its nodes is at most a quarter of the next
-   stage's flute length (balls spanning up to ``REST_MAX_CELLS`` level cells), or,
-   beyond, one that fits its smallest concave radius (:mod:`zwcore.grid.curvature`).
+3. Tool choice per level from its target (:mod:`zwcore.scanline._tool_choice`,
+   with :mod:`zwcore.grid.curvature`): the largest library ball whose radius
+   is at most the target's smallest concave radius. Levels are taken from the
+   finest (the part, which fixes the finishing tool) towards the coarsest; a
+   coarser level becomes a stage only when it admits a strictly larger ball
+   than the stage after it, so radii never grow in machining order; a level
+   that admits the same ball merges into the finer stage. A roughing level may
+   also take a ball larger than its concave radius when the material that ball
+   cannot reach there (a grey closing of the target by the ball, on the
+   level's nodes) is at most a quarter of the next stage's flute length: steep
+   walls make every coarse model sharp at its own grid scale.
 4. Flute-length lift (Fig. 6) on the stage's own nodes:
    ``M_k = max(T_j, M_{k-1} + h_{k-1} + e_{k-1} - L_k + g)``, where
    ``h_{k-1}`` and ``e_{k-1}`` are the previous pass's scallop and rest
@@ -51,7 +50,6 @@ every input node, with the operations of
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import time
 from collections.abc import Sequence
@@ -68,9 +66,8 @@ from zwcore.mrr.wavelets import Multiresolution, analyse
 from zwcore.scanline._checks import PassSpec, axis_weights, eval_rows, figures
 from zwcore.scanline._models import nested_targets
 from zwcore.scanline._passes import StripPlan, cell_cross_slopes, plan_strips, scallop_height
-from zwcore.scanline._regions import Chain, finishing_chain
-from zwcore.scanline._tool_choice import Stage, ball_rest, choose, finishing_stages, levels
-from zwcore.scanline.results import ReachSummary, ScanlineChecks, ScanlinePlan, ScanlineStage
+from zwcore.scanline._tool_choice import Stage, ball_rest, choose, levels
+from zwcore.scanline.results import ScanlineChecks, ScanlinePlan, ScanlineStage
 
 __all__ = [
     "MAX_MODEL_NODES",
@@ -167,8 +164,7 @@ def _passes(zmap: ZMap, chosen: list[Stage],
     prev: F64 | None = None
     prev_level = 0
     leaves = 0.0  # scallops and rest of the previous pass
-    for n, stage in enumerate(chosen):
-        lev, tool, merged, rest = stage[:4]
+    for n, (lev, tool, merged, rest) in enumerate(chosen):
         flute = tool.flute_length
         target = lev.model
         if prev is None:
@@ -210,7 +206,7 @@ def _passes(zmap: ZMap, chosen: list[Stage],
             strips = lines[key]
             out.append(PassSpec(lev.index, lev.sx, lev.sy, tool, model, strips,
                                 slope_t if reached else slope_b, rest, tuple(merged),
-                                lev.concave_radius, lev.clipped, lev.raised, stage.region))
+                                lev.concave_radius, lev.clipped, lev.raised))
             if len(out) > MAX_STAGES:
                 raise PlanningError(
                     "tools", f"reaching the part within the flute lengths needs more than "
@@ -276,22 +272,19 @@ def plan_scanline(zmap: ZMap, tools: Sequence[Tool] | None = None, *, tolerance:
 
     first, ceiling, g = _first_level_and_guard(zmap, mrr, library, requested)
     notes: list[str] = []
-    chain = finishing_chain(part, zmap.dx, zmap.dy, list(library), tol)
-    laps("reach")
     st, chosen = _stages(zmap, mrr, first, ceiling, g, requested, library,
-                         float(curvature_smoothing), notes, laps, chain, tol)
+                         float(curvature_smoothing), notes, laps)
     passes = _passes(zmap, chosen, st, tol, g)
     laps("flute_lift")
 
     stages, checks = figures(part, mrr.depth, zmap.dx, zmap.dy, passes, st, tol)
-    stages, checks, reach = _with_reach(stages, checks, chosen, chain)
     laps("figures_and_checks")
 
     return ScanlinePlan(
         stock_top=st, stock_top_source="request" if requested is not None else "default",
         tolerance=tol, depth=mrr.depth, stages=tuple(stages),
         tool_sequence=_tool_sequence(stages), checks=checks, notes=tuple(notes),
-        timings=tuple(laps.timings), reach=reach)
+        timings=tuple(laps.timings))
 
 
 class _Laps:
@@ -341,8 +334,7 @@ def _first_level_and_guard(zmap: ZMap, mrr: Multiresolution, library: Sequence[T
 
 def _stages(zmap: ZMap, mrr: Multiresolution, first: int, ceiling: float, g: float,
             requested: float | None, library: Sequence[Tool], smoothing: float,
-            notes: list[str], laps: _Laps, chain: Chain, tol: float
-            ) -> tuple[float, list[Stage]]:
+            notes: list[str], laps: _Laps) -> tuple[float, list[Stage]]:
     """The stock top and the chosen stages (coarse to fine), with ``notes`` filled.
 
     With a default stock the top follows the first stage's ball (its flute
@@ -364,11 +356,11 @@ def _stages(zmap: ZMap, mrr: Multiresolution, first: int, ceiling: float, g: flo
         levs = levels(zmap, depth, targets, smoothing, library, cache)
         laps("curvature")
         notes.clear()
-        chosen = choose(levs, library, notes, chain, tol)
+        chosen = choose(levs, library, notes)
         laps("select")
         if requested is not None:
             break
-        st = _default_stock(top, chosen[0].tool)
+        st = _default_stock(top, chosen[0][1])
         if st == built:
             break
     if st != built:
@@ -377,44 +369,11 @@ def _stages(zmap: ZMap, mrr: Multiresolution, first: int, ceiling: float, g: flo
         targets = nested_targets(approx, part, first, st, g)
         levs = levels(zmap, depth, targets, smoothing, library, cache)
         by_index = {lev.index: lev for lev in levs}
-        # the finishing targets are capped by the finest roughing target: rebuilt too
-        finishing = {c.tool.id: c for c in finishing_stages(levs, chain, tol)}
-        chosen = [finishing[c.tool.id]._replace(merged=c.merged) if c.level.index == depth
-                  else c._replace(
-                      level=by_index[c.level.index],
-                      rest=ball_rest(by_index[c.level.index], c.tool.radius) if c.rest > 0.0
-                      else c.rest)
-                  for c in chosen]
+        chosen = [(by_index[lev.index], tool, merged,
+                   ball_rest(by_index[lev.index], tool.radius) if rest > 0.0 else rest)
+                  for lev, tool, merged, rest in chosen]
         laps("targets")
     return st, chosen
-
-
-def _with_reach(stages: list[ScanlineStage], checks: ScanlineChecks, chosen: list[Stage],
-                chain: Chain) -> tuple[list[ScanlineStage], ScanlineChecks, ReachSummary]:
-    """The reach figures on every pass of each stage, ``tools_fit`` from the simulation
-    and the plan's reach summary."""
-    info = {(c.level.index, c.tool.id): c for c in chosen}
-    out = []
-    for s_ in stages:
-        c = info[(s_.level, s_.tool.id)]
-        r = c.reach
-        if r is None:
-            out.append(s_)
-            continue
-        out.append(dataclasses.replace(
-            s_, region_area_fraction=r.area_fraction, region_boxes=r.boxes,
-            region_count=r.region_count, estimated_cut_length=r.cut_length,
-            reach_rest_max=r.rest_max, reach_reason=r.reason))
-    roughing_fit = all(c.tool.radius <= c.level.concave_radius or c.rest > 0.0
-                       or c.reach is not None for c in chosen)
-    checks = dataclasses.replace(checks, tools_fit=roughing_fit and chain.unreachable_area == 0)
-    summary = ReachSummary(
-        finishing_tools=tuple(s_.tool.id for s_ in chain.stages),
-        finishing_cut_length=chain.cut_length,
-        smallest_ball_cut_length=chain.smallest_everywhere,
-        unreachable_area=chain.unreachable_area, unreachable_max_height=chain.unreachable_max,
-        needed_radius=chain.needed_radius)
-    return out, checks, summary
 
 
 def _tool_sequence(stages: Sequence[ScanlineStage]) -> tuple[str, ...]:

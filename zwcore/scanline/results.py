@@ -10,7 +10,7 @@ from numpy.typing import NDArray
 
 from zwcore.grid.tools import Tool
 
-__all__ = ["ReachSummary", "ScanLines", "ScanlineChecks", "ScanlinePlan", "ScanlineStage"]
+__all__ = ["ScanLines", "ScanlineChecks", "ScanlinePlan", "ScanlineStage"]
 
 F64 = NDArray[np.float64]
 
@@ -131,29 +131,6 @@ class ScanlineStage:
     model : (my, mx) float64
         Node values of the stage model; node ``(c, d)`` at
         ``(x0 + d*sx, y0 + c*sy)`` with ``(sx, sy) = spacing``. Bilinear.
-
-    Tool choice by reach and rest regions (issue 11, parts 2 and 3; additive):
-
-    region : (my, mx) bool or None
-        Where this stage's ball machines, on the stage model's own nodes
-        (``model.shape``): tool positions only at ``True`` nodes. ``None``: the
-        whole part.
-    region_area_fraction : float
-        Share of the part's nodes in ``region`` (1 for the whole part).
-    region_boxes : tuple of (x_min, y_min, x_max, y_max, area)
-        Bounding boxes of the region's connected parts (8-connected), mm from the
-        grid's first node, area in mm², largest first (at most 64; empty when the
-        stage works over the whole part).
-    region_count : int
-        Connected parts of the region.
-    estimated_cut_length : float or None
-        Finishing stages: region area over the pick-feed that holds the tolerance
-        on a flat, mm (what the choice of balls minimises); None for roughing.
-    reach_rest_max : float
-        Most material the ball leaves over its target in the reach simulation
-        (finishing: over the part after this ball and the ones before), mm.
-    reach_reason : str or None
-        Why this ball, from the simulation.
     """
 
     tool: Tool
@@ -186,14 +163,6 @@ class ScanlineStage:
     extra_segments: int
     lines: ScanLines = field(repr=False)
     model: F64 = field(repr=False)
-    # --- tool choice by reach and rest regions (issue 11, parts 2-3) ---
-    region: NDArray[np.bool_] | None = field(default=None, repr=False)
-    region_area_fraction: float = 1.0
-    region_boxes: tuple[tuple[float, float, float, float, float], ...] = ()
-    region_count: int = 1
-    estimated_cut_length: float | None = None
-    reach_rest_max: float = 0.0
-    reach_reason: str | None = None
 
     @property
     def passes(self) -> int:
@@ -247,37 +216,6 @@ class ScanlineChecks:
                 and self.finishing_tolerance_met and self.last_model_is_part)
 
 
-@dataclass(frozen=True)
-class ReachSummary:
-    """The finishing balls' reach over the part (issue 11, parts 2-3).
-
-    Attributes
-    ----------
-    finishing_tools : tuple of str
-        Main finishing ball first, then the rest balls in order.
-    finishing_cut_length : float
-        Estimated finishing cut length of those balls in their regions (area over
-        the flat pick-feed holding the tolerance, plus ``TOOL_CHANGE_MM`` per
-        change), mm.
-    smallest_ball_cut_length : float
-        The same estimate if the library's smallest ball finished the whole part, mm.
-    unreachable_area : float
-        Area where even the last ball leaves more than the tolerance, mm².
-    unreachable_max_height : float
-        Most material left there, mm.
-    needed_radius : float
-        Smallest concave radius of the part there (a ball that finishes it must be no
-        larger), mm; inf when nothing is left.
-    """
-
-    finishing_tools: tuple[str, ...]
-    finishing_cut_length: float
-    smallest_ball_cut_length: float
-    unreachable_area: float
-    unreachable_max_height: float
-    needed_radius: float
-
-
 @dataclass(frozen=True, eq=False)
 class ScanlinePlan:
     """A roughing-to-finishing sequence of ball end mill stages.
@@ -302,8 +240,6 @@ class ScanlinePlan:
         Warnings and decisions worth reading (no tool fits, levels skipped).
     timings : tuple of (str, float)
         Seconds spent per phase (for benchmarks; not part of the result).
-    reach : ReachSummary or None
-        The finishing balls' simulated reach.
     """
 
     stock_top: float
@@ -315,5 +251,3 @@ class ScanlinePlan:
     checks: ScanlineChecks
     notes: tuple[str, ...]
     timings: tuple[tuple[str, float], ...] = ()
-    # --- tool choice by reach (issue 11, parts 2-3) ---
-    reach: ReachSummary | None = None
