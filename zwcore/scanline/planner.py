@@ -66,6 +66,7 @@ from zwcore.mrr.wavelets import Multiresolution, analyse
 from zwcore.scanline._checks import PassSpec, axis_weights, eval_rows, figures
 from zwcore.scanline._models import nested_targets
 from zwcore.scanline._passes import StripPlan, cell_cross_slopes, plan_strips, scallop_height
+from zwcore.scanline._stock import StockSim, left_over, run_pass, stride_for
 from zwcore.scanline._tool_choice import Stage, ball_rest, choose, levels
 from zwcore.scanline.results import ScanlineChecks, ScanlinePlan, ScanlineStage
 
@@ -156,15 +157,27 @@ def _lift(on: F64, target: F64, shift: float) -> tuple[F64, bool]:
     return model, reached
 
 
-def _passes(zmap: ZMap, chosen: list[Stage],
-            stock_top: float, tolerance: float, g: float) -> list[PassSpec]:
+def _region(stage: Stage) -> NDArray[np.bool_] | None:
+    """The stage's region on its model nodes (``None``: the whole part)."""
+    return stage[4] if len(stage) > 4 else None  # type: ignore[misc]
+
+
+def _passes(zmap: ZMap, chosen: list[Stage], stock_top: float, tolerance: float, g: float,
+            notes: list[str] | None = None) -> list[PassSpec]:
     ny, nx = zmap.shape
     extent_mm = ((ny - 1) * zmap.dy, (nx - 1) * zmap.dx)
     out: list[PassSpec] = []
     prev: F64 | None = None
     prev_level = 0
     leaves = 0.0  # scallops and rest of the previous pass
-    for n, (lev, tool, merged, rest) in enumerate(chosen):
+    sim = StockSim(zmap, stock_top)
+    for n, stage in enumerate(chosen):
+        lev, tool, merged, rest = stage[:4]
+        region = _region(stage)
+        # Lifted passes the flute rule on the simulated stock may add to this stage: the
+        # stock over the part in steps of a quarter flute, and a few more.
+        lifts, stalled = 0, False
+        max_lifts = math.ceil((stock_top - float(zmap.z.min())) / (0.25 * tool.flute_length)) + 4
         flute = tool.flute_length
         target = lev.model
         if prev is None:
@@ -204,9 +217,33 @@ def _passes(zmap: ZMap, chosen: list[Stage],
                 lines[key] = plan_strips(ax, ay, lev.sx, lev.sy, extent_mm, tool.radius,
                                          budget, what)
             strips = lines[key]
+            scale = round(lev.sx / zmap.dx)  # the level's nodes per input node, 2**k
+            if out:  # what the previous pass left over this one's model
+                out[-1].left_next = left_over(sim.stock, _upsampled(model, scale, zmap.shape))
+            # The flute rule on the simulated stock may raise this pass's model (in place).
+            done = run_pass(sim, model, (lev.sx, lev.sy), tool, strips.lines,
+                            stride_for(tool, strips.scallop, tolerance, min(zmap.dx, zmap.dy)),
+                            region, g, lift=not stalled)
+            if done.lifted_nodes:
+                reached = False
+                lifts += 1
+                if done.lowered == 0 or lifts > max_lifts or len(out) >= MAX_STAGES // 2:
+                    # Material this ball cannot take down stands within its radius more
+                    # than its flute length above where it must go: lifting again would
+                    # not get there. The rest of the stage runs without the lift and the
+                    # figures say where the flutes are overloaded.
+                    stalled = True
+                    if notes is not None:
+                        notes.append(
+                            f"{tool.id} at level {lev.index}: the flute rule on the simulated "
+                            f"stock (at most {flute:g} mm of stock within the ball's radius "
+                            "above its tip) cannot be met by lifting the pass: material it "
+                            "cannot remove stands higher than that above where it must go; "
+                            "use longer flutes or a smaller ball first")
             out.append(PassSpec(lev.index, lev.sx, lev.sy, tool, model, strips,
                                 slope_t if reached else slope_b, rest, tuple(merged),
-                                lev.concave_radius, lev.clipped, lev.raised))
+                                lev.concave_radius, lev.clipped, lev.raised, region=region,
+                                sim=done, left_part=left_over(sim.stock, zmap.z)))
             if len(out) > MAX_STAGES:
                 raise PlanningError(
                     "tools", f"reaching the part within the flute lengths needs more than "
@@ -223,6 +260,8 @@ def _passes(zmap: ZMap, chosen: list[Stage],
             on = model
         prev = model
         prev_level = lev.index
+    if out:
+        out[-1].left_next = out[-1].left_part
     return out
 
 
@@ -274,10 +313,10 @@ def plan_scanline(zmap: ZMap, tools: Sequence[Tool] | None = None, *, tolerance:
     notes: list[str] = []
     st, chosen = _stages(zmap, mrr, first, ceiling, g, requested, library,
                          float(curvature_smoothing), notes, laps)
-    passes = _passes(zmap, chosen, st, tol, g)
+    passes = _passes(zmap, chosen, st, tol, g, notes)
     laps("flute_lift")
 
-    stages, checks = figures(part, mrr.depth, zmap.dx, zmap.dy, passes, st, tol)
+    stages, checks = figures(part, mrr.depth, zmap.dx, zmap.dy, passes, st, tol, g)
     laps("figures_and_checks")
 
     return ScanlinePlan(

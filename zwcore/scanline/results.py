@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Literal
 
@@ -131,6 +132,27 @@ class ScanlineStage:
     model : (my, mx) float64
         Node values of the stage model; node ``(c, d)`` at
         ``(x0 + d*sx, y0 + c*sy)`` with ``(sx, sy) = spacing``. Bilinear.
+    sim_positions : int
+        Tool positions simulated: points on ``lines`` every ``sim_position_spacing`` mm
+        (and the segment ends), only inside the stage's region when it has one.
+    sim_position_spacing : float
+        Distance between simulated positions along a line, mm.
+    sim_max_depth_of_cut, sim_mean_depth_of_cut : float
+        Real depth of cut from the simulated stock: per position, the highest stock
+        node within the ball's radius of its axis minus its tip height (mean over the
+        positions that cut), mm. At most the flute length.
+    sim_flute_rule_ok : bool
+        ``sim_max_depth_of_cut <= tool.flute_length``.
+    sim_lifted_nodes : int
+        Model nodes the flute rule on the simulated stock raised (the pass then does not
+        reach its target and another pass with the same tool follows).
+    sim_gouge : float
+        ``max(part - simulated stock after the pass)`` at the input nodes, clipped at 0.
+    sim_left_over_next_max, sim_left_over_next_p95 : float
+        Simulated stock after the pass minus the next pass's model (the part after the
+        last pass) at the input nodes: largest and 95th percentile, mm.
+    sim_left_over_part_max, sim_left_over_part_p95 : float
+        Simulated stock after the pass minus the part, mm.
     """
 
     tool: Tool
@@ -163,6 +185,20 @@ class ScanlineStage:
     extra_segments: int
     lines: ScanLines = field(repr=False)
     model: F64 = field(repr=False)
+    # -- Simulated stock (issue 11 part 4, :mod:`zwcore.scanline._stock`): additive,
+    # every field has a default. Figures of the pass's real tool positions cut into the
+    # simulated stock at the input nodes.
+    sim_positions: int = 0
+    sim_position_spacing: float = 0.0
+    sim_max_depth_of_cut: float = 0.0
+    sim_mean_depth_of_cut: float = 0.0
+    sim_flute_rule_ok: bool = True
+    sim_lifted_nodes: int = 0
+    sim_gouge: float = 0.0
+    sim_left_over_next_max: float = 0.0
+    sim_left_over_next_p95: float = 0.0
+    sim_left_over_part_max: float = 0.0
+    sim_left_over_part_p95: float = 0.0
 
     @property
     def passes(self) -> int:
@@ -177,9 +213,12 @@ class ScanlineChecks:
     Attributes
     ----------
     containment : bool
-        ``stock_top >= M_0 >= M_1 >= ... >= part`` at every input node.
+        ``stock_top >= M_0`` and ``M_k >= part`` for every pass at every input node.
+        (Before the simulated stock this also required ``M_{k-1} >= M_k``; a pass now
+        rises above the one before it where the flute rule on the simulated stock lifts
+        it: see ``models_nested``.)
     min_containment_margin : float
-        Smallest ``M_{k-1} - M_k`` (and ``M_K - part``) over all nodes, mm.
+        Smallest ``stock_top - M_0`` and ``M_k - part`` over all nodes, mm.
     depth_of_cut : bool
         ``M_{k-1} + h_{k-1} + e_{k-1} - M_k <= L_k`` at every input node
         (stricter than the design's ``M_{k-1} - M_k <= L_k``: the previous
@@ -198,6 +237,24 @@ class ScanlineChecks:
         for. Informative, not part of :attr:`ok`: when no library ball fits
         the part's sharpest corner the plan still finishes with the smallest
         one (and says so in the notes).
+    sim_no_gouge : bool
+        The simulated stock never lies below the part at an input node (to the rounding
+        guard of a few ulps), after every pass.
+    sim_max_gouge : float
+        Largest ``part - simulated stock`` over all passes and input nodes, clipped at 0.
+    sim_flute_rule : bool
+        Every pass's real depth of cut on the simulated stock is at most its flute length.
+    sim_max_depth_over_flute : float
+        Largest ``sim_max_depth_of_cut - flute_length`` over the passes (<= 0 when the
+        rule holds; -inf without passes that cut).
+    models_nested : bool
+        Informative: ``M_{k-1} >= M_k`` at every input node. False where an earlier ball
+        left material above its model that the next pass's flutes could not take, so
+        the flute rule lifted that pass above the earlier model.
+    max_model_rise : float
+        Largest ``M_k - M_{k-1}`` over the nodes (0 when nested), mm.
+    sim_left_over_part_max, sim_left_over_part_p95 : float
+        Simulated stock after the last pass minus the part: what the plan leaves, mm.
     """
 
     containment: bool
@@ -208,12 +265,22 @@ class ScanlineChecks:
     finishing_tolerance_met: bool
     last_model_is_part: bool
     tools_fit: bool
+    # -- Simulated stock (issue 11 part 4): additive, every field has a default.
+    sim_no_gouge: bool = True
+    sim_max_gouge: float = 0.0
+    sim_flute_rule: bool = True
+    sim_max_depth_over_flute: float = -math.inf
+    sim_left_over_part_max: float = 0.0
+    sim_left_over_part_p95: float = 0.0
+    models_nested: bool = True
+    max_model_rise: float = 0.0
 
     @property
     def ok(self) -> bool:
         """All safety and contract checks hold."""
         return (self.containment and self.depth_of_cut and self.tool_radii_non_increasing
-                and self.finishing_tolerance_met and self.last_model_is_part)
+                and self.finishing_tolerance_met and self.last_model_is_part
+                and self.sim_no_gouge and self.sim_flute_rule)
 
 
 @dataclass(frozen=True, eq=False)
