@@ -119,7 +119,7 @@ def _assert_sim_holds(zmap: ZMap, plan: ScanlinePlan) -> None:
         assert s.sim_max_depth_of_cut == pytest.approx(depth, abs=ROUNDING)
         assert s.sim_left_over_part_max == pytest.approx(left, abs=ROUNDING)
         assert s.sim_flute_rule_ok and s.sim_gouge <= 1e-9
-    assert plan.checks.sim_flute_rule and plan.checks.sim_no_gouge and plan.checks.ok
+    assert plan.checks.depth_of_cut and plan.checks.sim_no_gouge and plan.checks.ok
 
 
 def test_trench_every_pass_within_its_flutes() -> None:
@@ -213,7 +213,7 @@ def test_mount_rushmore_flute_rule_on_the_simulated_stock() -> None:
     z = np.load(DATA / "mount_rush_zmap_0.1mm.npy").astype(np.float64)[::2, ::2]
     zmap = ZMap(z, dx=0.2, dy=0.2)
     plan = plan_scanline(zmap)
-    assert plan.checks.sim_flute_rule and plan.checks.sim_no_gouge
+    assert plan.checks.depth_of_cut and plan.checks.sim_no_gouge
     for s in plan.stages:
         assert s.sim_max_depth_of_cut <= s.tool.flute_length
         assert s.sim_gouge <= 1e-9

@@ -114,8 +114,12 @@ class ScanlineChecksOut(BaseModel):
     ok: bool
     containment: bool
     min_containment_margin: float
-    depth_of_cut: bool
-    max_depth_over_flute: float
+    depth_of_cut: bool = Field(description="the flute rule on the simulated stock: every "
+                               "stage's real depth of cut (sim_max_depth_of_cut) is at most "
+                               "its flute length")
+    max_depth_over_flute: float | None = Field(
+        description="largest sim_max_depth_of_cut minus flute length, mm (<= 0 when "
+        "depth_of_cut holds; null: no stage cuts)")
     tool_radii_non_increasing: bool
     finishing_tolerance_met: bool
     last_model_is_part: bool
@@ -125,12 +129,6 @@ class ScanlineChecksOut(BaseModel):
     sim_no_gouge: bool = Field(True, description="the simulated stock never lies below the "
                                "part (to float rounding), after every stage")
     sim_max_gouge: float | None = Field(0.0, description="largest part minus simulated stock, mm")
-    sim_flute_rule: bool = Field(
-        True, description="every stage's real depth of cut on the simulated stock is at most "
-        "its flute length")
-    sim_max_depth_over_flute: float | None = Field(
-        None, description="largest sim_max_depth_of_cut minus flute length (<= 0 when the "
-        "rule holds; null: no stage cuts)")
     sim_left_over_part_max: float = Field(
         0.0, description="simulated stock after the last stage minus the part: largest, mm")
     sim_left_over_part_p95: float = Field(0.0, description="the same, 95th percentile, mm")

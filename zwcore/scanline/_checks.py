@@ -22,6 +22,7 @@ import itertools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -176,7 +177,7 @@ def _stage(p: PassSpec, index: tuple[int, int], cut_max: float, volume: float, a
         lines=sp.lines, model=p.model, **_sim_fields(p))
 
 
-def _sim_fields(p: PassSpec) -> dict[str, float | int | bool]:
+def _sim_fields(p: PassSpec) -> dict[str, Any]:
     """The stage's figures from the simulated stock (none without a simulation)."""
     if p.sim is None:
         return {}
@@ -208,7 +209,6 @@ def figures(part: F64, depth: int, dx: float, dy: float, passes: Sequence[PassSp
     leaves = 0.0
     margin = math.inf
     rise = -math.inf
-    over = -math.inf
     fit = True
     stages: list[ScanlineStage] = []
     for i, p in enumerate(passes):
@@ -219,7 +219,6 @@ def figures(part: F64, depth: int, dx: float, dy: float, passes: Sequence[PassSp
         margin = min(margin, red.left_min[i], red.cut_min[i] if i == 0 else math.inf)
         rise = max(rise, -red.cut_min[i])
         engagement = red.cut_max[i] + leaves
-        over = max(over, engagement - p.tool.flute_length)
         fit = fit and (p.tool.radius <= p.concave_radius or p.rest > 0.0)
         key = (p.level, p.tool.id)
         seen[key] = seen.get(key, 0) + 1
@@ -229,30 +228,31 @@ def figures(part: F64, depth: int, dx: float, dy: float, passes: Sequence[PassSp
     radii = [s.tool.radius for s in stages]
     last = stages[-1].model
     # min()/max() skip NaN, so a NaN anywhere must fail the checks explicitly.
-    finite = all(math.isfinite(v) for v in (margin, over))
+    finite = math.isfinite(margin)
     checks = ScanlineChecks(
         containment=finite and margin >= 0.0,
         min_containment_margin=margin,
-        depth_of_cut=finite and over <= 0.0,
-        max_depth_over_flute=over,
+        **_sim_checks(stages, guard),
         tool_radii_non_increasing=all(a >= b for a, b in itertools.pairwise(radii)),
         finishing_tolerance_met=stages[-1].scallop_height <= tolerance,
         last_model_is_part=last.shape == part.shape and bool(np.array_equal(last, part)),
         tools_fit=fit,
-        **_sim_checks(stages, guard), models_nested=rise <= 0.0, max_model_rise=max(rise, 0.0),
+        models_nested=rise <= 0.0, max_model_rise=max(rise, 0.0),
     )
     return stages, checks
 
 
-def _sim_checks(stages: Sequence[ScanlineStage], guard: float) -> dict[str, float | bool]:
-    """Plan-level checks from the simulated stock (``guard``: the rounding allowance of
-    the gouge, a few ulps of the heights in play)."""
+def _sim_checks(stages: Sequence[ScanlineStage], guard: float) -> dict[str, Any]:
+    """The checks from the simulated stock (``guard``: the rounding allowance of the
+    gouge, a few ulps of the heights in play). ``depth_of_cut`` is the flute rule on the
+    simulated stock: the node-wise rule on the models it replaced said true while the
+    balls met far more than their flutes between the coarse nodes (issue 11)."""
     gouge = max(s.sim_gouge for s in stages)
     over = max((s.sim_max_depth_of_cut - s.tool.flute_length for s in stages
                 if s.sim_positions), default=-math.inf)
-    finite = math.isfinite(gouge) and not math.isnan(over)
-    return {"sim_no_gouge": finite and gouge <= guard, "sim_max_gouge": gouge,
-            "sim_flute_rule": finite and all(s.sim_flute_rule_ok for s in stages),
-            "sim_max_depth_over_flute": over,
+    ok = math.isfinite(gouge) and not math.isnan(over)
+    return {"depth_of_cut": ok and all(s.sim_flute_rule_ok for s in stages),
+            "max_depth_over_flute": over,
+            "sim_no_gouge": ok and gouge <= guard, "sim_max_gouge": gouge,
             "sim_left_over_part_max": stages[-1].sim_left_over_part_max,
             "sim_left_over_part_p95": stages[-1].sim_left_over_part_p95}

@@ -39,13 +39,15 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 from numpy.typing import NDArray
+from scipy import ndimage
 
 from zwcore.grid.tools import Tool
 from zwcore.grid.zmap import ZMap
 from zwcore.scanline.results import ScanLines
-from zwcore.sim import drop_cutter
+from zwcore.sim import drop_cutter, envelope
 
-__all__ = ["BLOCK", "Positions", "StockSim", "block_max", "cl_on_model", "positions",
+__all__ = ["BLOCK", "Positions", "SimulatedPass", "StockSim", "block_max", "cl_on_model",
+           "drop", "flute_lift", "interpolate", "left_over", "positions", "run_pass",
            "stride_for"]
 
 F64 = NDArray[np.float64]
@@ -71,8 +73,8 @@ def block_max(z: F64, b: int = BLOCK) -> F64:
 @njit(cache=True, nogil=True)
 def _span(p: float, r: float, d: float, n: int) -> tuple[int, int]:
     """Node indices ``lo..hi`` (inclusive) within ``r`` of ``p`` along an axis."""
-    lo = max(0, int(math.ceil((p - r) / d - 1e-9)))
-    hi = min(n - 1, int(math.floor((p + r) / d + 1e-9)))
+    lo = max(0, math.ceil((p - r) / d - 1e-9))
+    hi = min(n - 1, math.floor((p + r) / d + 1e-9))
     return lo, hi
 
 
@@ -221,18 +223,18 @@ def positions(lines: ScanLines, part: ZMap, stride: int,
     along_x = lines.direction == "x"
     d = part.dx if along_x else part.dy
     step = stride * d
-    us: list[F64] = []
-    vs: list[F64] = []
-    for off, a, b in zip(lines.offset, lines.start, lines.stop, strict=True):
-        first = math.ceil(a / step - 1e-9)
-        last = math.floor(b / step + 1e-9)
-        inner = np.arange(first, last + 1) * step
-        inner = inner[(inner > a) & (inner < b)]
-        u = np.concatenate(([a], inner, [b])) if b > a else np.array([a])
-        us.append(u)
-        vs.append(np.full(u.size, off))
-    u = np.concatenate(us) if us else np.zeros(0)
-    v = np.concatenate(vs) if vs else np.zeros(0)
+    a, b = lines.start, lines.stop
+    first = np.ceil(a / step - 1e-9).astype(np.int64)
+    last = np.floor(b / step + 1e-9).astype(np.int64)
+    # per segment: its start, the multiples of step strictly inside, its stop (if longer)
+    n_in = np.maximum(last - first + 1, 0)
+    counts = 1 + n_in + (b > a)
+    seg = np.repeat(np.arange(a.size), counts)
+    k = np.arange(seg.size) - np.repeat(np.cumsum(counts) - counts, counts)
+    u = np.where(k == 0, a[seg], (first[seg] + k - 1) * step)
+    u = np.where(k == counts[seg] - 1, np.where(b[seg] > a[seg], b[seg], a[seg]), u)
+    keep = (k == 0) | (k == counts[seg] - 1) | ((u > a[seg]) & (u < b[seg]))
+    u, v = u[keep], lines.offset[seg[keep]]
     x, y = (u, v) if along_x else (v, u)
     if region is not None and spacing is not None:
         sx, sy = spacing
@@ -251,18 +253,23 @@ def cl_on_model(model: F64, sx: float, sy: float, tool: Tool, pos: Positions) ->
 
 def interpolate(grid: F64, sx: float, sy: float, pos: Positions) -> F64:
     """Bilinear interpolation of node values ``grid`` at the positions (clamped to the grid)."""
+    return _interpolate(np.ascontiguousarray(grid), 1.0 / sx, 1.0 / sy, pos.x, pos.y)
+
+
+@njit(cache=True, nogil=True)
+def _interpolate(grid: F64, isx: float, isy: float, px: F64, py: F64) -> F64:
     my, mx = grid.shape
-    fx = pos.x / sx
-    fy = pos.y / sy
-    c0 = np.clip(np.floor(fx).astype(np.intp), 0, max(mx - 2, 0))
-    r0 = np.clip(np.floor(fy).astype(np.intp), 0, max(my - 2, 0))
-    c1 = np.minimum(c0 + 1, mx - 1)
-    r1 = np.minimum(r0 + 1, my - 1)
-    tx = np.clip(fx - c0, 0.0, 1.0)
-    ty = np.clip(fy - r0, 0.0, 1.0)
-    lo = grid[r0, c0] * (1.0 - tx) + grid[r0, c1] * tx
-    hi = grid[r1, c0] * (1.0 - tx) + grid[r1, c1] * tx
-    out: F64 = lo * (1.0 - ty) + hi * ty
+    out = np.empty(px.size)
+    for n in range(px.size):
+        fx, fy = px[n] * isx, py[n] * isy
+        c0 = min(max(math.floor(fx), 0), max(mx - 2, 0))
+        r0 = min(max(math.floor(fy), 0), max(my - 2, 0))
+        c1, r1 = min(c0 + 1, mx - 1), min(r0 + 1, my - 1)
+        tx = min(max(fx - c0, 0.0), 1.0)
+        ty = min(max(fy - r0, 0.0), 1.0)
+        lo = grid[r0, c0] * (1.0 - tx) + grid[r0, c1] * tx
+        hi = grid[r1, c0] * (1.0 - tx) + grid[r1, c1] * tx
+        out[n] = lo * (1.0 - ty) + hi * ty
     return out
 
 
@@ -286,8 +293,8 @@ def _raise_corners(model: F64, isx: float, isy: float, px: F64, py: F64, need: F
     my, mx = model.shape
     raised = 0
     for n in range(px.size):
-        c0 = min(max(int(math.floor(px[n] * isx)), 0), max(mx - 2, 0))
-        r0 = min(max(int(math.floor(py[n] * isy)), 0), max(my - 2, 0))
+        c0 = min(max(math.floor(px[n] * isx), 0), max(mx - 2, 0))
+        r0 = min(max(math.floor(py[n] * isy), 0), max(my - 2, 0))
         for r in (r0, min(r0 + 1, my - 1)):
             for c in (c0, min(c0 + 1, mx - 1)):
                 if model[r, c] < need[n]:
@@ -351,22 +358,6 @@ class StockSim:
                         np.ascontiguousarray(model_cl), tool.radius, self.part.dx,
                         self.part.dy)
 
-    def top(self, pos: Positions, tool: Tool) -> F64:
-        """Highest stock node within the tool's radius of each position."""
-        return _top(self.stock, block_max(self.stock), BLOCK, pos.x, pos.y, tool.radius,
-                    self.part.dx, self.part.dy)
-
-    def cut(self, pos: Positions, cl: F64, top: F64, tool: Tool) -> PassCut:
-        """Machine the stock with the tool at ``cl`` on the positions (``top``: from
-        :meth:`top` before the cut)."""
-        cl = np.ascontiguousarray(cl, dtype=np.float64)
-        _cut(self.stock, block_max(self.stock), BLOCK, pos.x, pos.y, cl, tool.radius,
-             self.part.dx, self.part.dy)
-        depth = np.maximum(top - cl, 0.0) if cl.size else np.zeros(0)
-        depth[~np.isfinite(depth)] = 0.0
-        gouge = float(max(0.0, float(np.max(self.part.z - self.stock))))
-        return PassCut(pos, cl, depth, gouge)
-
 
 @dataclass(frozen=True, eq=False)
 class SimulatedPass:
@@ -380,7 +371,8 @@ class SimulatedPass:
 
 def run_pass(sim: StockSim, model: F64, spacing: tuple[float, float], tool: Tool,
              lines: ScanLines, stride: int, region: NDArray[np.bool_] | None,
-             guard: float, *, lift: bool = True) -> SimulatedPass:
+             guard: float, *, lift: bool = True, target_cl: F64 | None = None,
+             ) -> SimulatedPass:
     """Simulate one pass over ``sim``'s stock, lifting ``model`` (in place) where the flute
     rule needs it.
 
@@ -390,27 +382,249 @@ def run_pass(sim: StockSim, model: F64, spacing: tuple[float, float], tool: Tool
     (:func:`flute_lift`) and the CL taken again on the raised model: every position then
     meets at most ``L`` of stock.
 
+    Only the positions that may cut are visited by the kernels: a position whose CL on
+    the model lies at or above the highest stock of the blocks its ball spans cuts
+    nothing (and its depth of cut is 0). A position on a model node needs no drop-cutter
+    against the part's nodes: the model contains them, and its CL there is at least
+    that of any surface under it.
+
+    Parameters
+    ----------
+    target_cl : (my, mx) float64, optional
+        :func:`zwcore.sim.drop_cutter` of ``model`` as given (computed if not given);
+        after a lift only the window around the raised nodes is dropped again.
+
     Returns
     -------
     SimulatedPass
     """
     sx, sy = spacing
-    pos = positions(lines, sim.part, stride, region, spacing)
-    base = sim.base_cl(cl_on_model(model, sx, sy, tool, pos), pos, tool)
-    top = sim.top(pos, tool)
+    part = sim.part
+    pos = positions(lines, part, stride, region, spacing)
+    if target_cl is None:
+        target_cl = drop(model, sx, sy, tool)
+    cl = interpolate(target_cl, sx, sy, pos)
+    smax = block_max(sim.stock)
+    act = np.flatnonzero(_may_cut(_grow_blocks(smax, tool.radius, part.dx, part.dy), BLOCK,
+                                  pos.x, pos.y, cl, 1.0 / part.dx, 1.0 / part.dy))
+    sub = Positions(pos.x[act], pos.y[act])
+    on_node = _on_nodes(sub, sx, sy)
+    base = cl[act]
+    off = np.flatnonzero(~on_node)
+    if off.size:
+        base[off] = sim.base_cl(base[off], Positions(sub.x[off], sub.y[off]), tool)
+    grid = _GridMode.of(sub, part, tool)
+    if grid is None:
+        top = _top(sim.stock, smax, BLOCK, sub.x, sub.y, tool.radius, part.dx, part.dy)
+    else:
+        top = grid.top(sim, smax, sub, tool)
     need = top - tool.flute_length + guard
-    bind = need > base
-    if not lift:
-        bind[:] = False
+    bind = (need > base) if lift else np.zeros(act.size, dtype=bool)
     lifted = 0
     if bind.any():
-        sub = Positions(pos.x[bind], pos.y[bind])
-        lifted = flute_lift(model, sx, sy, sub, need[bind])
-        base = np.maximum(base, cl_on_model(model, sx, sy, tool, pos))
+        cl, lifted = _lift(model, target_cl, (sx, sy), tool, pos, act, on_node, bind, need)
+        base = np.maximum(base, cl[act])
         # Bilinear interpolation of corner CLs each >= need may round a hair under it.
         base[bind] = np.maximum(base[bind], need[bind])
+    cl[act] = base
     before = sim.stock.copy() if lifted else None
-    cut = sim.cut(pos, base, top, tool)
+    if grid is None:
+        _cut(sim.stock, smax, BLOCK, sub.x, sub.y, base, tool.radius, part.dx, part.dy)
+    else:
+        grid.cut(sim, smax, sub, base, tool)
+    depth = np.zeros(pos.size)
+    depth[act] = np.maximum(top - base, 0.0)
+    depth[~np.isfinite(depth)] = 0.0
+    gouge = float(max(0.0, float(np.max(part.z - sim.stock))))
     lowered = -1 if before is None else int(np.count_nonzero(sim.stock < before - guard))
-    along = sim.part.dx if lines.direction == "x" else sim.part.dy
-    return SimulatedPass(cut, lifted, stride * along, lowered)
+    along = part.dx if lines.direction == "x" else part.dy
+    return SimulatedPass(PassCut(pos, cl, depth, gouge), lifted, stride * along, lowered)
+
+
+def _lift(model: F64, target_cl: F64, spacing: tuple[float, float], tool: Tool, pos: Positions,
+          act: NDArray[np.intp], on_node: NDArray[np.bool_], bind: NDArray[np.bool_],
+          need: F64) -> tuple[F64, int]:
+    """Raise ``model`` (in place) until its CL is at least ``need`` at the binding positions;
+    returns the CL at all positions and the number of nodes raised.
+
+    First the model nodes that are binding positions rise to ``need`` (the least that
+    holds there); the others, between nodes, are checked on the CL dropped again, and
+    only where that still falls short do the corners of their model cell rise to their
+    ``need`` (enough: the CL is at least the model under it, bilinear between corners
+    that each are). Raising only the corners at once lifted the positions beside a
+    steep rise of ``need`` above their own need, so they cut nothing and the stage
+    never got down.
+    """
+    sx, sy = spacing
+    old = model.copy()
+    idx = act[bind & on_node]
+    if idx.size:
+        rows = np.rint(pos.y[idx] / sy).astype(np.intp)
+        cols = np.rint(pos.x[idx] / sx).astype(np.intp)
+        np.maximum.at(model, (rows, cols), need[bind & on_node])
+    grid = _drop_again(model, old, target_cl, sx, sy, tool) if idx.size else target_cl
+    cl = interpolate(grid, sx, sy, pos)
+    short = bind & (cl[act] < need)
+    if short.any():
+        flute_lift(model, sx, sy, Positions(pos.x[act[short]], pos.y[act[short]]), need[short])
+        grid = _drop_again(model, old, target_cl, sx, sy, tool)
+        cl = interpolate(grid, sx, sy, pos)
+    return cl, int(np.count_nonzero(model != old))
+
+
+def drop(model: F64, sx: float, sy: float, tool: Tool) -> F64:
+    """:func:`zwcore.sim.drop_cutter` (bilinear) on a model of spacing ``sx, sy``."""
+    return drop_cutter(ZMap(model, dx=sx, dy=sy), tool, "bilinear")
+
+
+def _drop_again(model: F64, old: F64, old_cl: F64, sx: float, sy: float, tool: Tool) -> F64:
+    """Drop-cutter of ``model``, whose nodes differ from ``old`` (CL ``old_cl``) only
+    somewhere: dropped again over the box of the changed nodes grown by twice the
+    footprint, kept over the box grown by one footprint (the dilation is local)."""
+    changed = np.nonzero(model != old)
+    my, mx = model.shape
+    fa, fb = math.ceil(tool.radius / sy) + 2, math.ceil(tool.radius / sx) + 2
+    r0, r1 = int(changed[0].min()), int(changed[0].max()) + 1
+    c0, c1 = int(changed[1].min()), int(changed[1].max()) + 1
+    if (r1 - r0 + 4 * fa) * (c1 - c0 + 4 * fb) >= 0.5 * model.size:
+        return drop(model, sx, sy, tool)
+    wr0, wr1 = max(r0 - 2 * fa, 0), min(r1 + 2 * fa, my)
+    wc0, wc1 = max(c0 - 2 * fb, 0), min(c1 + 2 * fb, mx)
+    window = drop(np.ascontiguousarray(model[wr0:wr1, wc0:wc1]), sx, sy, tool)
+    kr0, kr1 = max(r0 - fa, 0), min(r1 + fa, my)
+    kc0, kc1 = max(c0 - fb, 0), min(c1 + fb, mx)
+    out = old_cl.copy()
+    out[kr0:kr1, kc0:kc1] = window[kr0 - wr0:kr1 - wr0, kc0 - wc0:kc1 - wc0]
+    return out
+
+
+def _on_nodes(pos: Positions, sx: float, sy: float) -> NDArray[np.bool_]:
+    """Positions that sit on a model node (to a relative 1e-9 of the spacing)."""
+    fx, fy = pos.x / sx, pos.y / sy
+    out: NDArray[np.bool_] = (np.abs(fx - np.rint(fx)) <= 1e-9) & (np.abs(fy - np.rint(fy))
+                                                                  <= 1e-9)
+    return out
+
+
+def _grow_blocks(smax: F64, r: float, dx: float, dy: float) -> F64:
+    """Block maxima grown by the blocks a ball of radius ``r`` centred in a block reaches."""
+    # a position lies within half a spacing of the node whose block it is looked up in
+    reach = r + max(dx, dy)
+    ga, gb = math.ceil(reach / (BLOCK * dy)), math.ceil(reach / (BLOCK * dx))
+    out: F64 = ndimage.maximum_filter(smax, size=(2 * ga + 1, 2 * gb + 1), mode="nearest")
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _may_cut(grown: F64, b: int, px: F64, py: F64, cl: F64, idx: float,
+             idy: float) -> NDArray[np.bool_]:
+    """Positions whose CL lies under the highest stock its ball may reach (block bound)."""
+    my, mx = grown.shape
+    out = np.empty(px.size, dtype=np.bool_)
+    for n in range(px.size):
+        bi = min(max(round(py[n] * idy) // b, 0), my - 1)
+        bk = min(max(round(px[n] * idx) // b, 0), mx - 1)
+        out[n] = grown[bi, bk] > cl[n]
+    return out
+
+
+#: Grid mode (below) for balls up to this many input spacings in radius.
+GRID_MODE_RADIUS = 12
+
+#: ... and when at least this share of the input nodes are positions of the pass.
+GRID_MODE_SHARE = 0.25
+
+
+class _GridMode:
+    """A pass whose positions are most of the input nodes (a ball at the input's own
+    level): the stock within ``R`` and the envelope as whole-grid operations (a flat-disc
+    dilation by row spans, :func:`zwcore.sim.envelope`), the kernels only for the
+    positions off the nodes (ends of extra segments, lines between grid lines)."""
+
+    def __init__(self, on: NDArray[np.bool_], rows: NDArray[np.intp],
+                 cols: NDArray[np.intp]) -> None:
+        self.on, self.rows, self.cols = on, rows, cols
+
+    @classmethod
+    def of(cls, pos: Positions, part: ZMap, tool: Tool) -> _GridMode | None:
+        if tool.radius > GRID_MODE_RADIUS * min(part.dx, part.dy):
+            return None
+        on = _on_nodes(pos, part.dx, part.dy)
+        if np.count_nonzero(on) < GRID_MODE_SHARE * part.z.size:
+            return None
+        rows = np.rint(pos.y[on] / part.dy).astype(np.intp)
+        cols = np.rint(pos.x[on] / part.dx).astype(np.intp)
+        return cls(on, rows, cols)
+
+    def top(self, sim: StockSim, smax: F64, pos: Positions, tool: Tool) -> F64:
+        part = sim.part
+        out = np.empty(pos.size)
+        whole = _disc_max(sim.stock, _half_widths(tool.radius, part.dx, part.dy))
+        out[self.on] = whole[self.rows, self.cols]
+        off = ~self.on
+        if off.any():
+            out[off] = _top(sim.stock, smax, BLOCK, pos.x[off], pos.y[off], tool.radius,
+                            part.dx, part.dy)
+        return out
+
+    def cut(self, sim: StockSim, smax: F64, pos: Positions, cl: F64, tool: Tool) -> None:
+        part = sim.part
+        off = ~self.on
+        high = float(sim.stock.max())  # a tip there cuts nothing
+        grid = np.full(part.shape, high)
+        grid[self.rows, self.cols] = np.minimum(cl[self.on], high)
+        env = envelope(grid, tool, part.dx, part.dy, "bilinear")
+        if off.any():
+            _cut(sim.stock, smax, BLOCK, pos.x[off], pos.y[off], np.ascontiguousarray(cl[off]),
+                 tool.radius, part.dx, part.dy)
+        np.minimum(sim.stock, env, out=sim.stock)
+
+
+def _half_widths(r: float, dx: float, dy: float) -> NDArray[np.int64]:
+    """Per row offset ``a = 0..A``: the largest ``b`` with ``(a dy)² + (b dx)² <= r²``."""
+    a = np.arange(math.floor(r / dy + 1e-9) + 1)
+    rest = np.maximum(r * r - (a * dy) ** 2, 0.0)
+    out: NDArray[np.int64] = np.floor(np.sqrt(rest) / dx + 1e-9).astype(np.int64)
+    # the same test as the kernels' d² <= r², node by node
+    for n in range(a.size):
+        while out[n] >= 0 and (a[n] * dy) ** 2 + (out[n] * dx) ** 2 > r * r:
+            out[n] -= 1
+        while (a[n] * dy) ** 2 + ((out[n] + 1) * dx) ** 2 <= r * r:
+            out[n] += 1
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _disc_max(s: F64, widths: NDArray[np.int64]) -> F64:
+    """Highest ``s`` within the disc of half-widths ``widths`` (per row offset) of every
+    node: sliding maxima along the rows, one per distinct width, then a max over rows."""
+    ny, nx = s.shape
+    wmax = widths[0]
+    slide = np.full((wmax + 1, ny, nx), -np.inf)
+    need = np.zeros(wmax + 1, dtype=np.bool_)
+    for w in widths:
+        if w >= 0:
+            need[w] = True
+    for w in range(wmax + 1):
+        if not need[w]:
+            continue
+        for i in range(ny):
+            for k in range(nx):
+                m = -np.inf
+                for kk in range(max(0, k - w), min(nx, k + w + 1)):
+                    if s[i, kk] > m:
+                        m = s[i, kk]
+                slide[w, i, k] = m
+    out = np.full((ny, nx), -np.inf)
+    a_max = widths.size - 1
+    for i in range(ny):
+        for a in range(-a_max, a_max + 1):
+            ii = i + a
+            w = widths[abs(a)]
+            if ii < 0 or ii >= ny or w < 0:
+                continue
+            for k in range(nx):
+                v = slide[w, ii, k]
+                if v > out[i, k]:
+                    out[i, k] = v
+    return out

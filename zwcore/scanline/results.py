@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from typing import Literal
 
@@ -220,12 +219,15 @@ class ScanlineChecks:
     min_containment_margin : float
         Smallest ``stock_top - M_0`` and ``M_k - part`` over all nodes, mm.
     depth_of_cut : bool
-        ``M_{k-1} + h_{k-1} + e_{k-1} - M_k <= L_k`` at every input node
-        (stricter than the design's ``M_{k-1} - M_k <= L_k``: the previous
-        pass's scallops ``h`` and rest ``e`` count).
+        The flute rule on the simulated stock: at every simulated position of every
+        pass, the highest stock node within the ball's radius of its axis lies at most
+        the flute length above its tip (``sim_max_depth_of_cut <= L`` for every stage).
+        Before the simulated stock this was ``M_{k-1} + h_{k-1} + e_{k-1} - M_k <= L_k``
+        on the model nodes (still reported per stage as ``max_engagement``), which held
+        while the balls met far more than their flutes between coarse nodes.
     max_depth_over_flute : float
-        Largest ``M_{k-1} + h_{k-1} + e_{k-1} - M_k - L_k``; <= 0 when the
-        check holds.
+        Largest ``sim_max_depth_of_cut - L`` over the passes; <= 0 when the check holds
+        (-inf without positions that cut).
     tool_radii_non_increasing : bool
     finishing_tolerance_met : bool
         The last pass's predicted scallop is at most ``tolerance``.
@@ -242,17 +244,6 @@ class ScanlineChecks:
         guard of a few ulps), after every pass.
     sim_max_gouge : float
         Largest ``part - simulated stock`` over all passes and input nodes, clipped at 0.
-    sim_flute_rule : bool
-        Every pass's real depth of cut on the simulated stock is at most its flute length.
-    sim_max_depth_over_flute : float
-        Largest ``sim_max_depth_of_cut - flute_length`` over the passes (<= 0 when the
-        rule holds; -inf without passes that cut).
-    models_nested : bool
-        Informative: ``M_{k-1} >= M_k`` at every input node. False where an earlier ball
-        left material above its model that the next pass's flutes could not take, so
-        the flute rule lifted that pass above the earlier model.
-    max_model_rise : float
-        Largest ``M_k - M_{k-1}`` over the nodes (0 when nested), mm.
     sim_left_over_part_max, sim_left_over_part_p95 : float
         Simulated stock after the last pass minus the part: what the plan leaves, mm.
     """
@@ -268,8 +259,6 @@ class ScanlineChecks:
     # -- Simulated stock (issue 11 part 4): additive, every field has a default.
     sim_no_gouge: bool = True
     sim_max_gouge: float = 0.0
-    sim_flute_rule: bool = True
-    sim_max_depth_over_flute: float = -math.inf
     sim_left_over_part_max: float = 0.0
     sim_left_over_part_p95: float = 0.0
     models_nested: bool = True
@@ -280,7 +269,7 @@ class ScanlineChecks:
         """All safety and contract checks hold."""
         return (self.containment and self.depth_of_cut and self.tool_radii_non_increasing
                 and self.finishing_tolerance_met and self.last_model_is_part
-                and self.sim_no_gouge and self.sim_flute_rule)
+                and self.sim_no_gouge)
 
 
 @dataclass(frozen=True, eq=False)
