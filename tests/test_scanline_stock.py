@@ -63,24 +63,38 @@ def _bilinear(grid: np.ndarray, sx: float, sy: float, x: np.ndarray,
             + (grid[r1, c0] * (1 - tx) + grid[r1, c1] * tx) * ty)
 
 
-#: zwcore.sim.drop_cutter rounds its CL up by at most about this (float32 arithmetic): the
-#: reference takes the CL of the plan's final model, the plan may hold a position a hair
-#: higher where it also dropped the ball on the model before the flute lift raised it.
-ROUNDING = 2e-5
+def _rounding(zmap: ZMap, plan: ScanlinePlan) -> float:
+    """zwcore.sim.drop_cutter and envelope round up (float32 arithmetic) by up to
+    ``2**-22 * (span + 1)`` per rounded input and result, a few times over: the plan uses
+    both (grid mode), the reference only the drop-cutter."""
+    return 16.0 * 2.0 ** -22 * (plan.stock_top - float(zmap.z.min()) + 1.0)
+
+
+def _cl_model(s: ScanlineStage, model: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    sx, sy = s.spacing
+    return _bilinear(drop_cutter(ZMap(model, dx=sx, dy=sy), s.tool), sx, sy, x, y)
 
 
 def _resimulate(zmap: ZMap, plan: ScanlinePlan) -> list[tuple[float, float, float]]:
     """Per stage: (largest depth of cut, gouge, largest stock left over the part), brute force
-    over a window of nodes around every position."""
+    over a window of nodes around every position.
+
+    The rule as specified: CL = max(drop-cutter on the stage's target, bilinear between
+    its nodes; brute-force drop against the part's nodes), lifted to (highest stock node
+    within R) - L where that is higher. The target of a pass is the model of the last
+    pass with its tool at its level (the one that reaches it). Each pass's own model
+    must hold the tool path at or above the lifted CL (checked here).
+    """
     part = zmap.z
     ny, nx = part.shape
     stock = np.full(part.shape, plan.stock_top)
+    targets = {(s.level, s.tool.id): s.model for s in plan.stages}  # the last one wins
     out = []
     for s in plan.stages:
-        r = s.tool.radius
+        r, flute = s.tool.radius, s.tool.flute_length
         x, y = _positions(s.lines, s.sim_position_spacing)
-        cl_model = _bilinear(drop_cutter(ZMap(s.model, dx=s.spacing[0], dy=s.spacing[1]),
-                                         s.tool), s.spacing[0], s.spacing[1], x, y)
+        cl_target = _cl_model(s, targets[(s.level, s.tool.id)], x, y)
+        cl_path = _cl_model(s, s.model, x, y)
         a, b = math.ceil(r / zmap.dy) + 1, math.ceil(r / zmap.dx) + 1
         oy, ox = np.mgrid[-a:a + 1, -b:b + 1]
         before = stock.copy()
@@ -93,9 +107,12 @@ def _resimulate(zmap: ZMap, plan: ScanlinePlan) -> list[tuple[float, float, floa
             inside = (d2 <= r * r) & (rows >= 0) & (rows < ny) & (cols >= 0) & (cols < nx)
             rows, cols = np.clip(rows, 0, ny - 1), np.clip(cols, 0, nx - 1)
             h = r - np.sqrt(np.maximum(r * r - d2, 0.0))
-            cl = np.maximum(cl_model[k:k + 512],
+            cl = np.maximum(cl_target[k:k + 512],
                             np.where(inside, part[rows, cols] - h, -np.inf).max(axis=1))
             top = np.where(inside, before[rows, cols], -np.inf).max(axis=1)
+            cl = np.maximum(cl, top - flute)
+            # the tool path on the pass's (raised) model keeps the rule too
+            assert np.all(cl_path[k:k + 512] >= top - flute - _rounding(zmap, plan))
             depth = max(depth, float(np.max(top - cl, initial=0.0)))
             env = np.where(inside, cl[:, None] + h, np.inf)
             np.minimum.at(stock, (rows.ravel(), cols.ravel()), env.ravel())
@@ -112,12 +129,13 @@ def _trench(n: int = 129, d: float = 0.25, width: float = 2.0, deep: float = 20.
 
 def _assert_sim_holds(zmap: ZMap, plan: ScanlinePlan) -> None:
     ref = _resimulate(zmap, plan)
+    rounding = _rounding(zmap, plan)
     for s, (depth, gouge, left) in zip(plan.stages, ref, strict=True):
-        assert depth <= s.tool.flute_length + ROUNDING, (s.tool.id, s.pass_index, depth)
+        assert depth <= s.tool.flute_length + rounding, (s.tool.id, s.pass_index, depth)
         assert gouge <= 1e-9
         # the plan's own figures agree with the reference (same positions and CL)
-        assert s.sim_max_depth_of_cut == pytest.approx(depth, abs=ROUNDING)
-        assert s.sim_left_over_part_max == pytest.approx(left, abs=ROUNDING)
+        assert s.sim_max_depth_of_cut == pytest.approx(depth, abs=rounding)
+        assert s.sim_left_over_part_max == pytest.approx(left, abs=rounding)
         assert s.sim_flute_rule_ok and s.sim_gouge <= 1e-9
     assert plan.checks.depth_of_cut and plan.checks.sim_no_gouge and plan.checks.ok
 

@@ -16,7 +16,7 @@ the simulated stock) guesses it, the simulation decides, and a finishing pass gu
 short that does reach the part is planned again on the finishing budget.
 
 If lifting stops making progress (material this ball cannot remove stands within its
-radius more than ``L`` above where it must go; or the plan nears :data:`MAX_STAGES`),
+radius more than ``L`` above where it must go),
 the rest of the stage runs without the lift, a note says so and ``depth_of_cut`` is false.
 """
 
@@ -214,7 +214,7 @@ def _stage_passes(plan: _Plan, st: _Stage) -> F64:
             plan.out[-1].left_next = left_over(before, upsampled(model, scale, zmap.shape))
         if not reached:
             lifts += 1
-            if done.lowered == 0 or lifts > max_lifts or len(plan.out) >= MAX_STAGES // 2:
+            if done.lowered == 0 or lifts > max_lifts:
                 stalled = True
                 if plan.notes is not None:
                     plan.notes.append(_stall_note(tool, lev))

@@ -37,12 +37,12 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 from numpy.typing import NDArray
 from scipy import ndimage
 
 from zwcore.grid.tools import Tool
 from zwcore.grid.zmap import ZMap
+from zwcore.scanline import _stock_kernels as _k
 from zwcore.scanline.results import ScanLines
 from zwcore.sim import drop_cutter, envelope
 
@@ -68,118 +68,6 @@ def block_max(z: F64, b: int = BLOCK) -> F64:
     pad[:ny, :nx] = z
     out: F64 = pad.reshape(my, b, mx, b).max(axis=(1, 3))
     return out
-
-
-@njit(cache=True, nogil=True)
-def _span(p: float, r: float, d: float, n: int) -> tuple[int, int]:
-    """Node indices ``lo..hi`` (inclusive) within ``r`` of ``p`` along an axis."""
-    lo = max(0, math.ceil((p - r) / d - 1e-9))
-    hi = min(n - 1, math.floor((p + r) / d + 1e-9))
-    return lo, hi
-
-
-@njit(cache=True, nogil=True)
-def _block_dist2(p: float, q: float, bi: int, bk: int, b: int, ny: int, nx: int,
-                 dx: float, dy: float) -> float:
-    """Squared xy distance from ``(p, q)`` (x, y in mm) to block ``(bi, bk)``'s nodes' box."""
-    x0, x1 = bk * b * dx, (min(bk * b + b, nx) - 1) * dx
-    y0, y1 = bi * b * dy, (min(bi * b + b, ny) - 1) * dy
-    ex = max(0.0, x0 - p, p - x1)
-    ey = max(0.0, y0 - q, q - y1)
-    return ex * ex + ey * ey
-
-
-@njit(cache=True, nogil=True)
-def _cl_part(z: F64, zmax: F64, b: int, px: F64, py: F64, cl0: F64, r: float, dx: float,
-             dy: float) -> F64:
-    """``max(cl0, max over nodes q within r of z[q] - h(|q - c|))`` per position (ball)."""
-    ny, nx = z.shape
-    r2 = r * r
-    out = cl0.copy()
-    for n in range(px.size):
-        p, q = px[n], py[n]
-        best = out[n]
-        k0, k1 = _span(p, r, dx, nx)
-        i0, i1 = _span(q, r, dy, ny)
-        if k0 > k1 or i0 > i1:
-            continue
-        for bi in range(i0 // b, i1 // b + 1):
-            for bk in range(k0 // b, k1 // b + 1):
-                dm2 = _block_dist2(p, q, bi, bk, b, ny, nx, dx, dy)
-                if dm2 > r2 or zmax[bi, bk] - (r - math.sqrt(r2 - dm2)) <= best:
-                    continue
-                for i in range(max(i0, bi * b), min(i1, bi * b + b - 1) + 1):
-                    ey = i * dy - q
-                    for k in range(max(k0, bk * b), min(k1, bk * b + b - 1) + 1):
-                        ex = k * dx - p
-                        d2 = ex * ex + ey * ey
-                        if d2 <= r2:
-                            v = z[i, k] - (r - math.sqrt(r2 - d2))
-                            if v > best:
-                                best = v
-        out[n] = best
-    return out
-
-
-@njit(cache=True, nogil=True)
-def _top(s: F64, smax: F64, b: int, px: F64, py: F64, r: float, dx: float,
-         dy: float) -> F64:
-    """Highest stock node within ``r`` of each position (-inf: none)."""
-    ny, nx = s.shape
-    r2 = r * r
-    out = np.full(px.size, -np.inf)
-    for n in range(px.size):
-        p, q = px[n], py[n]
-        best = -np.inf
-        k0, k1 = _span(p, r, dx, nx)
-        i0, i1 = _span(q, r, dy, ny)
-        if k0 > k1 or i0 > i1:
-            continue
-        for bi in range(i0 // b, i1 // b + 1):
-            for bk in range(k0 // b, k1 // b + 1):
-                if smax[bi, bk] <= best or _block_dist2(p, q, bi, bk, b, ny, nx, dx,
-                                                        dy) > r2:
-                    continue
-                for i in range(max(i0, bi * b), min(i1, bi * b + b - 1) + 1):
-                    ey = i * dy - q
-                    for k in range(max(k0, bk * b), min(k1, bk * b + b - 1) + 1):
-                        ex = k * dx - p
-                        if ex * ex + ey * ey <= r2 and s[i, k] > best:
-                            best = s[i, k]
-        out[n] = best
-    return out
-
-
-@njit(cache=True, nogil=True)
-def _cut(s: F64, smax: F64, b: int, px: F64, py: F64, cl: F64, r: float, dx: float,
-         dy: float) -> None:
-    """``s = min(s, cl + h(|p - c|))`` at every node within ``r`` of each position, in place.
-
-    ``smax`` is the block maximum of ``s`` before the pass: a block whose stock lies at or
-    under the ball's lowest point over it is left alone.
-    """
-    ny, nx = s.shape
-    r2 = r * r
-    for n in range(px.size):
-        p, q, c = px[n], py[n], cl[n]
-        k0, k1 = _span(p, r, dx, nx)
-        i0, i1 = _span(q, r, dy, ny)
-        if k0 > k1 or i0 > i1:
-            continue
-        for bi in range(i0 // b, i1 // b + 1):
-            for bk in range(k0 // b, k1 // b + 1):
-                dm2 = _block_dist2(p, q, bi, bk, b, ny, nx, dx, dy)
-                if dm2 > r2 or smax[bi, bk] <= c + (r - math.sqrt(r2 - dm2)):
-                    continue
-                for i in range(max(i0, bi * b), min(i1, bi * b + b - 1) + 1):
-                    ey = i * dy - q
-                    for k in range(max(k0, bk * b), min(k1, bk * b + b - 1) + 1):
-                        ex = k * dx - p
-                        d2 = ex * ex + ey * ey
-                        if d2 <= r2:
-                            v = c + (r - math.sqrt(r2 - d2))
-                            if v < s[i, k]:
-                                s[i, k] = v
 
 
 @dataclass(frozen=True, eq=False)
@@ -253,24 +141,7 @@ def cl_on_model(model: F64, sx: float, sy: float, tool: Tool, pos: Positions) ->
 
 def interpolate(grid: F64, sx: float, sy: float, pos: Positions) -> F64:
     """Bilinear interpolation of node values ``grid`` at the positions (clamped to the grid)."""
-    return _interpolate(np.ascontiguousarray(grid), 1.0 / sx, 1.0 / sy, pos.x, pos.y)
-
-
-@njit(cache=True, nogil=True)
-def _interpolate(grid: F64, isx: float, isy: float, px: F64, py: F64) -> F64:
-    my, mx = grid.shape
-    out = np.empty(px.size)
-    for n in range(px.size):
-        fx, fy = px[n] * isx, py[n] * isy
-        c0 = min(max(math.floor(fx), 0), max(mx - 2, 0))
-        r0 = min(max(math.floor(fy), 0), max(my - 2, 0))
-        c1, r1 = min(c0 + 1, mx - 1), min(r0 + 1, my - 1)
-        tx = min(max(fx - c0, 0.0), 1.0)
-        ty = min(max(fy - r0, 0.0), 1.0)
-        lo = grid[r0, c0] * (1.0 - tx) + grid[r0, c1] * tx
-        hi = grid[r1, c0] * (1.0 - tx) + grid[r1, c1] * tx
-        out[n] = lo * (1.0 - ty) + hi * ty
-    return out
+    return _k.interpolate(np.ascontiguousarray(grid), 1.0 / sx, 1.0 / sy, pos.x, pos.y)
 
 
 def flute_lift(model: F64, sx: float, sy: float, pos: Positions, need: F64) -> int:
@@ -284,23 +155,8 @@ def flute_lift(model: F64, sx: float, sy: float, pos: Positions, need: F64) -> i
     """
     if pos.size == 0:
         return 0
-    return int(_raise_corners(model, 1.0 / sx, 1.0 / sy, pos.x, pos.y,
+    return int(_k.raise_corners(model, 1.0 / sx, 1.0 / sy, pos.x, pos.y,
                               np.ascontiguousarray(need, dtype=np.float64)))
-
-
-@njit(cache=True, nogil=True)
-def _raise_corners(model: F64, isx: float, isy: float, px: F64, py: F64, need: F64) -> int:
-    my, mx = model.shape
-    raised = 0
-    for n in range(px.size):
-        c0 = min(max(math.floor(px[n] * isx), 0), max(mx - 2, 0))
-        r0 = min(max(math.floor(py[n] * isy), 0), max(my - 2, 0))
-        for r in (r0, min(r0 + 1, my - 1)):
-            for c in (c0, min(c0 + 1, mx - 1)):
-                if model[r, c] < need[n]:
-                    model[r, c] = need[n]
-                    raised += 1
-    return raised
 
 
 def left_over(stock: F64, surface: F64) -> tuple[float, float]:
@@ -354,7 +210,7 @@ class StockSim:
 
     def base_cl(self, model_cl: F64, pos: Positions, tool: Tool) -> F64:
         """``max(model_cl, CL against the part's nodes)`` at the positions."""
-        return _cl_part(self.part.z, self._zmax, BLOCK, pos.x, pos.y,
+        return _k.cl_part(self.part.z, self._zmax, BLOCK, pos.x, pos.y,
                         np.ascontiguousarray(model_cl), tool.radius, self.part.dx,
                         self.part.dy)
 
@@ -378,9 +234,9 @@ def run_pass(sim: StockSim, model: F64, spacing: tuple[float, float], tool: Tool
 
     The positions' CL is ``max(CL on the model, CL against the part's nodes)``. Where the
     highest stock node within ``R`` minus the flute length ``L`` (plus ``guard``) lies
-    above it, the model's nodes around those positions are raised to that height
-    (:func:`flute_lift`) and the CL taken again on the raised model: every position then
-    meets at most ``L`` of stock.
+    above it, the position's CL is lifted to that height (every position then meets at
+    most ``L`` of stock) and the model's nodes around it are raised (:func:`_lift`) so the
+    tool path's CL is at least as high.
 
     Only the positions that may cut are visited by the kernels: a position whose CL on
     the model lies at or above the highest stock of the blocks its ball spans cuts
@@ -391,8 +247,7 @@ def run_pass(sim: StockSim, model: F64, spacing: tuple[float, float], tool: Tool
     Parameters
     ----------
     target_cl : (my, mx) float64, optional
-        :func:`zwcore.sim.drop_cutter` of ``model`` as given (computed if not given);
-        after a lift only the window around the raised nodes is dropped again.
+        :func:`zwcore.sim.drop_cutter` of ``model`` as given (computed if not given).
 
     Returns
     -------
@@ -405,7 +260,7 @@ def run_pass(sim: StockSim, model: F64, spacing: tuple[float, float], tool: Tool
         target_cl = drop(model, sx, sy, tool)
     cl = interpolate(target_cl, sx, sy, pos)
     smax = block_max(sim.stock)
-    act = np.flatnonzero(_may_cut(_grow_blocks(smax, tool.radius, part.dx, part.dy), BLOCK,
+    act = np.flatnonzero(_k.may_cut(_grow_blocks(smax, tool.radius, part.dx, part.dy), BLOCK,
                                   pos.x, pos.y, cl, 1.0 / part.dx, 1.0 / part.dy))
     sub = Positions(pos.x[act], pos.y[act])
     on_node = _on_nodes(sub, sx, sy)
@@ -415,21 +270,19 @@ def run_pass(sim: StockSim, model: F64, spacing: tuple[float, float], tool: Tool
         base[off] = sim.base_cl(base[off], Positions(sub.x[off], sub.y[off]), tool)
     grid = _GridMode.of(sub, part, tool)
     if grid is None:
-        top = _top(sim.stock, smax, BLOCK, sub.x, sub.y, tool.radius, part.dx, part.dy)
+        top = _k.top(sim.stock, smax, BLOCK, sub.x, sub.y, tool.radius, part.dx, part.dy)
     else:
         top = grid.top(sim, smax, sub, tool)
     need = top - tool.flute_length + guard
     bind = (need > base) if lift else np.zeros(act.size, dtype=bool)
     lifted = 0
     if bind.any():
-        cl, lifted = _lift(model, target_cl, (sx, sy), tool, pos, act, on_node, bind, need)
-        base = np.maximum(base, cl[act])
-        # Bilinear interpolation of corner CLs each >= need may round a hair under it.
-        base[bind] = np.maximum(base[bind], need[bind])
+        lifted = _lift(model, (sx, sy), sub, on_node & bind, bind, need)
+        base[bind] = need[bind]
     cl[act] = base
     before = sim.stock.copy() if lifted else None
     if grid is None:
-        _cut(sim.stock, smax, BLOCK, sub.x, sub.y, base, tool.radius, part.dx, part.dy)
+        _k.cut(sim.stock, smax, BLOCK, sub.x, sub.y, base, tool.radius, part.dx, part.dy)
     else:
         grid.cut(sim, smax, sub, base, tool)
     depth = np.zeros(pos.size)
@@ -441,61 +294,36 @@ def run_pass(sim: StockSim, model: F64, spacing: tuple[float, float], tool: Tool
     return SimulatedPass(PassCut(pos, cl, depth, gouge), lifted, stride * along, lowered)
 
 
-def _lift(model: F64, target_cl: F64, spacing: tuple[float, float], tool: Tool, pos: Positions,
-          act: NDArray[np.intp], on_node: NDArray[np.bool_], bind: NDArray[np.bool_],
-          need: F64) -> tuple[F64, int]:
-    """Raise ``model`` (in place) until its CL is at least ``need`` at the binding positions;
-    returns the CL at all positions and the number of nodes raised.
+def _lift(model: F64, spacing: tuple[float, float], pos: Positions, node: NDArray[np.bool_],
+          bind: NDArray[np.bool_], need: F64) -> int:
+    """Raise ``model`` (in place) so the tool path's CL is at least ``need`` at the binding
+    positions; returns the number of nodes raised.
 
-    First the model nodes that are binding positions rise to ``need`` (the least that
-    holds there); the others, between nodes, are checked on the CL dropped again, and
-    only where that still falls short do the corners of their model cell rise to their
-    ``need`` (enough: the CL is at least the model under it, bilinear between corners
-    that each are). Raising only the corners at once lifted the positions beside a
-    steep rise of ``need`` above their own need, so they cut nothing and the stage
-    never got down.
+    A binding position on a model node raises that node; one between nodes raises the
+    corners that carry weight in its bilinear value. Either way the model under the
+    position, so its drop-cutter CL, so the tool path's CL (bilinear between corner CLs
+    that each are at least the model there) is at least ``need``. The simulation takes
+    the position's CL as ``need`` itself (the least the rule allows): a bilinear model
+    cannot follow a lift that rises steeply between nodes, and dropping the ball on the
+    raised model lifted the positions beside such a rise above their own need, so they
+    cut nothing and the stage never got down. The tool path may therefore stay above
+    the simulated CL next to a lift (it cuts less there, never more).
     """
     sx, sy = spacing
     old = model.copy()
-    idx = act[bind & on_node]
-    if idx.size:
-        rows = np.rint(pos.y[idx] / sy).astype(np.intp)
-        cols = np.rint(pos.x[idx] / sx).astype(np.intp)
-        np.maximum.at(model, (rows, cols), need[bind & on_node])
-    grid = _drop_again(model, old, target_cl, sx, sy, tool) if idx.size else target_cl
-    cl = interpolate(grid, sx, sy, pos)
-    short = bind & (cl[act] < need)
-    if short.any():
-        flute_lift(model, sx, sy, Positions(pos.x[act[short]], pos.y[act[short]]), need[short])
-        grid = _drop_again(model, old, target_cl, sx, sy, tool)
-        cl = interpolate(grid, sx, sy, pos)
-    return cl, int(np.count_nonzero(model != old))
+    if node.any():
+        rows = np.rint(pos.y[node] / sy).astype(np.intp)
+        cols = np.rint(pos.x[node] / sx).astype(np.intp)
+        np.maximum.at(model, (rows, cols), need[node])
+    off = bind & ~node
+    if off.any():
+        flute_lift(model, sx, sy, Positions(pos.x[off], pos.y[off]), need[off])
+    return int(np.count_nonzero(model != old))
 
 
 def drop(model: F64, sx: float, sy: float, tool: Tool) -> F64:
     """:func:`zwcore.sim.drop_cutter` (bilinear) on a model of spacing ``sx, sy``."""
     return drop_cutter(ZMap(model, dx=sx, dy=sy), tool, "bilinear")
-
-
-def _drop_again(model: F64, old: F64, old_cl: F64, sx: float, sy: float, tool: Tool) -> F64:
-    """Drop-cutter of ``model``, whose nodes differ from ``old`` (CL ``old_cl``) only
-    somewhere: dropped again over the box of the changed nodes grown by twice the
-    footprint, kept over the box grown by one footprint (the dilation is local)."""
-    changed = np.nonzero(model != old)
-    my, mx = model.shape
-    fa, fb = math.ceil(tool.radius / sy) + 2, math.ceil(tool.radius / sx) + 2
-    r0, r1 = int(changed[0].min()), int(changed[0].max()) + 1
-    c0, c1 = int(changed[1].min()), int(changed[1].max()) + 1
-    if (r1 - r0 + 4 * fa) * (c1 - c0 + 4 * fb) >= 0.5 * model.size:
-        return drop(model, sx, sy, tool)
-    wr0, wr1 = max(r0 - 2 * fa, 0), min(r1 + 2 * fa, my)
-    wc0, wc1 = max(c0 - 2 * fb, 0), min(c1 + 2 * fb, mx)
-    window = drop(np.ascontiguousarray(model[wr0:wr1, wc0:wc1]), sx, sy, tool)
-    kr0, kr1 = max(r0 - fa, 0), min(r1 + fa, my)
-    kc0, kc1 = max(c0 - fb, 0), min(c1 + fb, mx)
-    out = old_cl.copy()
-    out[kr0:kr1, kc0:kc1] = window[kr0 - wr0:kr1 - wr0, kc0 - wc0:kc1 - wc0]
-    return out
 
 
 def _on_nodes(pos: Positions, sx: float, sy: float) -> NDArray[np.bool_]:
@@ -512,19 +340,6 @@ def _grow_blocks(smax: F64, r: float, dx: float, dy: float) -> F64:
     reach = r + max(dx, dy)
     ga, gb = math.ceil(reach / (BLOCK * dy)), math.ceil(reach / (BLOCK * dx))
     out: F64 = ndimage.maximum_filter(smax, size=(2 * ga + 1, 2 * gb + 1), mode="nearest")
-    return out
-
-
-@njit(cache=True, nogil=True)
-def _may_cut(grown: F64, b: int, px: F64, py: F64, cl: F64, idx: float,
-             idy: float) -> NDArray[np.bool_]:
-    """Positions whose CL lies under the highest stock its ball may reach (block bound)."""
-    my, mx = grown.shape
-    out = np.empty(px.size, dtype=np.bool_)
-    for n in range(px.size):
-        bi = min(max(round(py[n] * idy) // b, 0), my - 1)
-        bk = min(max(round(px[n] * idx) // b, 0), mx - 1)
-        out[n] = grown[bi, bk] > cl[n]
     return out
 
 
@@ -559,11 +374,11 @@ class _GridMode:
     def top(self, sim: StockSim, smax: F64, pos: Positions, tool: Tool) -> F64:
         part = sim.part
         out = np.empty(pos.size)
-        whole = _disc_max(sim.stock, _half_widths(tool.radius, part.dx, part.dy))
+        whole = _k.disc_max(sim.stock, _half_widths(tool.radius, part.dx, part.dy))
         out[self.on] = whole[self.rows, self.cols]
         off = ~self.on
         if off.any():
-            out[off] = _top(sim.stock, smax, BLOCK, pos.x[off], pos.y[off], tool.radius,
+            out[off] = _k.top(sim.stock, smax, BLOCK, pos.x[off], pos.y[off], tool.radius,
                             part.dx, part.dy)
         return out
 
@@ -575,7 +390,7 @@ class _GridMode:
         grid[self.rows, self.cols] = np.minimum(cl[self.on], high)
         env = envelope(grid, tool, part.dx, part.dy, "bilinear")
         if off.any():
-            _cut(sim.stock, smax, BLOCK, pos.x[off], pos.y[off], np.ascontiguousarray(cl[off]),
+            _k.cut(sim.stock, smax, BLOCK, pos.x[off], pos.y[off], np.ascontiguousarray(cl[off]),
                  tool.radius, part.dx, part.dy)
         np.minimum(sim.stock, env, out=sim.stock)
 
@@ -593,38 +408,3 @@ def _half_widths(r: float, dx: float, dy: float) -> NDArray[np.int64]:
             out[n] += 1
     return out
 
-
-@njit(cache=True, nogil=True)
-def _disc_max(s: F64, widths: NDArray[np.int64]) -> F64:
-    """Highest ``s`` within the disc of half-widths ``widths`` (per row offset) of every
-    node: sliding maxima along the rows, one per distinct width, then a max over rows."""
-    ny, nx = s.shape
-    wmax = widths[0]
-    slide = np.full((wmax + 1, ny, nx), -np.inf)
-    need = np.zeros(wmax + 1, dtype=np.bool_)
-    for w in widths:
-        if w >= 0:
-            need[w] = True
-    for w in range(wmax + 1):
-        if not need[w]:
-            continue
-        for i in range(ny):
-            for k in range(nx):
-                m = -np.inf
-                for kk in range(max(0, k - w), min(nx, k + w + 1)):
-                    if s[i, kk] > m:
-                        m = s[i, kk]
-                slide[w, i, k] = m
-    out = np.full((ny, nx), -np.inf)
-    a_max = widths.size - 1
-    for i in range(ny):
-        for a in range(-a_max, a_max + 1):
-            ii = i + a
-            w = widths[abs(a)]
-            if ii < 0 or ii >= ny or w < 0:
-                continue
-            for k in range(nx):
-                v = slide[w, ii, k]
-                if v > out[i, k]:
-                    out[i, k] = v
-    return out

@@ -28,13 +28,16 @@ Everything comes off one lifted single-knot MRR of the part:
    cannot reach there (a grey closing of the target by the ball, on the
    level's nodes) is at most a quarter of the next stage's flute length: steep
    walls make every coarse model sharp at its own grid scale.
-4. Flute-length lift (Fig. 6) on the stage's own nodes:
-   ``M_k = max(T_j, M_{k-1} + h_{k-1} + e_{k-1} - L_k + g)``, where
-   ``h_{k-1}`` and ``e_{k-1}`` are the previous pass's scallop and rest
-   (stock the flutes also have to take) and ``g`` a few ulps, upward. Where
-   ``M_k`` still lies above ``T_j`` the part was out of reach: another pass
-   with the same tool at the same level follows, until the target is reached
-   (``pass_index`` of ``pass_count``).
+4. The flute-length rule on the simulated stock
+   (:mod:`zwcore.scanline._stage_passes`, :mod:`zwcore.scanline._stock`): every pass
+   is simulated over the stock the earlier passes left (its real tool positions on its
+   scan lines, CL from its model and never below the part's nodes); where a position
+   would meet more than the flute length of stock within the ball's radius above its
+   tip, the pass's model is raised there and another pass with the same tool at the
+   same level follows, until one reaches the target (``pass_index`` of
+   ``pass_count``). (It replaces the node-wise lift
+   ``M_k = max(T_j, M_{k-1} + h_{k-1} + e_{k-1} - L_k)``, which held at the coarse
+   nodes while the balls met far more between them.)
 5. Pick-feeds strip by strip, extra lines cell by cell
    (:mod:`zwcore.scanline._passes`): the scallop rule with the slope *across*
    the scan lines; a strip between two grid lines that needs it gets extra
@@ -149,7 +152,7 @@ def plan_scanline(zmap: ZMap, tools: Sequence[Tool] | None = None, *, tolerance:
     st, chosen = _stages(zmap, mrr, first, ceiling, g, requested, library,
                          float(curvature_smoothing), notes, laps)
     passes = stage_passes(zmap, chosen, st, tol, g, notes)
-    laps("flute_lift")
+    laps("passes_simulated")
 
     stages, checks = figures(part, mrr.depth, zmap.dx, zmap.dy, passes, st, tol, g)
     laps("figures_and_checks")
