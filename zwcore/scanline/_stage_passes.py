@@ -218,9 +218,10 @@ def _stage_passes(plan: _Plan, st: _Stage) -> F64:
                 stalled = True
                 if plan.notes is not None:
                     plan.notes.append(_stall_note(tool, lev))
+        slope = st.slope_t if reached else st.slope_b
         plan.out.append(PassSpec(
             lev.index, lev.sx, lev.sy, tool, model, strips,
-            st.slope_t if reached else st.slope_b, st.rest, st.merged, lev.concave_radius,
+            slope, st.rest, st.merged, lev.concave_radius,
             lev.clipped, lev.raised, region=st.region, sim=done,
             left_part=left_over(plan.sim.stock, zmap.z)))
         _bounds(plan)
@@ -277,3 +278,4 @@ def passes(zmap: ZMap, chosen: list[Stage], stock_top: float, tolerance: float, 
     if plan.out:
         plan.out[-1].left_next = plan.out[-1].left_part
     return plan.out
+
