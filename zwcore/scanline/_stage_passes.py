@@ -126,6 +126,7 @@ class _Stage:
     first: bool
     next_flute: float | None
     lines: dict[tuple[bool, float, str], StripPlan] = field(default_factory=dict)
+    finish_first: bool = False
 
     def __post_init__(self) -> None:
         lev = self.lev
@@ -178,7 +179,8 @@ def _one_pass(plan: _Plan, st: _Stage, lift: bool,
               ) -> tuple[F64, StripPlan, SimulatedPass, F64]:
     """Simulate the stage's next pass; its model, lines, simulation and the stock before."""
     lev, tool = st.lev, st.tool
-    guess = _reaches(st.on, lev.model, plan.leaves - tool.flute_length + plan.guard)
+    guess = st.finish_first or _reaches(st.on, lev.model,
+                                        plan.leaves - tool.flute_length + plan.guard)
     before = plan.sim.stock.copy()
     for attempt in (guess, True):
         strips = st.strips(attempt, plan.tolerance, plan.extent_mm)
@@ -189,6 +191,8 @@ def _one_pass(plan: _Plan, st: _Stage, lift: bool,
         if attempt or done.lifted_nodes or st.next_flute is not None:
             break
         plan.sim.stock[...] = before  # a finishing pass that reached: plan it again
+        # (and while such passes still get lifted, start from the finishing lines)
+        st.finish_first = True
     return model, strips, done, before
 
 

@@ -111,18 +111,9 @@ def positions(lines: ScanLines, part: ZMap, stride: int,
     along_x = lines.direction == "x"
     d = part.dx if along_x else part.dy
     step = stride * d
-    a, b = lines.start, lines.stop
-    first = np.ceil(a / step - 1e-9).astype(np.int64)
-    last = np.floor(b / step + 1e-9).astype(np.int64)
-    # per segment: its start, the multiples of step strictly inside, its stop (if longer)
-    n_in = np.maximum(last - first + 1, 0)
-    counts = 1 + n_in + (b > a)
-    seg = np.repeat(np.arange(a.size), counts)
-    k = np.arange(seg.size) - np.repeat(np.cumsum(counts) - counts, counts)
-    u = np.where(k == 0, a[seg], (first[seg] + k - 1) * step)
-    u = np.where(k == counts[seg] - 1, np.where(b[seg] > a[seg], b[seg], a[seg]), u)
-    keep = (k == 0) | (k == counts[seg] - 1) | ((u > a[seg]) & (u < b[seg]))
-    u, v = u[keep], lines.offset[seg[keep]]
+    u, v = _k.points(np.ascontiguousarray(lines.offset, dtype=np.float64),
+                     np.ascontiguousarray(lines.start, dtype=np.float64),
+                     np.ascontiguousarray(lines.stop, dtype=np.float64), step)
     x, y = (u, v) if along_x else (v, u)
     if region is not None and spacing is not None:
         sx, sy = spacing
@@ -327,11 +318,8 @@ def drop(model: F64, sx: float, sy: float, tool: Tool) -> F64:
 
 
 def _on_nodes(pos: Positions, sx: float, sy: float) -> NDArray[np.bool_]:
-    """Positions that sit on a model node (to a relative 1e-9 of the spacing)."""
-    fx, fy = pos.x / sx, pos.y / sy
-    out: NDArray[np.bool_] = (np.abs(fx - np.rint(fx)) <= 1e-9) & (np.abs(fy - np.rint(fy))
-                                                                  <= 1e-9)
-    return out
+    """Positions that sit on a node of spacing ``sx, sy`` (to 1e-9 of the spacing)."""
+    return _k.on_nodes(pos.x, pos.y, 1.0 / sx, 1.0 / sy)
 
 
 def _grow_blocks(smax: F64, r: float, dx: float, dy: float) -> F64:
@@ -362,7 +350,8 @@ class _GridMode:
 
     @classmethod
     def of(cls, pos: Positions, part: ZMap, tool: Tool) -> _GridMode | None:
-        if tool.radius > GRID_MODE_RADIUS * min(part.dx, part.dy):
+        if (tool.radius > GRID_MODE_RADIUS * min(part.dx, part.dy)
+                or pos.size < GRID_MODE_SHARE * part.z.size):
             return None
         on = _on_nodes(pos, part.dx, part.dy)
         if np.count_nonzero(on) < GRID_MODE_SHARE * part.z.size:

@@ -14,7 +14,8 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-__all__ = ["cl_part", "cut", "disc_max", "interpolate", "may_cut", "raise_corners", "top"]
+__all__ = ["cl_part", "cut", "disc_max", "interpolate", "may_cut", "on_nodes", "points",
+           "raise_corners", "top"]
 
 F64 = NDArray[np.float64]
 
@@ -172,35 +173,76 @@ def may_cut(grown: F64, b: int, px: F64, py: F64, cl: F64, idx: float,
     return out
 @njit(cache=True, nogil=True)
 def disc_max(s: F64, widths: NDArray[np.int64]) -> F64:
-    """Highest ``s`` within the disc of half-widths ``widths`` (per row offset) of every
-    node: sliding maxima along the rows, one per distinct width, then a max over rows."""
+    """Highest ``s`` within the disc of half-widths ``widths`` (per row offset ``a = 0..A``,
+    -1: none) of every node: per distinct width a sliding maximum along the rows, then
+    its rows shifted by each offset with that width folded into the result."""
     ny, nx = s.shape
-    wmax = widths[0]
-    slide = np.full((wmax + 1, ny, nx), -np.inf)
-    need = np.zeros(wmax + 1, dtype=np.bool_)
-    for w in widths:
-        if w >= 0:
-            need[w] = True
-    for w in range(wmax + 1):
-        if not need[w]:
+    out = np.full((ny, nx), -np.inf)
+    slide = np.empty((ny, nx))
+    a_max = widths.size - 1
+    done = np.zeros(widths[0] + 2, dtype=np.bool_)
+    for w0 in widths:
+        if w0 < 0 or done[w0]:
             continue
+        done[w0] = True
         for i in range(ny):
             for k in range(nx):
-                m = -np.inf
-                for kk in range(max(0, k - w), min(nx, k + w + 1)):
+                m = s[i, k]
+                for kk in range(max(0, k - w0), min(nx, k + w0 + 1)):
                     if s[i, kk] > m:
                         m = s[i, kk]
-                slide[w, i, k] = m
-    out = np.full((ny, nx), -np.inf)
-    a_max = widths.size - 1
-    for i in range(ny):
+                slide[i, k] = m
         for a in range(-a_max, a_max + 1):
-            ii = i + a
-            w = widths[abs(a)]
-            if ii < 0 or ii >= ny or w < 0:
+            if widths[abs(a)] != w0:
                 continue
-            for k in range(nx):
-                v = slide[w, ii, k]
-                if v > out[i, k]:
-                    out[i, k] = v
+            for i in range(max(0, -a), min(ny, ny - a)):
+                ii = i + a
+                for k in range(nx):
+                    if slide[ii, k] > out[i, k]:
+                        out[i, k] = slide[ii, k]
     return out
+
+
+@njit(cache=True, nogil=True)
+def on_nodes(px: F64, py: F64, isx: float, isy: float) -> NDArray[np.bool_]:
+    """Positions on a node of spacing ``1/isx, 1/isy`` (to 1e-9 of the spacing)."""
+    out = np.empty(px.size, dtype=np.bool_)
+    for n in range(px.size):
+        fx, fy = px[n] * isx, py[n] * isy
+        out[n] = abs(fx - round(fx)) <= 1e-9 and abs(fy - round(fy)) <= 1e-9
+    return out
+
+
+@njit(cache=True, nogil=True)
+def points(offset: F64, start: F64, stop: F64, step: float) -> tuple[F64, F64]:
+    """Points ``(u along, v across)`` of segments: each start, the multiples of ``step``
+    strictly inside, each stop (when longer than a point)."""
+    n = 0
+    for j in range(offset.size):
+        a, b = start[j], stop[j]
+        n += 1
+        if b > a:
+            lo = math.ceil(a / step - 1e-9)
+            hi = math.floor(b / step + 1e-9)
+            for m in range(lo, hi + 1):
+                if a < m * step < b:
+                    n += 1
+            n += 1
+    u = np.empty(n)
+    v = np.empty(n)
+    n = 0
+    for j in range(offset.size):
+        a, b = start[j], stop[j]
+        u[n], v[n] = a, offset[j]
+        n += 1
+        if b > a:
+            lo = math.ceil(a / step - 1e-9)
+            hi = math.floor(b / step + 1e-9)
+            for m in range(lo, hi + 1):
+                t = m * step
+                if a < t < b:
+                    u[n], v[n] = t, offset[j]
+                    n += 1
+            u[n], v[n] = b, offset[j]
+            n += 1
+    return u, v
