@@ -198,12 +198,48 @@ class StockSim:
         self.part = part
         self.stock = np.full(part.shape, float(stock_top))
         self._zmax = block_max(part.z)
+        self.memo: _Memo | None = None
 
     def base_cl(self, model_cl: F64, pos: Positions, tool: Tool) -> F64:
         """``max(model_cl, CL against the part's nodes)`` at the positions."""
         return _k.cl_part(self.part.z, self._zmax, BLOCK, pos.x, pos.y,
                         np.ascontiguousarray(model_cl), tool.radius, self.part.dx,
                         self.part.dy)
+
+
+@dataclass(frozen=True, eq=False)
+class _Memo:
+    """The last pass simulated, for the next pass on the same lines (a stage's lifted
+    passes): which positions it may skip."""
+
+    lines: ScanLines
+    stride: int
+    region: NDArray[np.bool_] | None
+    tool: Tool
+    spacing: tuple[float, float]
+    interp: F64  # CL on the target at the positions, before the part and the lift
+    cl: F64
+    depth: F64
+    lifted: NDArray[np.bool_]
+    touched: NDArray[np.bool_]  # blocks where the pass lowered a node
+
+    def same(self, lines: ScanLines, stride: int, region: NDArray[np.bool_] | None,
+             tool: Tool, spacing: tuple[float, float]) -> bool:
+        return (self.lines is lines and self.stride == stride and self.region is region
+                and self.tool == tool and self.spacing == spacing)
+
+    def changed(self, interp: F64, pos: Positions, tool: Tool, part: ZMap
+                ) -> NDArray[np.bool_]:
+        """Positions to simulate again: those whose CL may differ (another target CL, or
+        lifted last time) and those whose ball reaches a block the last pass lowered. The
+        others stand where they stood, over the same stock, which they already cut to at
+        most ``CL + h`` within ``R``: they cut nothing, meet at most ``R`` above their tip
+        (never over a flute length ``L >= R``), and keep their depth."""
+        near = _grow_blocks(self.touched.astype(np.float64), tool.radius, part.dx, part.dy)
+        reach = _k.may_cut(near, BLOCK, pos.x, pos.y, np.zeros(pos.size), 1.0 / part.dx,
+                           1.0 / part.dy)
+        out: NDArray[np.bool_] = reach | self.lifted | (interp != self.interp)
+        return out
 
 
 @dataclass(frozen=True, eq=False)
@@ -250,9 +286,15 @@ def run_pass(sim: StockSim, model: F64, spacing: tuple[float, float], tool: Tool
     if target_cl is None:
         target_cl = drop(model, sx, sy, tool)
     cl = interpolate(target_cl, sx, sy, pos)
+    interp = cl.copy()
     smax = block_max(sim.stock)
-    act = np.flatnonzero(_k.may_cut(_grow_blocks(smax, tool.radius, part.dx, part.dy), BLOCK,
-                                  pos.x, pos.y, cl, 1.0 / part.dx, 1.0 / part.dy))
+    may = _k.may_cut(_grow_blocks(smax, tool.radius, part.dx, part.dy), BLOCK,
+                     pos.x, pos.y, cl, 1.0 / part.dx, 1.0 / part.dy)
+    memo = sim.memo if sim.memo is not None and sim.memo.same(lines, stride, region, tool,
+                                                                   spacing) else None
+    if memo is not None and tool.flute_length >= tool.radius:
+        may &= memo.changed(interp, pos, tool, part)
+    act = np.flatnonzero(may)
     sub = Positions(pos.x[act], pos.y[act])
     on_node = _on_nodes(sub, sx, sy)
     base = cl[act]
@@ -272,13 +314,23 @@ def run_pass(sim: StockSim, model: F64, spacing: tuple[float, float], tool: Tool
         base[bind] = need[bind]
     cl[act] = base
     before = sim.stock.copy() if lifted else None
+    touched = np.zeros(smax.shape, dtype=bool)
     if grid is None:
-        _k.cut(sim.stock, smax, BLOCK, sub.x, sub.y, base, tool.radius, part.dx, part.dy)
+        _k.cut(sim.stock, smax, BLOCK, sub.x, sub.y, base, tool.radius, part.dx, part.dy,
+               touched)
     else:
-        grid.cut(sim, smax, sub, base, tool)
+        grid.cut(sim, smax, sub, base, tool, touched)
     depth = np.zeros(pos.size)
+    if memo is not None:  # the positions skipped cut as before, with the same depth
+        depth[:] = memo.depth
+        cl[:] = memo.cl
+        cl[act] = base
     depth[act] = np.maximum(top - base, 0.0)
     depth[~np.isfinite(depth)] = 0.0
+    was_lifted = np.zeros(pos.size, dtype=bool)
+    was_lifted[act[bind]] = True
+    sim.memo = _Memo(lines, stride, region, tool, spacing, interp, cl, depth, was_lifted,
+                     touched)
     gouge = float(max(0.0, float(np.max(part.z - sim.stock))))
     lowered = -1 if before is None else int(np.count_nonzero(sim.stock < before - guard))
     along = part.dx if lines.direction == "x" else part.dy
@@ -371,7 +423,8 @@ class _GridMode:
                             part.dx, part.dy)
         return out
 
-    def cut(self, sim: StockSim, smax: F64, pos: Positions, cl: F64, tool: Tool) -> None:
+    def cut(self, sim: StockSim, smax: F64, pos: Positions, cl: F64, tool: Tool,
+            touched: NDArray[np.bool_]) -> None:
         part = sim.part
         off = ~self.on
         high = float(sim.stock.max())  # a tip there cuts nothing
@@ -379,8 +432,10 @@ class _GridMode:
         grid[self.rows, self.cols] = np.minimum(cl[self.on], high)
         env = envelope(grid, tool, part.dx, part.dy, "bilinear")
         if off.any():
-            _k.cut(sim.stock, smax, BLOCK, pos.x[off], pos.y[off], np.ascontiguousarray(cl[off]),
-                 tool.radius, part.dx, part.dy)
+            _k.cut(sim.stock, smax, BLOCK, pos.x[off], pos.y[off],
+                   np.ascontiguousarray(cl[off]), tool.radius, part.dx, part.dy, touched)
+        lower = env < sim.stock
+        touched |= block_max(lower.astype(np.float64)) > 0.0
         np.minimum(sim.stock, env, out=sim.stock)
 
 

@@ -94,11 +94,12 @@ def top(s: F64, smax: F64, b: int, px: F64, py: F64, r: float, dx: float,
     return out
 @njit(cache=True, nogil=True)
 def cut(s: F64, smax: F64, b: int, px: F64, py: F64, cl: F64, r: float, dx: float,
-         dy: float) -> None:
+        dy: float, touched: NDArray[np.bool_]) -> None:
     """``s = min(s, cl + h(|p - c|))`` at every node within ``r`` of each position, in place.
 
     ``smax`` is the block maximum of ``s`` before the pass: a block whose stock lies at or
-    under the ball's lowest point over it is left alone.
+    under the ball's lowest point over it is left alone. ``touched`` (blocks) is set where
+    a node was lowered.
     """
     ny, nx = s.shape
     r2 = r * r
@@ -122,6 +123,7 @@ def cut(s: F64, smax: F64, b: int, px: F64, py: F64, cl: F64, r: float, dx: floa
                             v = c + (r - math.sqrt(r2 - d2))
                             if v < s[i, k]:
                                 s[i, k] = v
+                                touched[bi, bk] = True
 @njit(cache=True, nogil=True)
 def interpolate(grid: F64, isx: float, isy: float, px: F64, py: F64) -> F64:
     my, mx = grid.shape

@@ -70,7 +70,9 @@ class ScanlineStage:
         Largest predicted scallop over the cells, each at the largest distance
         between the lines present over it, on its steepest slope across the
         lines (a bound for the design's
-        ``R - sqrt(R^2 - (p / (2 cos theta))^2)``), in mm.
+        ``R - sqrt(R^2 - (p / (2 cos theta))^2)``), in mm. For a pass the flute rule
+        raised (``sim_lifted_nodes > 0``) the slopes are those its lines were laid on,
+        before the lift.
     max_depth_of_cut, mean_depth_of_cut : float
         ``M_{k-1} - M_k`` over the input nodes (mean: removed volume over the
         grid's area), in mm.
