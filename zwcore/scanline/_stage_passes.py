@@ -34,7 +34,14 @@ from zwcore.grid.tools import Tool
 from zwcore.grid.zmap import ZMap
 from zwcore.scanline._checks import PassSpec, axis_weights, eval_rows
 from zwcore.scanline._passes import StripPlan, cell_cross_slopes, plan_strips
-from zwcore.scanline._stock import SimulatedPass, StockSim, drop, left_over, run_pass, stride_for
+from zwcore.scanline._stock import (
+    SimulatedPass,
+    StockSim,
+    left_over,
+    run_pass,
+    stride_for,
+    target_drop,
+)
 from zwcore.scanline._tool_choice import Level, Stage
 
 __all__ = ["MAX_MODEL_NODES", "MAX_STAGES", "SCALLOP_FLUTE_SHARE", "passes", "upsampled"]
@@ -142,7 +149,7 @@ class _Stage:
             self.ax_b, self.ay_b = np.maximum(self.ax_t, ax_o), np.maximum(self.ay_t, ay_o)
             self.slope_b = max(self.slope_t,
                                steepest_slope(self.on, lev.sx, lev.sy, extent=lev.cells))
-        self.target_cl = drop(lev.model, lev.sx, lev.sy, self.tool)
+        self.target_cl = target_drop(lev.model, lev.sx, lev.sy, self.tool)
 
     def strips(self, reached: bool, tolerance: float, extent_mm: tuple[float, float],
                ) -> StripPlan:

@@ -46,9 +46,22 @@ from zwcore.scanline import _stock_kernels as _k
 from zwcore.scanline.results import ScanLines
 from zwcore.sim import drop_cutter, envelope
 
-__all__ = ["BLOCK", "Positions", "SimulatedPass", "StockSim", "block_max", "cl_on_model",
-           "drop", "flute_lift", "interpolate", "left_over", "positions", "run_pass",
-           "stride_for"]
+__all__ = [
+    "BLOCK",
+    "Positions",
+    "SimulatedPass",
+    "StockSim",
+    "block_max",
+    "cl_on_model",
+    "drop",
+    "flute_lift",
+    "interpolate",
+    "left_over",
+    "positions",
+    "run_pass",
+    "stride_for",
+    "target_drop",
+]
 
 F64 = NDArray[np.float64]
 
@@ -198,48 +211,12 @@ class StockSim:
         self.part = part
         self.stock = np.full(part.shape, float(stock_top))
         self._zmax = block_max(part.z)
-        self.memo: _Memo | None = None
 
     def base_cl(self, model_cl: F64, pos: Positions, tool: Tool) -> F64:
         """``max(model_cl, CL against the part's nodes)`` at the positions."""
         return _k.cl_part(self.part.z, self._zmax, BLOCK, pos.x, pos.y,
                         np.ascontiguousarray(model_cl), tool.radius, self.part.dx,
                         self.part.dy)
-
-
-@dataclass(frozen=True, eq=False)
-class _Memo:
-    """The last pass simulated, for the next pass on the same lines (a stage's lifted
-    passes): which positions it may skip."""
-
-    lines: ScanLines
-    stride: int
-    region: NDArray[np.bool_] | None
-    tool: Tool
-    spacing: tuple[float, float]
-    interp: F64  # CL on the target at the positions, before the part and the lift
-    cl: F64
-    depth: F64
-    lifted: NDArray[np.bool_]
-    touched: NDArray[np.bool_]  # blocks where the pass lowered a node
-
-    def same(self, lines: ScanLines, stride: int, region: NDArray[np.bool_] | None,
-             tool: Tool, spacing: tuple[float, float]) -> bool:
-        return (self.lines is lines and self.stride == stride and self.region is region
-                and self.tool == tool and self.spacing == spacing)
-
-    def changed(self, interp: F64, pos: Positions, tool: Tool, part: ZMap
-                ) -> NDArray[np.bool_]:
-        """Positions to simulate again: those whose CL may differ (another target CL, or
-        lifted last time) and those whose ball reaches a block the last pass lowered. The
-        others stand where they stood, over the same stock, which they already cut to at
-        most ``CL + h`` within ``R``: they cut nothing, meet at most ``R`` above their tip
-        (never over a flute length ``L >= R``), and keep their depth."""
-        near = _grow_blocks(self.touched.astype(np.float64), tool.radius, part.dx, part.dy)
-        reach = _k.may_cut(near, BLOCK, pos.x, pos.y, np.zeros(pos.size), 1.0 / part.dx,
-                           1.0 / part.dy)
-        out: NDArray[np.bool_] = reach | self.lifted | (interp != self.interp)
-        return out
 
 
 @dataclass(frozen=True, eq=False)
@@ -274,7 +251,8 @@ def run_pass(sim: StockSim, model: F64, spacing: tuple[float, float], tool: Tool
     Parameters
     ----------
     target_cl : (my, mx) float64, optional
-        :func:`zwcore.sim.drop_cutter` of ``model`` as given (computed if not given).
+        :func:`zwcore.sim.drop_cutter` of ``model`` as given (:func:`target_drop` if not
+        given).
 
     Returns
     -------
@@ -282,18 +260,18 @@ def run_pass(sim: StockSim, model: F64, spacing: tuple[float, float], tool: Tool
     """
     sx, sy = spacing
     part = sim.part
-    pos = positions(lines, part, stride, region, spacing)
+    thin = _Thinning.of(lines, part, stride, tool, spacing)
+    pos = positions(thin.lines, part, stride * thin.k, region, spacing)
     if target_cl is None:
-        target_cl = drop(model, sx, sy, tool)
-    cl = interpolate(target_cl, sx, sy, pos)
-    interp = cl.copy()
+        target_cl = target_drop(model, sx, sy, tool)
+    if target_cl is None:  # a large ball on a fine model: dropped on its nodes here only
+        cl = _k.cl_part(model, block_max(model), BLOCK, pos.x, pos.y, np.full(pos.size, -np.inf),
+                        tool.radius, sx, sy)
+    else:
+        cl = interpolate(target_cl, sx, sy, pos)
     smax = block_max(sim.stock)
     may = _k.may_cut(_grow_blocks(smax, tool.radius, part.dx, part.dy), BLOCK,
                      pos.x, pos.y, cl, 1.0 / part.dx, 1.0 / part.dy)
-    memo = sim.memo if sim.memo is not None and sim.memo.same(lines, stride, region, tool,
-                                                                   spacing) else None
-    if memo is not None and tool.flute_length >= tool.radius:
-        may &= memo.changed(interp, pos, tool, part)
     act = np.flatnonzero(may)
     sub = Positions(pos.x[act], pos.y[act])
     on_node = _on_nodes(sub, sx, sy)
@@ -301,16 +279,20 @@ def run_pass(sim: StockSim, model: F64, spacing: tuple[float, float], tool: Tool
     off = np.flatnonzero(~on_node)
     if off.size:
         base[off] = sim.base_cl(base[off], Positions(sub.x[off], sub.y[off]), tool)
-    grid = _GridMode.of(sub, part, tool)
+    grid = _GridMode.of(sub, part, tool) if thin.k == 1 else None
     if grid is None:
-        top = _k.top(sim.stock, smax, BLOCK, sub.x, sub.y, tool.radius, part.dx, part.dy)
+        top = _k.top(sim.stock, block_max(sim.stock), BLOCK, sub.x, sub.y, thin.reach(tool),
+                     part.dx, part.dy)
     else:
         top = grid.top(sim, smax, sub, tool)
     need = top - tool.flute_length + guard
     bind = (need > base) if lift else np.zeros(act.size, dtype=bool)
     lifted = 0
     if bind.any():
-        lifted = _lift(model, (sx, sy), sub, on_node & bind, bind, need)
+        if thin.k == 1:
+            lifted = _lift(model, (sx, sy), sub, on_node & bind, bind, need)
+        else:
+            lifted = thin.lift(model, (sx, sy), Positions(sub.x[bind], sub.y[bind]), need[bind])
         base[bind] = need[bind]
     cl[act] = base
     before = sim.stock.copy() if lifted else None
@@ -321,20 +303,61 @@ def run_pass(sim: StockSim, model: F64, spacing: tuple[float, float], tool: Tool
     else:
         grid.cut(sim, smax, sub, base, tool, touched)
     depth = np.zeros(pos.size)
-    if memo is not None:  # the positions skipped cut as before, with the same depth
-        depth[:] = memo.depth
-        cl[:] = memo.cl
-        cl[act] = base
     depth[act] = np.maximum(top - base, 0.0)
     depth[~np.isfinite(depth)] = 0.0
-    was_lifted = np.zeros(pos.size, dtype=bool)
-    was_lifted[act[bind]] = True
-    sim.memo = _Memo(lines, stride, region, tool, spacing, interp, cl, depth, was_lifted,
-                     touched)
+
     gouge = float(max(0.0, float(np.max(part.z - sim.stock))))
     lowered = -1 if before is None else int(np.count_nonzero(sim.stock < before - guard))
     along = part.dx if lines.direction == "x" else part.dy
     return SimulatedPass(PassCut(pos, cl, depth, gouge), lifted, stride * along, lowered)
+
+
+#: Node visits one pass's simulation may make (positions times the nodes within a ball's
+#: radius): a Ø20 ball finishing a 1024² grid at 0.1 mm would make 3e10.
+MAX_PASS_WORK = 1 << 26
+
+
+@dataclass(frozen=True, eq=False)
+class _Thinning:
+    """A pass too large to simulate at every position: every ``k``-th nominal line (and
+    the last), every ``k``-th point along them, extra lines dropped. The stock it leaves
+    is higher than the full pass's (safe for the next pass's flute rule); the rule for
+    the positions left out is kept by reading the stock ``k`` spacings further out
+    (:meth:`reach`) and raising every model node that near a binding position
+    (:meth:`lift`)."""
+
+    lines: ScanLines
+    k: int
+    gap: float  # the largest distance from a position left out to a simulated one, bound
+
+    @classmethod
+    def of(cls, lines: ScanLines, part: ZMap, stride: int, tool: Tool,
+           spacing: tuple[float, float]) -> _Thinning:
+        along = part.dx if lines.direction == "x" else part.dy
+        across = spacing[1] if lines.direction == "x" else spacing[0]
+        n = lines.length / (stride * along) + lines.offset.size
+        work = n * math.pi * (tool.radius / part.dx + 1.0) * (tool.radius / part.dy + 1.0)
+        k = 1
+        while work / (k * k) > MAX_PASS_WORK:
+            k *= 2
+        if k == 1:
+            return cls(lines, 1, 0.0)
+        idx = lines.offset / across
+        nominal = np.abs(idx - np.rint(idx)) <= 1e-9
+        last = lines.offset >= lines.offset.max()
+        keep = (nominal & (np.rint(idx).astype(np.int64) % k == 0)) | last
+        kept = ScanLines(lines.direction, lines.offset[keep], lines.start[keep],
+                         lines.stop[keep])
+        return cls(kept, k, k * max(across, stride * along))
+
+    def reach(self, tool: Tool) -> float:
+        return tool.radius + self.gap
+
+    def lift(self, model: F64, spacing: tuple[float, float], pos: Positions, need: F64) -> int:
+        old = model.copy()
+        _k.raise_box(model, spacing[0], spacing[1], pos.x, pos.y,
+                     np.ascontiguousarray(need), self.gap)
+        return int(np.count_nonzero(model != old))
 
 
 def _lift(model: F64, spacing: tuple[float, float], pos: Positions, node: NDArray[np.bool_],
@@ -362,6 +385,16 @@ def _lift(model: F64, spacing: tuple[float, float], pos: Positions, node: NDArra
     if off.any():
         flute_lift(model, sx, sy, Positions(pos.x[off], pos.y[off]), need[off])
     return int(np.count_nonzero(model != old))
+
+
+def target_drop(model: F64, sx: float, sy: float, tool: Tool) -> F64 | None:
+    """:func:`drop` of a stage's target, or ``None`` where that would cost more than
+    :data:`MAX_PASS_WORK` node visits (a Ø20 ball over a fine model: 4e10 at 1024² and
+    0.1 mm). Then each pass drops the ball on the model's nodes at its positions only
+    (exact for the nodes; between them a bilinear model may hold the tool path up to
+    about ``spacing² / (8R)`` higher than simulated)."""
+    work = model.size * math.pi * (tool.radius / sx + 1.0) * (tool.radius / sy + 1.0)
+    return drop(model, sx, sy, tool) if work <= 4 * MAX_PASS_WORK else None
 
 
 def drop(model: F64, sx: float, sy: float, tool: Tool) -> F64:
@@ -425,6 +458,8 @@ class _GridMode:
 
     def cut(self, sim: StockSim, smax: F64, pos: Positions, cl: F64, tool: Tool,
             touched: NDArray[np.bool_]) -> None:
+        """Lower the stock by the envelope of the positions (``touched``: blocks the
+        kernel lowered, for the positions off the nodes)."""
         part = sim.part
         off = ~self.on
         high = float(sim.stock.max())  # a tip there cuts nothing
@@ -434,8 +469,6 @@ class _GridMode:
         if off.any():
             _k.cut(sim.stock, smax, BLOCK, pos.x[off], pos.y[off],
                    np.ascontiguousarray(cl[off]), tool.radius, part.dx, part.dy, touched)
-        lower = env < sim.stock
-        touched |= block_max(lower.astype(np.float64)) > 0.0
         np.minimum(sim.stock, env, out=sim.stock)
 
 

@@ -15,7 +15,7 @@ from numba import njit
 from numpy.typing import NDArray
 
 __all__ = ["cl_part", "cut", "disc_max", "interpolate", "may_cut", "on_nodes", "points",
-           "raise_corners", "top"]
+           "raise_box", "raise_corners", "top"]
 
 F64 = NDArray[np.float64]
 
@@ -248,3 +248,19 @@ def points(offset: F64, start: F64, stop: F64, step: float) -> tuple[F64, F64]:
             u[n], v[n] = b, offset[j]
             n += 1
     return u, v
+
+
+@njit(cache=True, nogil=True)
+def raise_box(model: F64, sx: float, sy: float, px: F64, py: F64, need: F64,
+              half: float) -> None:
+    """Raise every model node within ``half`` (each axis) of each position to its ``need``."""
+    my, mx = model.shape
+    for n in range(px.size):
+        c0 = max(math.floor((px[n] - half) / sx), 0)
+        c1 = min(math.ceil((px[n] + half) / sx), mx - 1)
+        r0 = max(math.floor((py[n] - half) / sy), 0)
+        r1 = min(math.ceil((py[n] + half) / sy), my - 1)
+        for r in range(r0, r1 + 1):
+            for c in range(c0, c1 + 1):
+                if model[r, c] < need[n]:
+                    model[r, c] = need[n]
