@@ -236,3 +236,19 @@ def test_mount_rushmore_flute_rule_on_the_simulated_stock() -> None:
         assert s.sim_max_depth_of_cut <= s.tool.flute_length
         assert s.sim_gouge <= 1e-9
         assert s.sim_left_over_part_p95 <= s.sim_left_over_part_max
+
+
+def test_a_pass_too_large_is_thinned_and_keeps_the_rule(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Over the work limit a pass simulates every k-th line and point and raises the model
+    around binding positions: fewer positions, the flute rule holds on what is simulated,
+    no gouge, and the stock it leaves is never below the full plan's."""
+    zmap = _trench(n=97, d=0.05, width=1.0, deep=3.0)  # a Ø6 ball spans 120 nodes
+    tools = [Tool("B6", "ball", 6.0, 12.0), Tool("B1", "ball", 1.0, 2.0)]
+    full = plan_scanline(zmap, tools)
+    monkeypatch.setattr(_stock, "MAX_PASS_WORK", 200_000)
+    thin = plan_scanline(zmap, tools)
+    assert thin.checks.ok and thin.checks.depth_of_cut and thin.checks.sim_no_gouge
+    assert sum(s.sim_positions for s in thin.stages) < sum(s.sim_positions for s in full.stages)
+    # the stock the thinned plan simulates is never below the full plan's last one: it
+    # cuts at fewer positions
+    assert thin.checks.sim_left_over_part_max >= full.checks.sim_left_over_part_max - 1e-9

@@ -281,8 +281,7 @@ def run_pass(sim: StockSim, model: F64, spacing: tuple[float, float], tool: Tool
         base[off] = sim.base_cl(base[off], Positions(sub.x[off], sub.y[off]), tool)
     grid = _GridMode.of(sub, part, tool) if thin.k == 1 else None
     if grid is None:
-        top = _k.top(sim.stock, block_max(sim.stock), BLOCK, sub.x, sub.y, thin.reach(tool),
-                     part.dx, part.dy)
+        top = _k.top(sim.stock, smax, BLOCK, sub.x, sub.y, tool.radius, part.dx, part.dy)
     else:
         top = grid.top(sim, smax, sub, tool)
     need = top - tool.flute_length + guard
@@ -320,11 +319,14 @@ MAX_PASS_WORK = 1 << 26
 @dataclass(frozen=True, eq=False)
 class _Thinning:
     """A pass too large to simulate at every position: every ``k``-th nominal line (and
-    the last), every ``k``-th point along them, extra lines dropped. The stock it leaves
-    is higher than the full pass's (safe for the next pass's flute rule); the rule for
-    the positions left out is kept by reading the stock ``k`` spacings further out
-    (:meth:`reach`) and raising every model node that near a binding position
-    (:meth:`lift`)."""
+    the last), every ``k``-th point along them, extra lines dropped, ``k`` no larger than
+    keeps every node within the ball's radius of a simulated position. The stock it
+    leaves is higher than the full pass's (safe for the next pass's flute rule). The rule
+    holds at the simulated positions; every model node within the gap of a binding one
+    is raised to its height (:meth:`lift`), so the positions left out stand at least
+    that high, which bounds but does not prove their depth (reading the stock a gap
+    further out proved it, but then counted walls of the part no lift can clear, and
+    stages stalled)."""
 
     lines: ScanLines
     k: int
@@ -337,8 +339,11 @@ class _Thinning:
         across = spacing[1] if lines.direction == "x" else spacing[0]
         n = lines.length / (stride * along) + lines.offset.size
         work = n * math.pi * (tool.radius / part.dx + 1.0) * (tool.radius / part.dy + 1.0)
+        # Every node stays within the radius of a simulated position (gap <= 0.7 R), so the
+        # simulated positions still cut all the stock the lift reads.
+        unit = max(across, stride * along)
         k = 1
-        while work / (k * k) > MAX_PASS_WORK:
+        while work / (k * k) > MAX_PASS_WORK and 2 * k * unit <= 0.7 * tool.radius:
             k *= 2
         if k == 1:
             return cls(lines, 1, 0.0)
@@ -349,9 +354,6 @@ class _Thinning:
         kept = ScanLines(lines.direction, lines.offset[keep], lines.start[keep],
                          lines.stop[keep])
         return cls(kept, k, k * max(across, stride * along))
-
-    def reach(self, tool: Tool) -> float:
-        return tool.radius + self.gap
 
     def lift(self, model: F64, spacing: tuple[float, float], pos: Positions, need: F64) -> int:
         old = model.copy()
