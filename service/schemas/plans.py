@@ -66,7 +66,8 @@ class ScanlineStageOut(BaseModel):
     max_depth_of_cut: float = Field(description="max of previous model minus this one, mm")
     mean_depth_of_cut: float = Field(description="removed volume over the grid area, mm")
     max_engagement: float = Field(
-        description="deepest flute engagement incl. the previous stage's scallops and rest, mm")
+        description="model-node engagement incl. the previous stage's scallops and rest, mm "
+        "(informative: the flute rule is on the simulated stock, sim_max_depth_of_cut)")
     rest_height: float = Field(description="material the ball cannot reach in corners, mm")
     removed_volume: float = Field(description="mm³")
     max_stock_left: float = Field(description="max height over the part after the stage, mm")

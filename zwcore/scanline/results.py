@@ -75,11 +75,14 @@ class ScanlineStage:
         before the lift.
     max_depth_of_cut, mean_depth_of_cut : float
         ``M_{k-1} - M_k`` over the input nodes (mean: removed volume over the
-        grid's area), in mm.
+        grid's area), in mm: model differences (the real depth of cut is
+        ``sim_max_depth_of_cut``).
     max_engagement : float
         Largest ``M_{k-1} + h_{k-1} + e_{k-1} - M_k``: the depth of cut plus the
-        previous pass's scallops and rest, what the flutes really take. At most
-        the flute length.
+        previous pass's scallops and rest, on the model nodes. Informative since the
+        flute rule is on the simulated stock (``sim_max_depth_of_cut``): a ball does not
+        follow every node of its model, so this may exceed the flute length where the
+        simulated depth does not.
     rest_height : float
         Material the ball leaves in valleys of its model sharper than itself
         (0 when it fits the model's concave radius; a roughing ball may be
