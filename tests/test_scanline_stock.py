@@ -242,8 +242,9 @@ def test_a_pass_too_large_is_thinned_and_keeps_the_rule(monkeypatch: pytest.Monk
     """Over the work limit a pass simulates every k-th line and point and raises the model
     around binding positions: fewer positions, the flute rule holds on what is simulated,
     no gouge, and the stock it leaves is never below the full plan's."""
-    zmap = _trench(n=97, d=0.05, width=1.0, deep=3.0)  # a Ø6 ball spans 120 nodes
-    tools = [Tool("B6", "ball", 6.0, 12.0), Tool("B1", "ball", 1.0, 2.0)]
+    y, x = np.mgrid[0:97, 0:97] * 0.05
+    zmap = ZMap(3.0 * np.exp(-((x - 2.4) ** 2 + (y - 2.4) ** 2) / 4.0), dx=0.05, dy=0.05)
+    tools = [Tool("B6", "ball", 6.0, 2.0)]  # spans 120 nodes; short flutes: lifted passes
     full = plan_scanline(zmap, tools)
     monkeypatch.setattr(_stock, "MAX_PASS_WORK", 200_000)
     thin = plan_scanline(zmap, tools)

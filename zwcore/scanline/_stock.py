@@ -343,7 +343,9 @@ class _Thinning:
         # simulated positions still cut all the stock the lift reads.
         unit = max(across, stride * along)
         k = 1
-        while work / (k * k) > MAX_PASS_WORK and 2 * k * unit <= 0.7 * tool.radius:
+        small = tool.radius <= GRID_MODE_RADIUS * min(part.dx, part.dy)  # grid mode copes
+        while (not small and work / (k * k) > MAX_PASS_WORK
+               and 2 * k * unit <= 0.7 * tool.radius):
             k *= 2
         if k == 1:
             return cls(lines, 1, 0.0)
