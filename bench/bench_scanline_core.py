@@ -39,9 +39,16 @@ def run(name: str, zmap: ZMap, repeat: int = 3) -> float:
         best = min(best, time.perf_counter() - t)
     assert plan is not None
     phases = ", ".join(f"{k} {v * 1e3:.0f}" for k, v in plan.timings)
+    c = plan.checks
     print(f"{name:>22s} {zmap.shape[0]}x{zmap.shape[1]}: {best:.3f} s  "
           f"[{phases} ms]  stages {len(plan.stages)}  tools {' > '.join(plan.tool_sequence)}  "
-          f"ok {plan.checks.ok}")
+          f"ok {c.ok}")
+    # The simulated stock (issue 11 part 4): its share is the passes_simulated phase.
+    print(f"{'':>22s} simulated positions {sum(s.sim_positions for s in plan.stages)}, "
+          f"lifted passes {sum(s.sim_lifted_nodes > 0 for s in plan.stages)}, "
+          f"depth over flute {c.max_depth_over_flute:+.3f} mm (ok {c.depth_of_cut}), "
+          f"gouge {c.sim_max_gouge:.1e} mm, left over part max {c.sim_left_over_part_max:.3f} "
+          f"p95 {c.sim_left_over_part_p95:.4f} mm")
     return best
 
 

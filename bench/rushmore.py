@@ -49,6 +49,7 @@ def main() -> None:
               f"| {sum(g.removed_volume for g in group) / 1000:.1f} | {s.max_stock_left:.3f} |")
     for note in plan.notes:
         print(f"note: {note}")
+    _simulated(plan)
 
     t = time.perf_counter()
     cplan = plan_contour(zmap)
@@ -64,6 +65,25 @@ def main() -> None:
               f"| {s.max_stock_left:.2f} |")
     for note in cplan.notes:
         print(f"note: {note}")
+
+
+def _simulated(plan: object) -> None:
+    """Per pass, the figures from the simulated stock (issue 11 part 4)."""
+    c = plan.checks  # type: ignore[attr-defined]
+    print(f"\nsimulated stock: depth_of_cut {c.depth_of_cut} (max over flute "
+          f"{c.max_depth_over_flute:+.3f} mm), gouge {c.sim_max_gouge:.1e} mm, models nested "
+          f"{c.models_nested} (max rise {c.max_model_rise:.2f} mm), left over part max "
+          f"{c.sim_left_over_part_max:.3f} p95 {c.sim_left_over_part_p95:.4f} mm")
+    print("| pass | tool | level | positions | ds mm | real depth max / mean mm | flutes mm "
+          "| lifted nodes | left over next max / p95 mm | left over part max / p95 mm |")
+    print("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |")
+    for n, s in enumerate(plan.stages):  # type: ignore[attr-defined]
+        print(f"| {n} | {s.tool.id} {s.pass_index}/{s.pass_count} | {s.level} "
+              f"| {s.sim_positions} | {s.sim_position_spacing:.2f} "
+              f"| {s.sim_max_depth_of_cut:.2f} / {s.sim_mean_depth_of_cut:.2f} "
+              f"| {s.tool.flute_length:g} | {s.sim_lifted_nodes} "
+              f"| {s.sim_left_over_next_max:.2f} / {s.sim_left_over_next_p95:.3f} "
+              f"| {s.sim_left_over_part_max:.2f} / {s.sim_left_over_part_p95:.3f} |")
 
 
 if __name__ == "__main__":

@@ -40,7 +40,12 @@ def test_scanline_plan_models_never_cut_into_the_part(client: TestClient) -> Non
         here = on_input(stage.model.model_dump(), part, 0.5)
         assert (here - part).min() >= 0, "stage model below the part"
         depth = previous - here
-        assert depth.min() >= -1e-12 and depth.max() <= stage.tool.flute_length + 1e-9
+        # Models nest except where the flute rule on the simulated stock lifted a stage;
+        # the flute rule is on the simulated stock (the balls do not follow a model's
+        # every node): tests/test_scanline_stock.py re-simulates it independently.
+        assert depth.min() >= -1e-12 or stage.sim_lifted_nodes > 0
+        assert stage.sim_max_depth_of_cut <= stage.tool.flute_length
+        assert stage.sim_gouge == 0.0 and stage.sim_positions > 0
         previous = here
     np.testing.assert_allclose(previous, part, atol=1e-9)
     assert plan.stages[-1].scallop_height <= 0.02 + 1e-12

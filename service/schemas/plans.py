@@ -66,7 +66,8 @@ class ScanlineStageOut(BaseModel):
     max_depth_of_cut: float = Field(description="max of previous model minus this one, mm")
     mean_depth_of_cut: float = Field(description="removed volume over the grid area, mm")
     max_engagement: float = Field(
-        description="deepest flute engagement incl. the previous stage's scallops and rest, mm")
+        description="model-node engagement incl. the previous stage's scallops and rest, mm "
+        "(informative: the flute rule is on the simulated stock, sim_max_depth_of_cut)")
     rest_height: float = Field(description="material the ball cannot reach in corners, mm")
     removed_volume: float = Field(description="mm³")
     max_stock_left: float = Field(description="max height over the part after the stage, mm")
@@ -86,19 +87,57 @@ class ScanlineStageOut(BaseModel):
         "before extra lines were laid by region), mm")
     extra_segments: int = Field(description="segments of extra lines between the grid lines")
     model: GridOut | None = None
+    # -- Simulated stock (issue 11 part 4): additive block, every field has a default.
+    sim_positions: int = Field(0, description="tool positions simulated on the stage's "
+                               "scan lines (inside its region when it has one)")
+    sim_position_spacing: float = Field(
+        0.0, description="distance between simulated positions along a line, mm")
+    sim_max_depth_of_cut: float = Field(
+        0.0, description="real depth of cut on the simulated stock: highest stock within the "
+        "ball's radius of its axis minus its tip, largest over the positions, mm")
+    sim_mean_depth_of_cut: float = Field(
+        0.0, description="the same, mean over the positions that cut, mm")
+    sim_flute_rule_ok: bool = Field(True, description="sim_max_depth_of_cut <= flute length")
+    sim_lifted_nodes: int = Field(
+        0, description="model nodes the flute rule on the simulated stock raised")
+    sim_gouge: float = Field(
+        0.0, description="max of part minus simulated stock after the stage, mm (0: none)")
+    sim_left_over_next_max: float = Field(
+        0.0, description="simulated stock after the stage minus the next stage's model "
+        "(the part after the last stage): largest, mm")
+    sim_left_over_next_p95: float = Field(0.0, description="the same, 95th percentile, mm")
+    sim_left_over_part_max: float = Field(
+        0.0, description="simulated stock after the stage minus the part: largest, mm")
+    sim_left_over_part_p95: float = Field(0.0, description="the same, 95th percentile, mm")
 
 
 class ScanlineChecksOut(BaseModel):
     ok: bool
     containment: bool
     min_containment_margin: float
-    depth_of_cut: bool
-    max_depth_over_flute: float
+    depth_of_cut: bool = Field(description="the flute rule on the simulated stock: every "
+                               "stage's real depth of cut (sim_max_depth_of_cut) is at most "
+                               "its flute length")
+    max_depth_over_flute: float | None = Field(
+        description="largest sim_max_depth_of_cut minus flute length, mm (<= 0 when "
+        "depth_of_cut holds; null: no stage cuts)")
     tool_radii_non_increasing: bool
     finishing_tolerance_met: bool
     last_model_is_part: bool
     tools_fit: bool = Field(description="informative: some library ball fits the sharpest "
                             "concave corner (false: the finishing ball leaves rest there)")
+    # -- Simulated stock (issue 11 part 4): additive block, every field has a default.
+    sim_no_gouge: bool = Field(True, description="the simulated stock never lies below the "
+                               "part (to float rounding), after every stage")
+    sim_max_gouge: float | None = Field(0.0, description="largest part minus simulated stock, mm")
+    sim_left_over_part_max: float = Field(
+        0.0, description="simulated stock after the last stage minus the part: largest, mm")
+    sim_left_over_part_p95: float = Field(0.0, description="the same, 95th percentile, mm")
+    models_nested: bool = Field(
+        True, description="informative: every stage model lies at or under the one before "
+        "(false where the flute rule lifted a stage above it)")
+    max_model_rise: float = Field(0.0, description="largest rise of a stage model over the "
+                                  "one before it, mm")
 
 
 class ScanlinePlanResult(BaseModel):

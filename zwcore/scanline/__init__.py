@@ -4,7 +4,8 @@
 - :mod:`zwcore.scanline.results`: the plan, stage and checks dataclasses;
 - private: ``_models`` (nested stage targets), ``_tool_choice`` (which level
   becomes a stage, with which ball), ``_passes`` (pick-feed strips and
-  scallops), ``_checks`` (per-stage figures and the invariants).
+  scallops), ``_stage_passes`` (the passes of every stage and the flute rule),
+  ``_stock`` (the simulated stock), ``_checks`` (per-stage figures and the invariants).
 """
 
 from zwcore.scanline._passes import scallop_height

@@ -22,12 +22,14 @@ import itertools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from zwcore.grid.tools import Tool
 from zwcore.scanline._passes import StripPlan
+from zwcore.scanline._stock import SimulatedPass
 from zwcore.scanline.results import ScanlineChecks, ScanlineStage
 
 __all__ = ["PassSpec", "axis_weights", "eval_rows", "figures"]
@@ -54,6 +56,10 @@ class PassSpec:
     concave_radius: float
     clipped: int
     raised: int
+    region: NDArray[np.bool_] | None = None
+    sim: SimulatedPass | None = None
+    left_next: tuple[float, float] = (0.0, 0.0)
+    left_part: tuple[float, float] = (0.0, 0.0)
 
     @property
     def leaves(self) -> float:
@@ -168,12 +174,28 @@ def _stage(p: PassSpec, index: tuple[int, int], cut_max: float, volume: float, a
         pick_feed_max=sp.pick_feed_max, reduced_strips=sp.reduced_strips,
         clipped_nodes=p.clipped, raised_nodes=p.raised, path_length=sp.path_length,
         path_length_whole_strips=sp.path_length_whole_strips, extra_segments=sp.extra_segments,
-        lines=sp.lines, model=p.model)
+        lines=sp.lines, model=p.model, **_sim_fields(p))
+
+
+def _sim_fields(p: PassSpec) -> dict[str, Any]:
+    """The stage's figures from the simulated stock (none without a simulation)."""
+    if p.sim is None:
+        return {}
+    cut = p.sim.cut
+    return {
+        "sim_positions": cut.positions.size, "sim_position_spacing": p.sim.spacing,
+        "sim_max_depth_of_cut": cut.depth_max, "sim_mean_depth_of_cut": cut.depth_mean,
+        "sim_flute_rule_ok": cut.depth_max <= p.tool.flute_length,
+        "sim_lifted_nodes": p.sim.lifted_nodes, "sim_gouge": cut.gouge,
+        "sim_left_over_next_max": p.left_next[0], "sim_left_over_next_p95": p.left_next[1],
+        "sim_left_over_part_max": p.left_part[0], "sim_left_over_part_p95": p.left_part[1]}
 
 
 def figures(part: F64, depth: int, dx: float, dy: float, passes: Sequence[PassSpec],
-            stock_top: float, tolerance: float) -> tuple[list[ScanlineStage], ScanlineChecks]:
-    """Stages with their figures, and the checks, from one evaluation per stage."""
+            stock_top: float, tolerance: float, guard: float = 0.0,
+            ) -> tuple[list[ScanlineStage], ScanlineChecks]:
+    """Stages with their figures, and the checks, from one evaluation per stage
+    (``guard``: the rounding allowance of the simulated gouge)."""
     ny, nx = part.shape
     cell = dx * dy
     area = (ny - 1) * dy * (nx - 1) * dx
@@ -186,14 +208,17 @@ def figures(part: F64, depth: int, dx: float, dy: float, passes: Sequence[PassSp
 
     leaves = 0.0
     margin = math.inf
-    over = -math.inf
+    rise = -math.inf
     fit = True
     stages: list[ScanlineStage] = []
     for i, p in enumerate(passes):
         volume = red.volume[i] * cell
-        margin = min(margin, red.cut_min[i], red.left_min[i])
+        # Containment is of the part (and under the stock): a pass may rise above the
+        # one before it where the flute rule on the simulated stock lifted it (the
+        # earlier ball could not follow its model there); that is reported apart.
+        margin = min(margin, red.left_min[i], red.cut_min[i] if i == 0 else math.inf)
+        rise = max(rise, -red.cut_min[i])
         engagement = red.cut_max[i] + leaves
-        over = max(over, engagement - p.tool.flute_length)
         fit = fit and (p.tool.radius <= p.concave_radius or p.rest > 0.0)
         key = (p.level, p.tool.id)
         seen[key] = seen.get(key, 0) + 1
@@ -203,15 +228,31 @@ def figures(part: F64, depth: int, dx: float, dy: float, passes: Sequence[PassSp
     radii = [s.tool.radius for s in stages]
     last = stages[-1].model
     # min()/max() skip NaN, so a NaN anywhere must fail the checks explicitly.
-    finite = all(math.isfinite(v) for v in (margin, over))
+    finite = math.isfinite(margin)
     checks = ScanlineChecks(
         containment=finite and margin >= 0.0,
         min_containment_margin=margin,
-        depth_of_cut=finite and over <= 0.0,
-        max_depth_over_flute=over,
+        **_sim_checks(stages, guard),
         tool_radii_non_increasing=all(a >= b for a, b in itertools.pairwise(radii)),
         finishing_tolerance_met=stages[-1].scallop_height <= tolerance,
         last_model_is_part=last.shape == part.shape and bool(np.array_equal(last, part)),
         tools_fit=fit,
+        models_nested=rise <= 0.0, max_model_rise=max(rise, 0.0),
     )
     return stages, checks
+
+
+def _sim_checks(stages: Sequence[ScanlineStage], guard: float) -> dict[str, Any]:
+    """The checks from the simulated stock (``guard``: the rounding allowance of the
+    gouge, a few ulps of the heights in play). ``depth_of_cut`` is the flute rule on the
+    simulated stock: the node-wise rule on the models it replaced said true while the
+    balls met far more than their flutes between the coarse nodes (issue 11)."""
+    gouge = max(s.sim_gouge for s in stages)
+    over = max((s.sim_max_depth_of_cut - s.tool.flute_length for s in stages
+                if s.sim_positions), default=-math.inf)
+    ok = math.isfinite(gouge) and not math.isnan(over)
+    return {"depth_of_cut": ok and all(s.sim_flute_rule_ok for s in stages),
+            "max_depth_over_flute": over,
+            "sim_no_gouge": ok and gouge <= guard, "sim_max_gouge": gouge,
+            "sim_left_over_part_max": stages[-1].sim_left_over_part_max,
+            "sim_left_over_part_p95": stages[-1].sim_left_over_part_p95}

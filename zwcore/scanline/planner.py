@@ -28,13 +28,16 @@ Everything comes off one lifted single-knot MRR of the part:
    cannot reach there (a grey closing of the target by the ball, on the
    level's nodes) is at most a quarter of the next stage's flute length: steep
    walls make every coarse model sharp at its own grid scale.
-4. Flute-length lift (Fig. 6) on the stage's own nodes:
-   ``M_k = max(T_j, M_{k-1} + h_{k-1} + e_{k-1} - L_k + g)``, where
-   ``h_{k-1}`` and ``e_{k-1}`` are the previous pass's scallop and rest
-   (stock the flutes also have to take) and ``g`` a few ulps, upward. Where
-   ``M_k`` still lies above ``T_j`` the part was out of reach: another pass
-   with the same tool at the same level follows, until the target is reached
-   (``pass_index`` of ``pass_count``).
+4. The flute-length rule on the simulated stock
+   (:mod:`zwcore.scanline._stage_passes`, :mod:`zwcore.scanline._stock`): every pass
+   is simulated over the stock the earlier passes left (its real tool positions on its
+   scan lines, CL from its model and never below the part's nodes); where a position
+   would meet more than the flute length of stock within the ball's radius above its
+   tip, the pass's model is raised there and another pass with the same tool at the
+   same level follows, until one reaches the target (``pass_index`` of
+   ``pass_count``). (It replaces the node-wise lift
+   ``M_k = max(T_j, M_{k-1} + h_{k-1} + e_{k-1} - L_k)``, which held at the coarse
+   nodes while the balls met far more between them.)
 5. Pick-feeds strip by strip, extra lines cell by cell
    (:mod:`zwcore.scanline._passes`): the scallop rule with the slope *across*
    the scan lines; a strip between two grid lines that needs it gets extra
@@ -57,15 +60,15 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import NDArray
 
-from zwcore.errors import InvalidInputError, PlanningError
-from zwcore.grid.curvature import steepest_slope
-from zwcore.grid.sampling import bilinear_at_fine_nodes
+from zwcore.errors import InvalidInputError
 from zwcore.grid.tools import Tool, default_tools, tool_library
 from zwcore.grid.zmap import ZMap, positive_number, stock_top_at_or_above
 from zwcore.mrr.wavelets import Multiresolution, analyse
-from zwcore.scanline._checks import PassSpec, axis_weights, eval_rows, figures
+from zwcore.scanline._checks import figures
 from zwcore.scanline._models import nested_targets
-from zwcore.scanline._passes import StripPlan, cell_cross_slopes, plan_strips, scallop_height
+from zwcore.scanline._passes import scallop_height
+from zwcore.scanline._stage_passes import MAX_MODEL_NODES, MAX_STAGES
+from zwcore.scanline._stage_passes import passes as stage_passes
 from zwcore.scanline._tool_choice import Stage, ball_rest, choose, levels
 from zwcore.scanline.results import ScanlineChecks, ScanlinePlan, ScanlineStage
 
@@ -80,23 +83,6 @@ __all__ = [
 ]
 
 F64 = NDArray[np.float64]
-
-#: A plan needing more passes than this is a stock/flute mismatch, not a plan
-#: (and its stage models would not fit in memory for a large grid).
-MAX_STAGES = 400
-
-#: Stage-model nodes a plan may hold in all (2 GiB of float64): deep stock with
-#: short flutes on a large grid means many full-resolution passes, and the plan
-#: keeps every pass's model. Beyond this the request is refused, not the server.
-MAX_MODEL_NODES = 1 << 28
-
-#: An intermediate pass's scallops and rest may take at most this share of the
-#: next pass's flute length (the rest of it is for the model difference).
-SCALLOP_FLUTE_SHARE = 0.5
-
-#: Nodes per block of rows for the full-resolution work on pass models.
-_BLOCK_NODES = 1 << 15
-
 
 def _validate(tolerance: float, stock_top: float | None, top: float) -> tuple[float, float | None]:
     tol = positive_number(tolerance, "tolerance")
@@ -115,115 +101,6 @@ def _default_stock(top: float, tool: Tool) -> float:
     # empty extra pass).
     st = top + tool.flute_length
     return st - 2.0 * _guard(st, top, tool.flute_length)
-
-
-def _upsampled(coarse: F64, scale: int, shape: tuple[int, int]) -> F64:
-    """``bilinear_at_fine_nodes(coarse, scale, shape)``, bit for bit, in blocks of rows.
-
-    The whole-array version makes several full-size temporaries; on a large
-    grid those cost more than the arithmetic (fresh pages, no cache reuse).
-    """
-    if scale == 1:
-        return bilinear_at_fine_nodes(coarse, scale, shape)
-    ny, nx = shape
-    ya = axis_weights(scale, ny, coarse.shape[0])
-    xa = axis_weights(scale, nx, coarse.shape[1])
-    out = np.empty(shape)
-    rows = max(1, _BLOCK_NODES // max(nx, 1))
-    for a in range(0, ny, rows):
-        b = min(a + rows, ny)
-        out[a:b] = eval_rows(coarse, scale, a, b, ya, xa)
-    return out
-
-
-def _lift(on: F64, target: F64, shift: float) -> tuple[F64, bool]:
-    """``max(target, on + shift)`` and whether ``on + shift`` stays at or below the target.
-
-    In blocks of rows into the one array the pass keeps (no full-size
-    temporaries); the same operations, node by node, as the whole-array form.
-    """
-    ny, nx = target.shape
-    model = np.empty(target.shape)
-    reached = True
-    rows = max(1, _BLOCK_NODES // max(nx, 1))
-    for a in range(0, ny, rows):
-        b = min(a + rows, ny)
-        lifted = on[a:b] + shift
-        t = target[a:b]
-        if reached and bool((lifted > t).any()):
-            reached = False
-        np.maximum(t, lifted, out=model[a:b])
-    return model, reached
-
-
-def _passes(zmap: ZMap, chosen: list[Stage],
-            stock_top: float, tolerance: float, g: float) -> list[PassSpec]:
-    ny, nx = zmap.shape
-    extent_mm = ((ny - 1) * zmap.dy, (nx - 1) * zmap.dx)
-    out: list[PassSpec] = []
-    prev: F64 | None = None
-    prev_level = 0
-    leaves = 0.0  # scallops and rest of the previous pass
-    for n, (lev, tool, merged, rest) in enumerate(chosen):
-        flute = tool.flute_length
-        target = lev.model
-        if prev is None:
-            on = np.full(target.shape, stock_top)
-        else:
-            on = _upsampled(prev, 1 << (lev.index - prev_level), target.shape)
-        next_flute = chosen[n + 1][1].flute_length if n + 1 < len(chosen) else None
-        # Every pass of this stage is max(T, S + c) with S the incoming model
-        # (or an earlier pass, itself such a max): the difference across any
-        # cell edge is at most the larger of the two, so one bound per cell
-        # serves every pass (an upper bound: the scallop is never
-        # underestimated). The last pass is the target itself and gets its own
-        # slopes.
-        ax_t, ay_t = cell_cross_slopes(target, lev.sx, lev.sy, lev.cells)
-        if prev is None:
-            ax_b, ay_b = ax_t, ay_t
-        else:
-            ax_o, ay_o = cell_cross_slopes(on, lev.sx, lev.sy, lev.cells)
-            ax_b, ay_b = np.maximum(ax_t, ax_o), np.maximum(ay_t, ay_o)
-        slope_t = steepest_slope(target, lev.sx, lev.sy, extent=lev.cells)
-        slope_b = slope_t if prev is None else max(
-            slope_t, steepest_slope(on, lev.sx, lev.sy, extent=lev.cells))
-        lines: dict[tuple[bool, float, str], StripPlan] = {}
-        while True:
-            model, reached = _lift(on, target, leaves - flute + g)
-            finishing = reached and next_flute is None
-            if finishing:
-                budget = tolerance
-                what = f"the tolerance {tolerance:g} mm"
-            else:
-                following = flute if not reached or next_flute is None else next_flute
-                budget = SCALLOP_FLUTE_SHARE * min(flute, following) - rest
-                what = f"half the next pass's flute length ({budget:g} mm)"
-            key = (reached, budget, what)
-            if key not in lines:  # the passes that do not reach the target share theirs
-                ax, ay = (ax_t, ay_t) if reached else (ax_b, ay_b)
-                lines[key] = plan_strips(ax, ay, lev.sx, lev.sy, extent_mm, tool.radius,
-                                         budget, what)
-            strips = lines[key]
-            out.append(PassSpec(lev.index, lev.sx, lev.sy, tool, model, strips,
-                                slope_t if reached else slope_b, rest, tuple(merged),
-                                lev.concave_radius, lev.clipped, lev.raised))
-            if len(out) > MAX_STAGES:
-                raise PlanningError(
-                    "tools", f"reaching the part within the flute lengths needs more than "
-                    f"{MAX_STAGES} passes (stock top {stock_top:g} mm, lowest point "
-                    f"{float(zmap.z.min()):g} mm); use longer flutes or a lower stock")
-            if sum(p.model.size for p in out) > MAX_MODEL_NODES:
-                raise PlanningError(
-                    "grid", f"the plan's {len(out)}+ passes would hold more than "
-                    f"{MAX_MODEL_NODES} model nodes; send a coarser grid, longer flutes or "
-                    f"a lower stock")
-            leaves = out[-1].leaves
-            if reached:
-                break
-            on = model
-        prev = model
-        prev_level = lev.index
-    return out
 
 
 def plan_scanline(zmap: ZMap, tools: Sequence[Tool] | None = None, *, tolerance: float = 0.01,
@@ -274,10 +151,10 @@ def plan_scanline(zmap: ZMap, tools: Sequence[Tool] | None = None, *, tolerance:
     notes: list[str] = []
     st, chosen = _stages(zmap, mrr, first, ceiling, g, requested, library,
                          float(curvature_smoothing), notes, laps)
-    passes = _passes(zmap, chosen, st, tol, g)
-    laps("flute_lift")
+    passes = stage_passes(zmap, chosen, st, tol, g, notes)
+    laps("passes_simulated")
 
-    stages, checks = figures(part, mrr.depth, zmap.dx, zmap.dy, passes, st, tol)
+    stages, checks = figures(part, mrr.depth, zmap.dx, zmap.dy, passes, st, tol, g)
     laps("figures_and_checks")
 
     return ScanlinePlan(

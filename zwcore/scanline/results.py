@@ -70,14 +70,19 @@ class ScanlineStage:
         Largest predicted scallop over the cells, each at the largest distance
         between the lines present over it, on its steepest slope across the
         lines (a bound for the design's
-        ``R - sqrt(R^2 - (p / (2 cos theta))^2)``), in mm.
+        ``R - sqrt(R^2 - (p / (2 cos theta))^2)``), in mm. For a pass the flute rule
+        raised (``sim_lifted_nodes > 0``) the slopes are those its lines were laid on,
+        before the lift.
     max_depth_of_cut, mean_depth_of_cut : float
         ``M_{k-1} - M_k`` over the input nodes (mean: removed volume over the
-        grid's area), in mm.
+        grid's area), in mm: model differences (the real depth of cut is
+        ``sim_max_depth_of_cut``).
     max_engagement : float
         Largest ``M_{k-1} + h_{k-1} + e_{k-1} - M_k``: the depth of cut plus the
-        previous pass's scallops and rest, what the flutes really take. At most
-        the flute length.
+        previous pass's scallops and rest, on the model nodes. Informative since the
+        flute rule is on the simulated stock (``sim_max_depth_of_cut``): a ball does not
+        follow every node of its model, so this may exceed the flute length where the
+        simulated depth does not.
     rest_height : float
         Material the ball leaves in valleys of its model sharper than itself
         (0 when it fits the model's concave radius; a roughing ball may be
@@ -131,6 +136,27 @@ class ScanlineStage:
     model : (my, mx) float64
         Node values of the stage model; node ``(c, d)`` at
         ``(x0 + d*sx, y0 + c*sy)`` with ``(sx, sy) = spacing``. Bilinear.
+    sim_positions : int
+        Tool positions simulated: points on ``lines`` every ``sim_position_spacing`` mm
+        (and the segment ends), only inside the stage's region when it has one.
+    sim_position_spacing : float
+        Distance between simulated positions along a line, mm.
+    sim_max_depth_of_cut, sim_mean_depth_of_cut : float
+        Real depth of cut from the simulated stock: per position, the highest stock
+        node within the ball's radius of its axis minus its tip height (mean over the
+        positions that cut), mm. At most the flute length.
+    sim_flute_rule_ok : bool
+        ``sim_max_depth_of_cut <= tool.flute_length``.
+    sim_lifted_nodes : int
+        Model nodes the flute rule on the simulated stock raised (the pass then does not
+        reach its target and another pass with the same tool follows).
+    sim_gouge : float
+        ``max(part - simulated stock after the pass)`` at the input nodes, clipped at 0.
+    sim_left_over_next_max, sim_left_over_next_p95 : float
+        Simulated stock after the pass minus the next pass's model (the part after the
+        last pass) at the input nodes: largest and 95th percentile, mm.
+    sim_left_over_part_max, sim_left_over_part_p95 : float
+        Simulated stock after the pass minus the part, mm.
     """
 
     tool: Tool
@@ -163,6 +189,20 @@ class ScanlineStage:
     extra_segments: int
     lines: ScanLines = field(repr=False)
     model: F64 = field(repr=False)
+    # -- Simulated stock (issue 11 part 4, :mod:`zwcore.scanline._stock`): additive,
+    # every field has a default. Figures of the pass's real tool positions cut into the
+    # simulated stock at the input nodes.
+    sim_positions: int = 0
+    sim_position_spacing: float = 0.0
+    sim_max_depth_of_cut: float = 0.0
+    sim_mean_depth_of_cut: float = 0.0
+    sim_flute_rule_ok: bool = True
+    sim_lifted_nodes: int = 0
+    sim_gouge: float = 0.0
+    sim_left_over_next_max: float = 0.0
+    sim_left_over_next_p95: float = 0.0
+    sim_left_over_part_max: float = 0.0
+    sim_left_over_part_p95: float = 0.0
 
     @property
     def passes(self) -> int:
@@ -177,16 +217,22 @@ class ScanlineChecks:
     Attributes
     ----------
     containment : bool
-        ``stock_top >= M_0 >= M_1 >= ... >= part`` at every input node.
+        ``stock_top >= M_0`` and ``M_k >= part`` for every pass at every input node.
+        (Before the simulated stock this also required ``M_{k-1} >= M_k``; a pass now
+        rises above the one before it where the flute rule on the simulated stock lifts
+        it: see ``models_nested``.)
     min_containment_margin : float
-        Smallest ``M_{k-1} - M_k`` (and ``M_K - part``) over all nodes, mm.
+        Smallest ``stock_top - M_0`` and ``M_k - part`` over all nodes, mm.
     depth_of_cut : bool
-        ``M_{k-1} + h_{k-1} + e_{k-1} - M_k <= L_k`` at every input node
-        (stricter than the design's ``M_{k-1} - M_k <= L_k``: the previous
-        pass's scallops ``h`` and rest ``e`` count).
+        The flute rule on the simulated stock: at every simulated position of every
+        pass, the highest stock node within the ball's radius of its axis lies at most
+        the flute length above its tip (``sim_max_depth_of_cut <= L`` for every stage).
+        Before the simulated stock this was ``M_{k-1} + h_{k-1} + e_{k-1} - M_k <= L_k``
+        on the model nodes (still reported per stage as ``max_engagement``), which held
+        while the balls met far more than their flutes between coarse nodes.
     max_depth_over_flute : float
-        Largest ``M_{k-1} + h_{k-1} + e_{k-1} - M_k - L_k``; <= 0 when the
-        check holds.
+        Largest ``sim_max_depth_of_cut - L`` over the passes; <= 0 when the check holds
+        (-inf without positions that cut).
     tool_radii_non_increasing : bool
     finishing_tolerance_met : bool
         The last pass's predicted scallop is at most ``tolerance``.
@@ -198,6 +244,13 @@ class ScanlineChecks:
         for. Informative, not part of :attr:`ok`: when no library ball fits
         the part's sharpest corner the plan still finishes with the smallest
         one (and says so in the notes).
+    sim_no_gouge : bool
+        The simulated stock never lies below the part at an input node (to the rounding
+        guard of a few ulps), after every pass.
+    sim_max_gouge : float
+        Largest ``part - simulated stock`` over all passes and input nodes, clipped at 0.
+    sim_left_over_part_max, sim_left_over_part_p95 : float
+        Simulated stock after the last pass minus the part: what the plan leaves, mm.
     """
 
     containment: bool
@@ -208,12 +261,20 @@ class ScanlineChecks:
     finishing_tolerance_met: bool
     last_model_is_part: bool
     tools_fit: bool
+    # -- Simulated stock (issue 11 part 4): additive, every field has a default.
+    sim_no_gouge: bool = True
+    sim_max_gouge: float = 0.0
+    sim_left_over_part_max: float = 0.0
+    sim_left_over_part_p95: float = 0.0
+    models_nested: bool = True
+    max_model_rise: float = 0.0
 
     @property
     def ok(self) -> bool:
         """All safety and contract checks hold."""
         return (self.containment and self.depth_of_cut and self.tool_radii_non_increasing
-                and self.finishing_tolerance_met and self.last_model_is_part)
+                and self.finishing_tolerance_met and self.last_model_is_part
+                and self.sim_no_gouge)
 
 
 @dataclass(frozen=True, eq=False)

@@ -1,0 +1,292 @@
+"""The passes of every stage, with the flute rule on the simulated stock.
+
+Per stage (a level's target ``T`` and its ball), passes follow until one reaches the
+target: each pass starts from ``T``, is simulated over the stock the passes before it
+left (:mod:`zwcore.scanline._stock`), and where a position would meet more than the
+flute length ``L`` of stock within the ball's radius above its tip, the pass's model is
+raised there (so is its CL, and the tool path's) and another pass with the same ball
+follows. Each pass takes ``L`` (less the cusps of the one before) off the stock it
+meets, so the stage gets down in about ``(stock - T) / L`` passes where the stock is
+deep, and in one where it is not.
+
+The pick-feed budget of a pass depends on whether it reaches its target (the finishing
+tolerance, or half of the next ball's flute length) or not (half of its own): the
+node-wise rule on the models (``M_{k-1} + h_{k-1} + e_{k-1} - L <= T``, the rule before
+the simulated stock) guesses it, the simulation decides, and a finishing pass guessed
+short that does reach the part is planned again on the finishing budget.
+
+If lifting stops making progress (material this ball cannot remove stands within its
+radius more than ``L`` above where it must go),
+the rest of the stage runs without the lift, a note says so and ``depth_of_cut`` is false.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from zwcore.errors import PlanningError
+from zwcore.grid.curvature import steepest_slope
+from zwcore.grid.tools import Tool
+from zwcore.grid.zmap import ZMap
+from zwcore.scanline._checks import PassSpec, axis_weights, eval_rows
+from zwcore.scanline._passes import StripPlan, cell_cross_slopes, plan_strips
+from zwcore.scanline._stock import (
+    SimulatedPass,
+    StockSim,
+    left_over,
+    run_pass,
+    stride_for,
+    target_drop,
+)
+from zwcore.scanline._tool_choice import Level, Stage
+
+__all__ = ["MAX_MODEL_NODES", "MAX_STAGES", "SCALLOP_FLUTE_SHARE", "passes", "upsampled"]
+
+F64 = NDArray[np.float64]
+
+#: A plan needing more passes than this is a stock/flute mismatch, not a plan
+#: (and its stage models would not fit in memory for a large grid).
+MAX_STAGES = 400
+
+#: Stage-model nodes a plan may hold in all (2 GiB of float64): deep stock with
+#: short flutes on a large grid means many full-resolution passes, and the plan
+#: keeps every pass's model. Beyond this the request is refused, not the server.
+MAX_MODEL_NODES = 1 << 28
+
+#: An intermediate pass's scallops and rest may take at most this share of the
+#: next pass's flute length (the rest of it is for the model difference).
+SCALLOP_FLUTE_SHARE = 0.5
+
+#: Nodes per block of rows for the full-resolution work on pass models.
+_BLOCK_NODES = 1 << 15
+
+
+def upsampled(coarse: F64, scale: int, shape: tuple[int, int]) -> F64:
+    """``bilinear_at_fine_nodes(coarse, scale, shape)``, bit for bit, in blocks of rows.
+
+    The whole-array version makes several full-size temporaries; on a large
+    grid those cost more than the arithmetic (fresh pages, no cache reuse).
+    """
+    if scale == 1:
+        return coarse[: shape[0], : shape[1]]
+    ny, nx = shape
+    ya = axis_weights(scale, ny, coarse.shape[0])
+    xa = axis_weights(scale, nx, coarse.shape[1])
+    out = np.empty(shape)
+    rows = max(1, _BLOCK_NODES // max(nx, 1))
+    for a in range(0, ny, rows):
+        b = min(a + rows, ny)
+        out[a:b] = eval_rows(coarse, scale, a, b, ya, xa)
+    return out
+
+
+def _reaches(on: F64, target: F64, shift: float) -> bool:
+    """Whether ``on + shift`` stays at or below the target at every node (blocks of rows:
+    no full-size temporaries)."""
+    ny, nx = target.shape
+    rows = max(1, _BLOCK_NODES // max(nx, 1))
+    for a in range(0, ny, rows):
+        b = min(a + rows, ny)
+        if bool((on[a:b] + shift > target[a:b]).any()):
+            return False
+    return True
+
+
+def _region(stage: Stage) -> NDArray[np.bool_] | None:
+    """The stage's region on its model nodes (``None``: the whole part)."""
+    return stage[4] if len(stage) > 4 else None
+
+
+@dataclass
+class _Plan:
+    """What every stage shares: the part, the simulated stock, the passes so far."""
+
+    zmap: ZMap
+    stock_top: float
+    tolerance: float
+    guard: float
+    notes: list[str] | None
+    sim: StockSim
+    out: list[PassSpec] = field(default_factory=list)
+    leaves: float = 0.0  # scallops and rest of the previous pass
+
+    @property
+    def extent_mm(self) -> tuple[float, float]:
+        ny, nx = self.zmap.shape
+        return (ny - 1) * self.zmap.dy, (nx - 1) * self.zmap.dx
+
+
+@dataclass
+class _Stage:
+    """One stage: its level, ball, the model it starts from (``on``) and its line plans."""
+
+    lev: Level
+    tool: Tool
+    merged: tuple[int, ...]
+    rest: float
+    region: NDArray[np.bool_] | None
+    on: F64
+    first: bool
+    next_flute: float | None
+    lines: dict[tuple[bool, float, str], StripPlan] = field(default_factory=dict)
+    finish_first: bool = False
+
+    def __post_init__(self) -> None:
+        lev = self.lev
+        # Passes that do not reach the target plan their lines on a bound of the
+        # slopes of the target and the model before (they lie between the two where
+        # the flute rule does not raise them); the last one on the target's own.
+        self.ax_t, self.ay_t = cell_cross_slopes(lev.model, lev.sx, lev.sy, lev.cells)
+        self.slope_t = steepest_slope(lev.model, lev.sx, lev.sy, extent=lev.cells)
+        if self.first:
+            self.ax_b, self.ay_b, self.slope_b = self.ax_t, self.ay_t, self.slope_t
+        else:
+            ax_o, ay_o = cell_cross_slopes(self.on, lev.sx, lev.sy, lev.cells)
+            self.ax_b, self.ay_b = np.maximum(self.ax_t, ax_o), np.maximum(self.ay_t, ay_o)
+            self.slope_b = max(self.slope_t,
+                               steepest_slope(self.on, lev.sx, lev.sy, extent=lev.cells))
+        self.target_cl = target_drop(lev.model, lev.sx, lev.sy, self.tool)
+
+    def strips(self, reached: bool, tolerance: float, extent_mm: tuple[float, float],
+               ) -> StripPlan:
+        """The lines of a pass that reaches the target (or not)."""
+        flute = self.tool.flute_length
+        if reached and self.next_flute is None:
+            budget, what = tolerance, f"the tolerance {tolerance:g} mm"
+        else:
+            following = flute if not reached or self.next_flute is None else self.next_flute
+            budget = SCALLOP_FLUTE_SHARE * min(flute, following) - self.rest
+            what = f"half the next pass's flute length ({budget:g} mm)"
+        key = (reached, budget, what)
+        if key not in self.lines:  # the passes that do not reach the target share theirs
+            ax, ay = (self.ax_t, self.ay_t) if reached else (self.ax_b, self.ay_b)
+            self.lines[key] = plan_strips(ax, ay, self.lev.sx, self.lev.sy, extent_mm,
+                                          self.tool.radius, budget, what)
+        return self.lines[key]
+
+
+def _stride(tool: Tool, strips: StripPlan, tolerance: float, zmap: ZMap, sx: float,
+            sy: float) -> int:
+    """Input nodes between simulated positions along the lines: :func:`stride_for`, at
+    most the level's spacing along them (every model cell on a line holds a position, so
+    the flute lift reaches every stretch of the tool path), a power of two (positions on
+    the model's columns)."""
+    along_x = strips.direction == "x"
+    d = zmap.dx if along_x else zmap.dy
+    cap = round((sx if along_x else sy) / d)
+    k = min(stride_for(tool, strips.scallop, tolerance, d), cap)
+    return 1 << (k.bit_length() - 1)
+
+
+def _one_pass(plan: _Plan, st: _Stage, lift: bool,
+              ) -> tuple[F64, StripPlan, SimulatedPass, F64]:
+    """Simulate the stage's next pass; its model, lines, simulation and the stock before."""
+    lev, tool = st.lev, st.tool
+    guess = st.finish_first or _reaches(st.on, lev.model,
+                                        plan.leaves - tool.flute_length + plan.guard)
+    before = plan.sim.stock.copy()
+    for attempt in (guess, True):
+        strips = st.strips(attempt, plan.tolerance, plan.extent_mm)
+        model = lev.model.copy()  # the flute rule raises it in place
+        done = run_pass(plan.sim, model, (lev.sx, lev.sy), tool, strips.lines,
+                        _stride(tool, strips, plan.tolerance, plan.zmap, lev.sx, lev.sy),
+                        st.region, plan.guard, lift=lift, target_cl=st.target_cl)
+        if attempt or done.lifted_nodes or st.next_flute is not None:
+            break
+        plan.sim.stock[...] = before  # a finishing pass that reached: plan it again
+        # (and while such passes still get lifted, start from the finishing lines)
+        st.finish_first = True
+    return model, strips, done, before
+
+
+def _stall_note(tool: Tool, lev: Level) -> str:
+    return (f"{tool.id} at level {lev.index}: the flute rule on the simulated stock (at most "
+            f"{tool.flute_length:g} mm of stock within the ball's radius above its tip) "
+            "cannot be met by lifting the pass: material it cannot remove stands higher "
+            "than that above where it must go; use longer flutes or a smaller ball first")
+
+
+def _stage_passes(plan: _Plan, st: _Stage) -> F64:
+    """Append the stage's passes to ``plan.out``; returns the last pass's model."""
+    lev, tool, zmap = st.lev, st.tool, plan.zmap
+    scale = round(lev.sx / zmap.dx)  # input nodes per level spacing, 2**k
+    # Lifted passes this stage may take: the stock over the part in quarter flutes, and a few.
+    max_lifts = math.ceil((plan.stock_top - float(zmap.z.min()))
+                          / (0.25 * tool.flute_length)) + 4
+    lifts, stalled = 0, False
+    while True:
+        model, strips, done, before = _one_pass(plan, st, not stalled)
+        reached = done.lifted_nodes == 0
+        if plan.out:  # what the previous pass left over this one's model
+            plan.out[-1].left_next = left_over(before, upsampled(model, scale, zmap.shape))
+        if not reached:
+            lifts += 1
+            if done.lowered == 0 or lifts > max_lifts:
+                stalled = True
+                if plan.notes is not None:
+                    plan.notes.append(_stall_note(tool, lev))
+        slope = st.slope_t if reached else st.slope_b
+        plan.out.append(PassSpec(
+            lev.index, lev.sx, lev.sy, tool, model, strips,
+            slope, st.rest, st.merged, lev.concave_radius,
+            lev.clipped, lev.raised, region=st.region, sim=done,
+            left_part=left_over(plan.sim.stock, zmap.z)))
+        _bounds(plan)
+        plan.leaves = plan.out[-1].leaves
+        if reached:
+            return model
+        st.on = model
+
+
+def _bounds(plan: _Plan) -> None:
+    out = plan.out
+    if len(out) > MAX_STAGES:
+        raise PlanningError(
+            "tools", f"reaching the part within the flute lengths needs more than "
+            f"{MAX_STAGES} passes (stock top {plan.stock_top:g} mm, lowest point "
+            f"{float(plan.zmap.z.min()):g} mm); use longer flutes or a lower stock")
+    if sum(p.model.size for p in out) > MAX_MODEL_NODES:
+        raise PlanningError(
+            "grid", f"the plan's {len(out)}+ passes would hold more than "
+            f"{MAX_MODEL_NODES} model nodes; send a coarser grid, longer flutes or "
+            f"a lower stock")
+
+
+def passes(zmap: ZMap, chosen: list[Stage], stock_top: float, tolerance: float, g: float,
+           notes: list[str] | None = None) -> list[PassSpec]:
+    """All passes of the chosen stages (coarse to fine), simulated in turn.
+
+    Parameters
+    ----------
+    zmap : ZMap
+        The part.
+    chosen : list of Stage
+        ``(level, tool, merged levels, rest[, region])`` per stage.
+    stock_top, tolerance : float
+    g : float
+        Rounding guard (a few ulps of the heights in play).
+    notes : list of str, optional
+        Appended to where a stage cannot meet the flute rule by lifting.
+    """
+    plan = _Plan(zmap, stock_top, tolerance, g, notes, StockSim(zmap, stock_top))
+    prev: F64 | None = None
+    prev_level = 0
+    for n, stage in enumerate(chosen):
+        lev, tool, merged, rest = stage[:4]
+        if prev is None:
+            on = np.full(lev.model.shape, stock_top)
+        else:
+            on = upsampled(prev, 1 << (lev.index - prev_level), lev.model.shape)
+        next_flute = chosen[n + 1][1].flute_length if n + 1 < len(chosen) else None
+        st = _Stage(lev, tool, tuple(merged), rest, _region(stage), on, prev is None,
+                    next_flute)
+        prev = _stage_passes(plan, st)
+        prev_level = lev.index
+    if plan.out:
+        plan.out[-1].left_next = plan.out[-1].left_part
+    return plan.out
+

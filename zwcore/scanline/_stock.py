@@ -1,0 +1,491 @@
+"""The simulated stock of a scan-line plan: every pass's real tool positions, cut in turn.
+
+A pass's positions are points on its scan lines (:class:`~zwcore.scanline.results.ScanLines`:
+the level's grid lines whole, the extra segments where the plan has them), every
+``stride`` input nodes along a line plus the segment ends, and only over the pass's
+``region`` (level nodes; ``None``: everywhere). At each position ``c``:
+
+- ``CL(c) = max(CL_model(c), CL_part(c))``: ``CL_model`` is the drop-cutter
+  (:func:`zwcore.sim.drop_cutter`, bilinear) on the pass's model at the model's own
+  nodes, bilinear between them (what the tool path follows); ``CL_part`` the exact
+  drop-cutter against the part's input nodes, ``max over nodes q within R of
+  z(q) - h(|q - c|)`` (no position cuts below a node of the part);
+- the flute rule reads the stock before the pass: ``top(c)``, the highest stock node
+  within ``R`` of the axis, and ``depth(c) = top(c) - CL(c)`` must stay at most the flute
+  length ``L``; the planner lifts the pass where it would not (:func:`flute_lift`);
+- the stock after the pass is ``min(stock, CL(c) + h(|p - c|))`` at every input node
+  ``p`` within ``R`` of a position: exact at the nodes for the positions.
+
+Positions at discrete points leave more stock than the continuous motion of the tool
+between them (a cusp of about ``ds² / (8R)`` on a flat, more on a slope climbed along the
+line): the simulated stock is never below what the tool path leaves at the same CL,
+which is the safe side for the next pass's flute rule and for the material-left
+figures. ``ds`` is the input spacing along the line for the finishing ball; a coarse
+pass, whose ball spans thousands of input nodes, keeps ``ds`` where that cusp stays under
+a quarter of its own scallop (or of the tolerance, the larger).
+
+Cost: three numba kernels visit, per position, the input nodes within ``R`` block by
+block (8 x 8 nodes) and skip a block when its maximum cannot change the answer (branch
+and bound for the drop-cutter and the top, a block whose stock lies under the ball
+everywhere for the envelope): near linear in the positions times the nodes a ball
+really touches.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy import ndimage
+
+from zwcore.grid.tools import Tool
+from zwcore.grid.zmap import ZMap
+from zwcore.scanline import _stock_kernels as _k
+from zwcore.scanline.results import ScanLines
+from zwcore.sim import drop_cutter, envelope
+
+__all__ = [
+    "BLOCK",
+    "Positions",
+    "SimulatedPass",
+    "StockSim",
+    "block_max",
+    "cl_on_model",
+    "drop",
+    "flute_lift",
+    "interpolate",
+    "left_over",
+    "positions",
+    "run_pass",
+    "stride_for",
+    "target_drop",
+]
+
+F64 = NDArray[np.float64]
+
+#: Input nodes per side of the blocks the kernels skip whole.
+BLOCK = 8
+
+#: The cusp discrete positions may leave along a line, as a share of the pass's scallop
+#: (or of the tolerance, the larger).
+CUSP_SHARE = 0.25
+
+
+def block_max(z: F64, b: int = BLOCK) -> F64:
+    """``(ceil(ny/b), ceil(nx/b))``: the largest value of every ``b x b`` block of nodes."""
+    ny, nx = z.shape
+    my, mx = -(-ny // b), -(-nx // b)
+    pad = np.full((my * b, mx * b), -np.inf)
+    pad[:ny, :nx] = z
+    out: F64 = pad.reshape(my, b, mx, b).max(axis=(1, 3))
+    return out
+
+
+@dataclass(frozen=True, eq=False)
+class Positions:
+    """Tool positions of one pass: ``x, y`` in mm from the grid's first node, ``(n,)``."""
+
+    x: F64
+    y: F64
+
+    @property
+    def size(self) -> int:
+        return int(self.x.size)
+
+
+def stride_for(tool: Tool, scallop: float, tolerance: float, spacing: float) -> int:
+    """Input nodes between positions along a line: the cusp ``ds² / (8R)`` of discrete
+    positions on a flat stays under :data:`CUSP_SHARE` of ``max(scallop, tolerance)``."""
+    allowance = CUSP_SHARE * max(scallop, tolerance)
+    ds = math.sqrt(8.0 * tool.radius * allowance)
+    return max(1, int(ds / spacing))
+
+
+def positions(lines: ScanLines, part: ZMap, stride: int,
+              region: NDArray[np.bool_] | None = None,
+              spacing: tuple[float, float] | None = None) -> Positions:
+    """Points on the segments every ``stride`` input nodes along them, plus their ends.
+
+    Parameters
+    ----------
+    lines : ScanLines
+    part : ZMap
+        The input grid (``dx``, ``dy``, shape).
+    stride : int
+        >= 1.
+    region : (my, mx) bool, optional
+        Where on the pass's model nodes the ball machines: a position is kept when its
+        nearest model node is in the region.
+    spacing : (sx, sy), optional
+        The model's node spacing (needed with ``region``).
+    """
+    along_x = lines.direction == "x"
+    d = part.dx if along_x else part.dy
+    step = stride * d
+    u, v = _k.points(np.ascontiguousarray(lines.offset, dtype=np.float64),
+                     np.ascontiguousarray(lines.start, dtype=np.float64),
+                     np.ascontiguousarray(lines.stop, dtype=np.float64), step)
+    x, y = (u, v) if along_x else (v, u)
+    if region is not None and spacing is not None:
+        sx, sy = spacing
+        c = np.clip(np.rint(x / sx).astype(np.intp), 0, region.shape[1] - 1)
+        r = np.clip(np.rint(y / sy).astype(np.intp), 0, region.shape[0] - 1)
+        keep = region[r, c]
+        x, y = x[keep], y[keep]
+    return Positions(np.ascontiguousarray(x), np.ascontiguousarray(y))
+
+
+def cl_on_model(model: F64, sx: float, sy: float, tool: Tool, pos: Positions) -> F64:
+    """Drop-cutter CL on the model's own nodes, bilinear between them, at the positions."""
+    cl = drop_cutter(ZMap(model, dx=sx, dy=sy), tool, "bilinear")
+    return interpolate(cl, sx, sy, pos)
+
+
+def interpolate(grid: F64, sx: float, sy: float, pos: Positions) -> F64:
+    """Bilinear interpolation of node values ``grid`` at the positions (clamped to the grid)."""
+    return _k.interpolate(np.ascontiguousarray(grid), 1.0 / sx, 1.0 / sy, pos.x, pos.y)
+
+
+def flute_lift(model: F64, sx: float, sy: float, pos: Positions, need: F64) -> int:
+    """Raise the model's nodes so its bilinear surface is at least ``need`` at the positions.
+
+    Every corner of the model cell holding a position rises to at least ``need`` there
+    (in place): the bilinear surface over that cell is then at least ``need`` at the
+    position, so is the drop-cutter CL there (the tip never lies below the surface under
+    it), and so is the tool path's CL, bilinear between corner CLs that each are. Returns
+    the number of nodes raised.
+    """
+    if pos.size == 0:
+        return 0
+    return int(_k.raise_corners(model, 1.0 / sx, 1.0 / sy, pos.x, pos.y,
+                              np.ascontiguousarray(need, dtype=np.float64)))
+
+
+def left_over(stock: F64, surface: F64) -> tuple[float, float]:
+    """Largest and 95th-percentile ``stock - surface`` over the input nodes, mm."""
+    d = stock - surface
+    return float(d.max()), float(np.percentile(d, 95.0))
+
+
+@dataclass(frozen=True, eq=False)
+class PassCut:
+    """One pass simulated: its positions, CL and real depth of cut, and stock figures.
+
+    Attributes
+    ----------
+    positions : Positions
+    cl : (n,) float64
+    depth : (n,) float64
+        Highest stock before the pass within ``R`` of the axis, minus ``cl`` (>= 0).
+    gouge : float
+        ``max(part - stock after)`` at the input nodes, clipped at 0.
+    """
+
+    positions: Positions
+    cl: F64
+    depth: F64
+    gouge: float
+
+    @property
+    def depth_max(self) -> float:
+        return float(self.depth.max(initial=0.0))
+
+    @property
+    def depth_mean(self) -> float:
+        cutting = self.depth[self.depth > 0.0]
+        return float(cutting.mean()) if cutting.size else 0.0
+
+
+class StockSim:
+    """The simulated stock at the input nodes, lowered pass by pass.
+
+    Parameters
+    ----------
+    part : ZMap
+    stock_top : float
+    """
+
+    def __init__(self, part: ZMap, stock_top: float) -> None:
+        self.part = part
+        self.stock = np.full(part.shape, float(stock_top))
+        self._zmax = block_max(part.z)
+
+    def base_cl(self, model_cl: F64, pos: Positions, tool: Tool) -> F64:
+        """``max(model_cl, CL against the part's nodes)`` at the positions."""
+        return _k.cl_part(self.part.z, self._zmax, BLOCK, pos.x, pos.y,
+                        np.ascontiguousarray(model_cl), tool.radius, self.part.dx,
+                        self.part.dy)
+
+
+@dataclass(frozen=True, eq=False)
+class SimulatedPass:
+    """What :func:`run_pass` did: the cut and the model nodes the flute rule raised."""
+
+    cut: PassCut
+    lifted_nodes: int
+    spacing: float
+    lowered: int
+
+
+def run_pass(sim: StockSim, model: F64, spacing: tuple[float, float], tool: Tool,
+             lines: ScanLines, stride: int, region: NDArray[np.bool_] | None,
+             guard: float, *, lift: bool = True, target_cl: F64 | None = None,
+             ) -> SimulatedPass:
+    """Simulate one pass over ``sim``'s stock, lifting ``model`` (in place) where the flute
+    rule needs it.
+
+    The positions' CL is ``max(CL on the model, CL against the part's nodes)``. Where the
+    highest stock node within ``R`` minus the flute length ``L`` (plus ``guard``) lies
+    above it, the position's CL is lifted to that height (every position then meets at
+    most ``L`` of stock) and the model's nodes around it are raised (:func:`_lift`) so the
+    tool path's CL is at least as high.
+
+    Only the positions that may cut are visited by the kernels: a position whose CL on
+    the model lies at or above the highest stock of the blocks its ball spans cuts
+    nothing (and its depth of cut is 0). A position on a model node needs no drop-cutter
+    against the part's nodes: the model contains them, and its CL there is at least
+    that of any surface under it.
+
+    Parameters
+    ----------
+    target_cl : (my, mx) float64, optional
+        :func:`zwcore.sim.drop_cutter` of ``model`` as given (:func:`target_drop` if not
+        given).
+
+    Returns
+    -------
+    SimulatedPass
+    """
+    sx, sy = spacing
+    part = sim.part
+    thin = _Thinning.of(lines, part, stride, tool, spacing)
+    pos = positions(thin.lines, part, stride * thin.k, region, spacing)
+    if target_cl is None:
+        target_cl = target_drop(model, sx, sy, tool)
+    if target_cl is None:  # a large ball on a fine model: dropped on its nodes here only
+        cl = _k.cl_part(model, block_max(model), BLOCK, pos.x, pos.y, np.full(pos.size, -np.inf),
+                        tool.radius, sx, sy)
+    else:
+        cl = interpolate(target_cl, sx, sy, pos)
+    smax = block_max(sim.stock)
+    may = _k.may_cut(_grow_blocks(smax, tool.radius, part.dx, part.dy), BLOCK,
+                     pos.x, pos.y, cl, 1.0 / part.dx, 1.0 / part.dy)
+    act = np.flatnonzero(may)
+    sub = Positions(pos.x[act], pos.y[act])
+    on_node = _on_nodes(sub, sx, sy)
+    base = cl[act]
+    off = np.flatnonzero(~on_node)
+    if off.size:
+        base[off] = sim.base_cl(base[off], Positions(sub.x[off], sub.y[off]), tool)
+    grid = _GridMode.of(sub, part, tool) if thin.k == 1 else None
+    if grid is None:
+        top = _k.top(sim.stock, smax, BLOCK, sub.x, sub.y, tool.radius, part.dx, part.dy)
+    else:
+        top = grid.top(sim, smax, sub, tool)
+    need = top - tool.flute_length + guard
+    bind = (need > base) if lift else np.zeros(act.size, dtype=bool)
+    lifted = 0
+    if bind.any():
+        if thin.k == 1:
+            lifted = _lift(model, (sx, sy), sub, on_node & bind, bind, need)
+        else:
+            lifted = thin.lift(model, (sx, sy), Positions(sub.x[bind], sub.y[bind]), need[bind])
+        base[bind] = need[bind]
+    cl[act] = base
+    before = sim.stock.copy() if lifted else None
+    touched = np.zeros(smax.shape, dtype=bool)
+    if grid is None:
+        _k.cut(sim.stock, smax, BLOCK, sub.x, sub.y, base, tool.radius, part.dx, part.dy,
+               touched)
+    else:
+        grid.cut(sim, smax, sub, base, tool, touched)
+    depth = np.zeros(pos.size)
+    depth[act] = np.maximum(top - base, 0.0)
+    depth[~np.isfinite(depth)] = 0.0
+
+    gouge = float(max(0.0, float(np.max(part.z - sim.stock))))
+    lowered = -1 if before is None else int(np.count_nonzero(sim.stock < before - guard))
+    along = part.dx if lines.direction == "x" else part.dy
+    return SimulatedPass(PassCut(pos, cl, depth, gouge), lifted, stride * along, lowered)
+
+
+#: Node visits one pass's simulation may make (positions times the nodes within a ball's
+#: radius): a Ø20 ball finishing a 1024² grid at 0.1 mm would make 3e10.
+MAX_PASS_WORK = 1 << 26
+
+
+@dataclass(frozen=True, eq=False)
+class _Thinning:
+    """A pass too large to simulate at every position: every ``k``-th nominal line (and
+    the last), every ``k``-th point along them, extra lines dropped, ``k`` no larger than
+    keeps every node within the ball's radius of a simulated position. The stock it
+    leaves is higher than the full pass's (safe for the next pass's flute rule). The rule
+    holds at the simulated positions; every model node within the gap of a binding one
+    is raised to its height (:meth:`lift`), so the positions left out stand at least
+    that high, which bounds but does not prove their depth (reading the stock a gap
+    further out proved it, but then counted walls of the part no lift can clear, and
+    stages stalled)."""
+
+    lines: ScanLines
+    k: int
+    gap: float  # the largest distance from a position left out to a simulated one, bound
+
+    @classmethod
+    def of(cls, lines: ScanLines, part: ZMap, stride: int, tool: Tool,
+           spacing: tuple[float, float]) -> _Thinning:
+        along = part.dx if lines.direction == "x" else part.dy
+        across = spacing[1] if lines.direction == "x" else spacing[0]
+        n = lines.length / (stride * along) + lines.offset.size
+        work = n * math.pi * (tool.radius / part.dx + 1.0) * (tool.radius / part.dy + 1.0)
+        # Every node stays within the radius of a simulated position (gap <= 0.7 R), so the
+        # simulated positions still cut all the stock the lift reads.
+        unit = max(across, stride * along)
+        k = 1
+        small = tool.radius <= GRID_MODE_RADIUS * min(part.dx, part.dy)  # grid mode copes
+        while (not small and work / (k * k) > MAX_PASS_WORK
+               and 2 * k * unit <= 0.7 * tool.radius):
+            k *= 2
+        if k == 1:
+            return cls(lines, 1, 0.0)
+        idx = lines.offset / across
+        nominal = np.abs(idx - np.rint(idx)) <= 1e-9
+        last = lines.offset >= lines.offset.max()
+        keep = (nominal & (np.rint(idx).astype(np.int64) % k == 0)) | last
+        kept = ScanLines(lines.direction, lines.offset[keep], lines.start[keep],
+                         lines.stop[keep])
+        return cls(kept, k, k * max(across, stride * along))
+
+    def lift(self, model: F64, spacing: tuple[float, float], pos: Positions, need: F64) -> int:
+        old = model.copy()
+        _k.raise_box(model, spacing[0], spacing[1], pos.x, pos.y,
+                     np.ascontiguousarray(need), self.gap)
+        return int(np.count_nonzero(model != old))
+
+
+def _lift(model: F64, spacing: tuple[float, float], pos: Positions, node: NDArray[np.bool_],
+          bind: NDArray[np.bool_], need: F64) -> int:
+    """Raise ``model`` (in place) so the tool path's CL is at least ``need`` at the binding
+    positions; returns the number of nodes raised.
+
+    A binding position on a model node raises that node; one between nodes raises the
+    corners that carry weight in its bilinear value. Either way the model under the
+    position, so its drop-cutter CL, so the tool path's CL (bilinear between corner CLs
+    that each are at least the model there) is at least ``need``. The simulation takes
+    the position's CL as ``need`` itself (the least the rule allows): a bilinear model
+    cannot follow a lift that rises steeply between nodes, and dropping the ball on the
+    raised model lifted the positions beside such a rise above their own need, so they
+    cut nothing and the stage never got down. The tool path may therefore stay above
+    the simulated CL next to a lift (it cuts less there, never more).
+    """
+    sx, sy = spacing
+    old = model.copy()
+    if node.any():
+        rows = np.rint(pos.y[node] / sy).astype(np.intp)
+        cols = np.rint(pos.x[node] / sx).astype(np.intp)
+        np.maximum.at(model, (rows, cols), need[node])
+    off = bind & ~node
+    if off.any():
+        flute_lift(model, sx, sy, Positions(pos.x[off], pos.y[off]), need[off])
+    return int(np.count_nonzero(model != old))
+
+
+def target_drop(model: F64, sx: float, sy: float, tool: Tool) -> F64 | None:
+    """:func:`drop` of a stage's target, or ``None`` where that would cost more than
+    :data:`MAX_PASS_WORK` node visits (a Ø20 ball over a fine model: 4e10 at 1024² and
+    0.1 mm). Then each pass drops the ball on the model's nodes at its positions only
+    (exact for the nodes; between them a bilinear model may hold the tool path up to
+    about ``spacing² / (8R)`` higher than simulated)."""
+    work = model.size * math.pi * (tool.radius / sx + 1.0) * (tool.radius / sy + 1.0)
+    return drop(model, sx, sy, tool) if work <= 4 * MAX_PASS_WORK else None
+
+
+def drop(model: F64, sx: float, sy: float, tool: Tool) -> F64:
+    """:func:`zwcore.sim.drop_cutter` (bilinear) on a model of spacing ``sx, sy``."""
+    return drop_cutter(ZMap(model, dx=sx, dy=sy), tool, "bilinear")
+
+
+def _on_nodes(pos: Positions, sx: float, sy: float) -> NDArray[np.bool_]:
+    """Positions that sit on a node of spacing ``sx, sy`` (to 1e-9 of the spacing)."""
+    return _k.on_nodes(pos.x, pos.y, 1.0 / sx, 1.0 / sy)
+
+
+def _grow_blocks(smax: F64, r: float, dx: float, dy: float) -> F64:
+    """Block maxima grown by the blocks a ball of radius ``r`` centred in a block reaches."""
+    # a position lies within half a spacing of the node whose block it is looked up in
+    reach = r + max(dx, dy)
+    ga, gb = math.ceil(reach / (BLOCK * dy)), math.ceil(reach / (BLOCK * dx))
+    out: F64 = ndimage.maximum_filter(smax, size=(2 * ga + 1, 2 * gb + 1), mode="nearest")
+    return out
+
+
+#: Grid mode (below) for balls up to this many input spacings in radius.
+GRID_MODE_RADIUS = 12
+
+#: ... and when at least this share of the input nodes are positions of the pass.
+GRID_MODE_SHARE = 0.25
+
+
+class _GridMode:
+    """A pass whose positions are most of the input nodes (a ball at the input's own
+    level): the stock within ``R`` and the envelope as whole-grid operations (a flat-disc
+    dilation by row spans, :func:`zwcore.sim.envelope`), the kernels only for the
+    positions off the nodes (ends of extra segments, lines between grid lines)."""
+
+    def __init__(self, on: NDArray[np.bool_], rows: NDArray[np.intp],
+                 cols: NDArray[np.intp]) -> None:
+        self.on, self.rows, self.cols = on, rows, cols
+
+    @classmethod
+    def of(cls, pos: Positions, part: ZMap, tool: Tool) -> _GridMode | None:
+        if (tool.radius > GRID_MODE_RADIUS * min(part.dx, part.dy)
+                or pos.size < GRID_MODE_SHARE * part.z.size):
+            return None
+        on = _on_nodes(pos, part.dx, part.dy)
+        if np.count_nonzero(on) < GRID_MODE_SHARE * part.z.size:
+            return None
+        rows = np.rint(pos.y[on] / part.dy).astype(np.intp)
+        cols = np.rint(pos.x[on] / part.dx).astype(np.intp)
+        return cls(on, rows, cols)
+
+    def top(self, sim: StockSim, smax: F64, pos: Positions, tool: Tool) -> F64:
+        part = sim.part
+        out = np.empty(pos.size)
+        whole = _k.disc_max(sim.stock, _half_widths(tool.radius, part.dx, part.dy))
+        out[self.on] = whole[self.rows, self.cols]
+        off = ~self.on
+        if off.any():
+            out[off] = _k.top(sim.stock, smax, BLOCK, pos.x[off], pos.y[off], tool.radius,
+                            part.dx, part.dy)
+        return out
+
+    def cut(self, sim: StockSim, smax: F64, pos: Positions, cl: F64, tool: Tool,
+            touched: NDArray[np.bool_]) -> None:
+        """Lower the stock by the envelope of the positions (``touched``: blocks the
+        kernel lowered, for the positions off the nodes)."""
+        part = sim.part
+        off = ~self.on
+        high = float(sim.stock.max())  # a tip there cuts nothing
+        grid = np.full(part.shape, high)
+        grid[self.rows, self.cols] = np.minimum(cl[self.on], high)
+        env = envelope(grid, tool, part.dx, part.dy, "bilinear")
+        if off.any():
+            _k.cut(sim.stock, smax, BLOCK, pos.x[off], pos.y[off],
+                   np.ascontiguousarray(cl[off]), tool.radius, part.dx, part.dy, touched)
+        np.minimum(sim.stock, env, out=sim.stock)
+
+
+def _half_widths(r: float, dx: float, dy: float) -> NDArray[np.int64]:
+    """Per row offset ``a = 0..A``: the largest ``b`` with ``(a dy)² + (b dx)² <= r²``."""
+    a = np.arange(math.floor(r / dy + 1e-9) + 1)
+    rest = np.maximum(r * r - (a * dy) ** 2, 0.0)
+    out: NDArray[np.int64] = np.floor(np.sqrt(rest) / dx + 1e-9).astype(np.int64)
+    # the same test as the kernels' d² <= r², node by node
+    for n in range(a.size):
+        while out[n] >= 0 and (a[n] * dy) ** 2 + (out[n] * dx) ** 2 > r * r:
+            out[n] -= 1
+        while (a[n] * dy) ** 2 + ((out[n] + 1) * dx) ** 2 <= r * r:
+            out[n] += 1
+    return out
+

@@ -1,0 +1,266 @@
+"""Numba kernels of the simulated stock (:mod:`zwcore.scanline._stock`).
+
+Positions are ``(px, py)`` in mm from the grid's first node; node ``(i, k)`` sits at
+``(k dx, i dy)``. The kernels visit, per position, the input nodes within ``r`` in blocks
+of ``b x b`` nodes and skip a block whose maximum (``zmax``, ``smax``) cannot change the
+answer. A node exactly ``r`` away counts as within.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+from numpy.typing import NDArray
+
+__all__ = ["cl_part", "cut", "disc_max", "interpolate", "may_cut", "on_nodes", "points",
+           "raise_box", "raise_corners", "top"]
+
+F64 = NDArray[np.float64]
+
+
+@njit(cache=True, nogil=True)
+def _span(p: float, r: float, d: float, n: int) -> tuple[int, int]:
+    """Node indices ``lo..hi`` (inclusive) within ``r`` of ``p`` along an axis."""
+    lo = max(0, math.ceil((p - r) / d - 1e-9))
+    hi = min(n - 1, math.floor((p + r) / d + 1e-9))
+    return lo, hi
+@njit(cache=True, nogil=True)
+def _block_dist2(p: float, q: float, bi: int, bk: int, b: int, ny: int, nx: int,
+                 dx: float, dy: float) -> float:
+    """Squared xy distance from ``(p, q)`` (x, y in mm) to block ``(bi, bk)``'s nodes' box."""
+    x0, x1 = bk * b * dx, (min(bk * b + b, nx) - 1) * dx
+    y0, y1 = bi * b * dy, (min(bi * b + b, ny) - 1) * dy
+    ex = max(0.0, x0 - p, p - x1)
+    ey = max(0.0, y0 - q, q - y1)
+    return ex * ex + ey * ey
+@njit(cache=True, nogil=True)
+def cl_part(z: F64, zmax: F64, b: int, px: F64, py: F64, cl0: F64, r: float, dx: float,
+             dy: float) -> F64:
+    """``max(cl0, max over nodes q within r of z[q] - h(|q - c|))`` per position (ball)."""
+    ny, nx = z.shape
+    r2 = r * r
+    out = cl0.copy()
+    for n in range(px.size):
+        p, q = px[n], py[n]
+        best = out[n]
+        k0, k1 = _span(p, r, dx, nx)
+        i0, i1 = _span(q, r, dy, ny)
+        if k0 > k1 or i0 > i1:
+            continue
+        for bi in range(i0 // b, i1 // b + 1):
+            for bk in range(k0 // b, k1 // b + 1):
+                dm2 = _block_dist2(p, q, bi, bk, b, ny, nx, dx, dy)
+                if dm2 > r2 or zmax[bi, bk] - (r - math.sqrt(r2 - dm2)) <= best:
+                    continue
+                for i in range(max(i0, bi * b), min(i1, bi * b + b - 1) + 1):
+                    ey = i * dy - q
+                    for k in range(max(k0, bk * b), min(k1, bk * b + b - 1) + 1):
+                        ex = k * dx - p
+                        d2 = ex * ex + ey * ey
+                        if d2 <= r2:
+                            v = z[i, k] - (r - math.sqrt(r2 - d2))
+                            if v > best:
+                                best = v
+        out[n] = best
+    return out
+@njit(cache=True, nogil=True)
+def top(s: F64, smax: F64, b: int, px: F64, py: F64, r: float, dx: float,
+         dy: float) -> F64:
+    """Highest stock node within ``r`` of each position (-inf: none)."""
+    ny, nx = s.shape
+    r2 = r * r
+    out = np.full(px.size, -np.inf)
+    for n in range(px.size):
+        p, q = px[n], py[n]
+        best = -np.inf
+        k0, k1 = _span(p, r, dx, nx)
+        i0, i1 = _span(q, r, dy, ny)
+        if k0 > k1 or i0 > i1:
+            continue
+        for bi in range(i0 // b, i1 // b + 1):
+            for bk in range(k0 // b, k1 // b + 1):
+                if smax[bi, bk] <= best or _block_dist2(p, q, bi, bk, b, ny, nx, dx,
+                                                        dy) > r2:
+                    continue
+                for i in range(max(i0, bi * b), min(i1, bi * b + b - 1) + 1):
+                    ey = i * dy - q
+                    for k in range(max(k0, bk * b), min(k1, bk * b + b - 1) + 1):
+                        ex = k * dx - p
+                        if ex * ex + ey * ey <= r2 and s[i, k] > best:
+                            best = s[i, k]
+        out[n] = best
+    return out
+@njit(cache=True, nogil=True)
+def cut(s: F64, smax: F64, b: int, px: F64, py: F64, cl: F64, r: float, dx: float,
+        dy: float, touched: NDArray[np.bool_]) -> None:
+    """``s = min(s, cl + h(|p - c|))`` at every node within ``r`` of each position, in place.
+
+    ``smax`` is the block maximum of ``s`` before the pass: a block whose stock lies at or
+    under the ball's lowest point over it is left alone. ``touched`` (blocks) is set where
+    a node was lowered.
+    """
+    ny, nx = s.shape
+    r2 = r * r
+    for n in range(px.size):
+        p, q, c = px[n], py[n], cl[n]
+        k0, k1 = _span(p, r, dx, nx)
+        i0, i1 = _span(q, r, dy, ny)
+        if k0 > k1 or i0 > i1:
+            continue
+        for bi in range(i0 // b, i1 // b + 1):
+            for bk in range(k0 // b, k1 // b + 1):
+                dm2 = _block_dist2(p, q, bi, bk, b, ny, nx, dx, dy)
+                if dm2 > r2 or smax[bi, bk] <= c + (r - math.sqrt(r2 - dm2)):
+                    continue
+                for i in range(max(i0, bi * b), min(i1, bi * b + b - 1) + 1):
+                    ey = i * dy - q
+                    for k in range(max(k0, bk * b), min(k1, bk * b + b - 1) + 1):
+                        ex = k * dx - p
+                        d2 = ex * ex + ey * ey
+                        if d2 <= r2:
+                            v = c + (r - math.sqrt(r2 - d2))
+                            if v < s[i, k]:
+                                s[i, k] = v
+                                touched[bi, bk] = True
+@njit(cache=True, nogil=True)
+def interpolate(grid: F64, isx: float, isy: float, px: F64, py: F64) -> F64:
+    my, mx = grid.shape
+    out = np.empty(px.size)
+    for n in range(px.size):
+        fx, fy = px[n] * isx, py[n] * isy
+        c0 = min(max(math.floor(fx), 0), max(mx - 2, 0))
+        r0 = min(max(math.floor(fy), 0), max(my - 2, 0))
+        c1, r1 = min(c0 + 1, mx - 1), min(r0 + 1, my - 1)
+        tx = min(max(fx - c0, 0.0), 1.0)
+        ty = min(max(fy - r0, 0.0), 1.0)
+        lo = grid[r0, c0] * (1.0 - tx) + grid[r0, c1] * tx
+        hi = grid[r1, c0] * (1.0 - tx) + grid[r1, c1] * tx
+        out[n] = lo * (1.0 - ty) + hi * ty
+    return out
+@njit(cache=True, nogil=True)
+def raise_corners(model: F64, isx: float, isy: float, px: F64, py: F64, need: F64) -> int:
+    """Raise to ``need`` every corner that carries weight in the bilinear value at each
+    position (a position on a grid line leaves the other row of its cell alone)."""
+    my, mx = model.shape
+    raised = 0
+    for n in range(px.size):
+        fx, fy = px[n] * isx, py[n] * isy
+        c0 = min(max(math.floor(fx), 0), max(mx - 2, 0))
+        r0 = min(max(math.floor(fy), 0), max(my - 2, 0))
+        tx, ty = fx - c0, fy - r0
+        for r in (r0, min(r0 + 1, my - 1)):
+            if (r != r0 and ty <= 0.0) or (r == r0 and r0 + 1 < my and ty >= 1.0):
+                continue
+            for c in (c0, min(c0 + 1, mx - 1)):
+                if (c != c0 and tx <= 0.0) or (c == c0 and c0 + 1 < mx and tx >= 1.0):
+                    continue
+                if model[r, c] < need[n]:
+                    model[r, c] = need[n]
+                    raised += 1
+    return raised
+
+
+@njit(cache=True, nogil=True)
+def may_cut(grown: F64, b: int, px: F64, py: F64, cl: F64, idx: float,
+             idy: float) -> NDArray[np.bool_]:
+    """Positions whose CL lies under the highest stock its ball may reach (block bound)."""
+    my, mx = grown.shape
+    out = np.empty(px.size, dtype=np.bool_)
+    for n in range(px.size):
+        bi = min(max(round(py[n] * idy) // b, 0), my - 1)
+        bk = min(max(round(px[n] * idx) // b, 0), mx - 1)
+        out[n] = grown[bi, bk] > cl[n]
+    return out
+@njit(cache=True, nogil=True)
+def disc_max(s: F64, widths: NDArray[np.int64]) -> F64:
+    """Highest ``s`` within the disc of half-widths ``widths`` (per row offset ``a = 0..A``,
+    -1: none) of every node: per distinct width a sliding maximum along the rows, then
+    its rows shifted by each offset with that width folded into the result."""
+    ny, nx = s.shape
+    out = np.full((ny, nx), -np.inf)
+    slide = np.empty((ny, nx))
+    a_max = widths.size - 1
+    done = np.zeros(widths[0] + 2, dtype=np.bool_)
+    for w0 in widths:
+        if w0 < 0 or done[w0]:
+            continue
+        done[w0] = True
+        for i in range(ny):
+            for k in range(nx):
+                m = s[i, k]
+                for kk in range(max(0, k - w0), min(nx, k + w0 + 1)):
+                    if s[i, kk] > m:
+                        m = s[i, kk]
+                slide[i, k] = m
+        for a in range(-a_max, a_max + 1):
+            if widths[abs(a)] != w0:
+                continue
+            for i in range(max(0, -a), min(ny, ny - a)):
+                ii = i + a
+                for k in range(nx):
+                    if slide[ii, k] > out[i, k]:
+                        out[i, k] = slide[ii, k]
+    return out
+
+
+@njit(cache=True, nogil=True)
+def on_nodes(px: F64, py: F64, isx: float, isy: float) -> NDArray[np.bool_]:
+    """Positions on a node of spacing ``1/isx, 1/isy`` (to 1e-9 of the spacing)."""
+    out = np.empty(px.size, dtype=np.bool_)
+    for n in range(px.size):
+        fx, fy = px[n] * isx, py[n] * isy
+        out[n] = abs(fx - round(fx)) <= 1e-9 and abs(fy - round(fy)) <= 1e-9
+    return out
+
+
+@njit(cache=True, nogil=True)
+def points(offset: F64, start: F64, stop: F64, step: float) -> tuple[F64, F64]:
+    """Points ``(u along, v across)`` of segments: each start, the multiples of ``step``
+    strictly inside, each stop (when longer than a point)."""
+    n = 0
+    for j in range(offset.size):
+        a, b = start[j], stop[j]
+        n += 1
+        if b > a:
+            lo = math.ceil(a / step - 1e-9)
+            hi = math.floor(b / step + 1e-9)
+            for m in range(lo, hi + 1):
+                if a < m * step < b:
+                    n += 1
+            n += 1
+    u = np.empty(n)
+    v = np.empty(n)
+    n = 0
+    for j in range(offset.size):
+        a, b = start[j], stop[j]
+        u[n], v[n] = a, offset[j]
+        n += 1
+        if b > a:
+            lo = math.ceil(a / step - 1e-9)
+            hi = math.floor(b / step + 1e-9)
+            for m in range(lo, hi + 1):
+                t = m * step
+                if a < t < b:
+                    u[n], v[n] = t, offset[j]
+                    n += 1
+            u[n], v[n] = b, offset[j]
+            n += 1
+    return u, v
+
+
+@njit(cache=True, nogil=True)
+def raise_box(model: F64, sx: float, sy: float, px: F64, py: F64, need: F64,
+              half: float) -> None:
+    """Raise every model node within ``half`` (each axis) of each position to its ``need``."""
+    my, mx = model.shape
+    for n in range(px.size):
+        c0 = max(math.floor((px[n] - half) / sx), 0)
+        c1 = min(math.ceil((px[n] + half) / sx), mx - 1)
+        r0 = max(math.floor((py[n] - half) / sy), 0)
+        r1 = min(math.ceil((py[n] + half) / sy), my - 1)
+        for r in range(r0, r1 + 1):
+            for c in range(c0, c1 + 1):
+                if model[r, c] < need[n]:
+                    model[r, c] = need[n]
