@@ -33,6 +33,7 @@ from service.routers import (
 from service.security import require_api_key
 from service.settings import Settings, get_settings
 from service.store import open_store
+from zwcore.scanline.warmup import warm_up as warm_up_scanline
 
 DESCRIPTION = """Machining process planning: lifted wavelet stage models from a z-map,
 ball-end-mill tool sequences, contour heights for flat end mills, and tangent-continuous
@@ -83,6 +84,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         _configure_logging(settings.log_level)
+        # compiled scan-line kernels loaded before serving: loading holds the GIL
+        warm_up_scanline()
         app.state.store = open_store(settings.cache_url, settings.data_dir,
                                      settings.cache_max_bytes, settings.cache_ttl_seconds)
         app.state.pool = ComputePool(settings.workers, settings.max_pending,
