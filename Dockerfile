@@ -25,7 +25,7 @@ COPY service/ service/
 ENV NUMBA_CACHE_DIR=/opt/venv/numba-cache
 RUN pip install --upgrade pip setuptools wheel \
  && pip install . \
- && python -c "import service.main, zwcore, zwcore.arcs.warmup"
+ && python -c "import service.main, zwcore.arcs.warmup; from zwcore.scanline.warmup import warm_up; warm_up()"
 
 # --- runtime: the virtualenv only, run as an unprivileged user ---------------
 FROM python:3.11-slim AS runtime
@@ -43,6 +43,9 @@ RUN groupadd --system --gid 10001 zwplan \
  && chown zwplan:zwplan /data
 
 COPY --from=build /opt/venv /opt/venv
+# numba refuses a cache directory it cannot write (no locator, import fails): the
+# service's user owns it, so kernels compiled later (new signatures) are cached too.
+RUN chown -R zwplan:zwplan /opt/venv/numba-cache
 
 WORKDIR /app
 USER zwplan:zwplan

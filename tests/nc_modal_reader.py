@@ -10,12 +10,13 @@ coordinates it does not model (inches, incremental positions, other planes).
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
 
 from zwcore.errors import InvalidInputError
+
+# the result container is shared (the reading is what this oracle checks independently)
+from zwcore.toolpath.parse import ParsedProgram
 
 __all__ = ["ParsedProgram", "read_program"]
 
@@ -23,43 +24,6 @@ _WORD = re.compile(r"([A-Z])\s*([-+]?(?:\d+\.?\d*|\.\d+))")
 _COMMENT = re.compile(r"\([^)]*\)|;.*$")
 _REFUSED = {20: "inch units", 91: "incremental positions", 18: "the XZ plane",
             19: "the YZ plane", 41: "cutter compensation", 42: "cutter compensation"}
-
-
-@dataclass(frozen=True, eq=False)
-class ParsedProgram:
-    """The motion blocks of a program, in execution order.
-
-    Attributes
-    ----------
-    motion : (n,) int8
-        0 rapid, 1 line, 2 clockwise arc, 3 counter-clockwise arc.
-    start, end : (n, 3) float64
-        Tip positions before and after the block.
-    center : (n, 2) float64
-        Arc centre (start plus ``I J``); ``nan`` for other blocks.
-    feed : (n,) float64
-        Active ``F`` (``nan`` for rapids).
-    tool : (n,) int64
-        Active tool number (after the last ``M6``; 0 before any).
-    length_offset : (n,) bool
-        ``G43`` active with the active tool's ``H``.
-    spindle_on : (n,) bool
-    arc_radius_mismatch : float
-        Largest ``|r_start - r_end|`` over the arcs, mm (controls reject > 0.001).
-    ended : bool
-        ``M30`` (or ``M2``) seen.
-    """
-
-    motion: NDArray[np.int8]
-    start: NDArray[np.float64]
-    end: NDArray[np.float64]
-    center: NDArray[np.float64]
-    feed: NDArray[np.float64]
-    tool: NDArray[np.int64]
-    length_offset: NDArray[np.bool_]
-    spindle_on: NDArray[np.bool_]
-    arc_radius_mismatch: float
-    ended: bool
 
 
 def read_program(text: str) -> ParsedProgram:
