@@ -312,7 +312,8 @@ def plan_simulation(part: ZMap, tid: str, params: dict[str, Any], stored: tuple[
         if bad:
             notes.append(f"passes {bad} meet more stock than their flutes")
     cut = gouge(part.z, machined)
-    if cut > 0:
+    # a few ulps of the heights in play are rounding, not a cut (the planner's guard)
+    if cut > 64.0 * float(np.finfo(np.float64).eps) * max(1.0, float(np.abs(machined).max())):
         notes.append(f"the plan cuts up to {cut:.6g} mm into the part")
     rest = rest_material(machined, part.z, part.cell_area)
     regions = rest_regions(machined, part, tol)
