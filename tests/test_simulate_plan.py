@@ -16,16 +16,21 @@ import numpy as np
 import orjson
 import pytest
 from fastapi.testclient import TestClient
+from hypothesis import given, settings
 
 from service.schemas.simulate import SimulateResult
 from service.toolpaths import plan_inputs_key
 from tests.conftest import make_client
 from tests.nc_modal_reader import read_program
-from tests.test_scanline_stock import _cl_model, _positions
+from tests.test_scanline_stock import _cl_model, _parts, _positions
 from tests.test_service_errors import assert_problem
 from tests.test_service_mrr import grid_array, rows_grid
 from zwcore import Tool, ZMap
+from zwcore.errors import InvalidInputError
 from zwcore.scanline import plan_scanline
+from zwcore.scanline.replay import replay_passes
+from zwcore.toolpath import scanline_toolpaths
+from zwcore.toolpath.verify_plan import replay_program
 
 DX = 0.25
 
@@ -305,3 +310,42 @@ def test_the_planner_is_deterministic() -> None:
     for sa, sb in zip(a.stages, b.stages, strict=True):
         assert np.array_equal(sa.model, sb.model) and np.array_equal(sa.lines.offset,
                                                                      sb.lines.offset)
+
+
+# ---------------------------------------------------------------- the core functions
+
+@settings(max_examples=10, deadline=None)
+@given(zmap=_parts())
+def test_replayed_passes_are_the_planners_simulation(zmap: ZMap) -> None:
+    """On random parts (pockets, trenches, bumps, slopes): the replay's figures are the
+    plan's own sim_* figures (the same simulation, run again), and the program replayed
+    stretch by stretch leaves what the whole program's verification left."""
+    plan = plan_scanline(zmap, tolerance=0.05)
+    rp = replay_passes(zmap, plan)
+    tol = _rounding(plan.stock_top, zmap.z)
+    for s, p in zip(plan.stages, rp.passes, strict=True):
+        assert p.positions == s.sim_positions
+        assert p.depth_max == pytest.approx(s.sim_max_depth_of_cut, abs=tol)
+        assert p.left_over_next_max == pytest.approx(s.sim_left_over_next_max, abs=tol)
+        assert p.left_over_part_p95 == pytest.approx(s.sim_left_over_part_p95, abs=tol)
+        assert p.gouge <= 1e-9
+    assert float((zmap.z - rp.machined).max()) <= 1e-9
+    tp = scanline_toolpaths(zmap, plan)
+    assert tp.check is not None
+    numbers = {p.cutting.tool_number: p.tool for p in tp.stages}
+    pr = replay_program(zmap, plan, tp.program, numbers)
+    np.testing.assert_array_equal(pr.machined, tp.check.machined)
+    assert sum(s.moves for s in pr.stretches) == pr.moves
+    assert [i for s in pr.stretches for i in s.stages] == list(range(len(plan.stages)))
+
+
+def test_a_program_that_does_not_follow_the_plan_is_refused() -> None:
+    zmap = ZMap(part_heights(17), dx=DX, dy=DX)
+    plan = plan_scanline(zmap, tolerance=0.05)
+    tp = scanline_toolpaths(zmap, plan)
+    numbers = {p.cutting.tool_number: p.tool for p in tp.stages}
+    # the table gives the first tool another number than the program's T1
+    table = {(9 if n == 1 else n): tool for n, tool in numbers.items()}
+    with pytest.raises(InvalidInputError) as err:
+        replay_program(zmap, plan, tp.program, table)
+    assert err.value.field == "program" and "do not follow" in err.value.reason
