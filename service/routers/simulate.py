@@ -188,16 +188,15 @@ async def _stored_plan(store: TaskStore, settings: Settings, tid: str
                                 "simulate it once GET /v1/tasks/{task_id} answers 200",
                                 "task-not-finished", {"Retry-After": "1"})
         if state is not None and state["status"] == "failed":
-            raise _plan_problem(422, "Unprocessable Content", "task_id", "the task failed "
-                                f"({state['error'].get('detail', '')}): there is no plan",
-                                "not-a-scanline-plan")
+            error = state.get("error") or {}
+            raise InvalidInputError("task_id", f"the task failed ({error.get('detail', '')}): "
+                                    "there is no plan to simulate")
         raise _plan_problem(404, "Not found", "task_id", "no stored result for this task",
                             "unknown-task")
     result: dict[str, Any] = await anyio.to_thread.run_sync(orjson.loads, raw)
     if result.get("operation") != "plan_scanline":
-        raise _plan_problem(422, "Unprocessable Content", "task_id", "a "
-                            f"{result.get('operation')} result, not a scan-line plan",
-                            "not-a-scanline-plan")
+        raise InvalidInputError("task_id", f"a {result.get('operation')} result, not a "
+                                "scan-line plan")
     inputs_raw = await anyio.to_thread.run_sync(store.get, plan_inputs_key(tid))
     if inputs_raw is None:
         raise _plan_problem(404, "Not found", "task_id", "the plan's inputs are no longer "
