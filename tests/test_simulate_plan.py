@@ -182,6 +182,12 @@ def test_a_plan_without_toolpaths_replays_its_passes(client: TestClient) -> None
         assert s.left_over_next.max == pytest.approx(stage["sim_left_over_next_max"], abs=tol)
     assert res.rest.max == pytest.approx(float((machined - z).max()), abs=1e-12)
     assert res.stock_top == plan["stock_top"]
+    # rest area over the plan's tolerance unless the request gives one
+    assert res.plan.tolerance == 0.05
+    assert res.rest.area_fraction == pytest.approx(float(np.mean(machined - z > 0.05)))
+    finer = SimulateResult.model_validate(_simulate(client, z, plan["task_id"],
+                                                    tolerance=0.001).json())
+    assert finer.rest.area_fraction == pytest.approx(float(np.mean(machined - z > 0.001)))
     # the same request again: the same task, from the store
     again = _simulate(client, z, plan["task_id"])
     assert again.headers["x-cache"] == "hit" and again.json()["task_id"] == res.task_id
