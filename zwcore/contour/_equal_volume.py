@@ -208,7 +208,7 @@ def place_equal_volume(sv: SlabVolumes, top_u: int, bottom_u: int, cap_u: int,
     where a slab that crosses the floor's height leaves the floor cells on a
     terrace above it and takes nearly a whole pit slab instead, so ``phase``
     jumps by almost 1 at each count while varying by a few hundredths between
-    jumps; the even placements lay a dozen counts away.) Flags are then
+    jumps; the even placements lie a dozen counts away.) Flags are then
     derived from the real volumes (above), and the placement within ``rtol``
     with the count closest to ``n_target`` wins;
     failing that, the most even one, with its real spread.
