@@ -23,6 +23,12 @@ def program_key(task_id: str) -> str:
     return f"{task_id}.program"
 
 
+def plan_inputs_key(task_id: str) -> str:
+    """Store key of what a plan was computed from (its hashed parameters and the core
+    build), kept beside its result so that ``POST /v1/simulate`` can run it again."""
+    return f"{task_id}.inputs"
+
+
 def cutting(given: Sequence[ToolIn] | None, tools: Sequence[Tool]) -> dict[str, CuttingData]:
     """Cutting data per tool id from the request (validated, field names ``tools[i].x``);
     tools without it get defaults with ``tool_number`` their place in the library."""

@@ -8,11 +8,13 @@ from typing import Any
 
 import anyio
 import numpy as np
+import orjson
 from fastapi import APIRouter, Depends, Request, Response
 from pydantic import BaseModel
 
 from service.deps import PoolDep, PreferAsyncDep, SettingsDep, StoreDep
 from service.grids import canonical_grid
+from service.hashing import core_build
 from service.hashing import task_id as make_task_id
 from service.routers import if_none_match, responses
 from service.schemas.common import ToolIn
@@ -28,7 +30,7 @@ from service.schemas.plans import (
 )
 from service.store import TaskStore
 from service.tasks import serve_task
-from service.toolpaths import cutting, program_key, toolpaths_section
+from service.toolpaths import cutting, plan_inputs_key, program_key, toolpaths_section
 from service.uploads import GridRoute, binary_grid_openapi, request_zmap
 from zwcore import Tool, ZMap, default_tools, tool_library
 from zwcore.contour.planner import plan_contour
@@ -223,12 +225,25 @@ async def post_scanline_plan(body: ScanlinePlanRequest, request: Request, settin
               "include_models": body.include_models}
     job = (ToolpathJob(body, tools, store, settings.max_program_bytes, "plan_scanline", params,
                        zmap) if body.toolpaths else None)
-    return await serve_task(
+    response = await serve_task(
         request, store, pool, operation="plan_scanline", params=params, arrays={"z": zmap.z},
         compute=lambda: scanline_result(zmap, tools, body.tolerance, body.stock_top,
                                         body.include_models, job),
         encoding=encoding, respond_async=respond_async,
         memory=zmap.z.size * (SCANLINE_MODELS_BYTES if body.include_models else SCANLINE_BYTES))
+    if response.status_code in (200, 202):
+        await anyio.to_thread.run_sync(keep_plan_inputs, store, request.state.task_id, params)
+    return response
+
+
+def keep_plan_inputs(store: TaskStore, task_id: str, params: dict[str, Any]) -> None:
+    """Keep what a scan-line plan was computed from beside its result (once; small): what
+    ``POST /v1/simulate`` with its task id plans again from (the part comes with that
+    request and must hash, with these parameters, to the task id)."""
+    key = plan_inputs_key(task_id)
+    if store.get(key) is None:
+        store.put(key, orjson.dumps({"operation": "plan_scanline", "core_build": core_build(),
+                                     "params": params}))
 
 
 @router.post("/contour", response_model=ContourPlanResult, operation_id="plan_contour",

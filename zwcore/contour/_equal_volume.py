@@ -21,8 +21,11 @@ __all__ = ["EqualVolumeResult", "place_equal_volume"]
 
 F64 = NDArray[np.float64]
 
-# Slab counts tried per chain direction before settling for the most even placement.
+# Slab counts tried per chain direction first (next to the aimed-at count).
 _COUNTS = 5
+# Chains one direction may run in all when the first counts find no even placement and the
+# search goes on to counts farther from the aimed-at one (see place_equal_volume).
+_RUN_BUDGET = 320
 
 
 @dataclass(frozen=True)
@@ -199,8 +202,15 @@ def place_equal_volume(sv: SlabVolumes, top_u: int, bottom_u: int, cap_u: int,
     length (a capped slab, re-laid at exactly the flute length from the end,
     which moves the neighbouring equal-volume slab by the small misfit). Where
     a jump skips ``n``, the counts next to ``n_target`` are tried, then the
-    other direction. Flags are then derived from the real volumes (above), and
-    the placement within ``rtol`` with the count closest to ``n_target`` wins;
+    other direction; if none is even, counts farther from ``n_target`` in both
+    directions, within :data:`_RUN_BUDGET` chains per direction. (A jump may
+    skip every count near ``n_target``: a one-cell pit below a wide floor,
+    where a slab that crosses the floor's height leaves the floor cells on a
+    terrace above it and takes nearly a whole pit slab instead, so ``phase``
+    jumps by almost 1 at each count while varying by a few hundredths between
+    jumps; the even placements lie a dozen counts away.) Flags are then
+    derived from the real volumes (above), and the placement within ``rtol``
+    with the count closest to ``n_target`` wins;
     failing that, the most even one, with its real spread.
     """
     span = top_u - bottom_u
@@ -211,11 +221,17 @@ def place_equal_volume(sv: SlabVolumes, top_u: int, bottom_u: int, cap_u: int,
     limit = 4 * n_target + 16
     total = max(sv.total, 1e-300) * (1.0 + 1e-9)
     best: _Ranked | None = None
-    for chain in (_chain_up, _chain):
-        best = _search_direction(sv, chain, (top_u, bottom_u, cap_u), (n_target, n_min, limit),
-                                 total, rtol, best)
-        if best is not None and not best[0][0]:
-            break
+    counts = _counts(n_target, n_min, limit)
+    caches: dict[Callable[..., _Chain], dict[float, _Chain]] = {_chain_up: {}, _chain: {}}
+    ends = (top_u, bottom_u, cap_u)
+    # The counts next to n_target first, then (only if none of them is even) farther ones,
+    # within a budget of chain runs: every count in between may be skipped by a jump.
+    for tried, budget in ((counts[:_COUNTS], None), (counts[_COUNTS:], _RUN_BUDGET)):
+        for chain in (_chain_up, _chain):
+            best = _search_direction(sv, chain, ends, (n_target, limit, tried, budget), total,
+                                     rtol, best, caches[chain])
+            if best is not None and not best[0][0]:
+                return best[1]
     assert best is not None
     return best[1]
 
@@ -225,26 +241,28 @@ _Ranked = tuple[tuple[bool, int, float], EqualVolumeResult]
 
 
 def _search_direction(sv: SlabVolumes, chain: Callable[..., _Chain], ends: tuple[int, int, int],
-                      counts: tuple[int, int, int], total: float, rtol: float,
-                      best: _Ranked | None) -> _Ranked | None:
+                      counts: tuple[int, int, list[int], int | None], total: float, rtol: float,
+                      best: _Ranked | None, cache: dict[float, _Chain]) -> _Ranked | None:
     """The best placement so far after trying the chains of one direction.
 
-    ``ends`` is ``(top_u, bottom_u, cap_u)``, ``counts`` is ``(n_target, n_min,
-    limit)``; slab counts next to ``n_target`` are tried until one placement
-    is within ``rtol``.
+    ``ends`` is ``(top_u, bottom_u, cap_u)``, ``counts`` is ``(n_target, limit, slab
+    counts to try in order, budget)``: they are tried until one placement is within
+    ``rtol``, or (with a budget) until ``cache``, the chains this direction ran, holds
+    that many.
     """
     top_u, bottom_u, cap_u = ends
-    n_target, n_min, limit = counts
+    n_target, limit, tried, budget = counts
     mirror = chain is _chain_up
     lo_u = -top_u if mirror else bottom_u
-    cache: dict[float, _Chain] = {}
 
     def run(v: float) -> _Chain:
         if v not in cache:
             cache[v] = chain(sv, top_u, bottom_u, cap_u, v, limit)
         return cache[v]
 
-    for n in _counts(n_target, n_min, limit)[:_COUNTS]:
+    for n in tried:
+        if budget is not None and len(cache) >= budget:
+            break
         for cand in _candidates(_solve(run, cache, total, n), lo_u, cap_u):
             if mirror:
                 cand = EqualVolumeResult([-x for x in reversed(cand.heights)],

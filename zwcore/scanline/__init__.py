@@ -2,6 +2,7 @@
 
 - :mod:`zwcore.scanline.planner`: :func:`plan_scanline`;
 - :mod:`zwcore.scanline.results`: the plan, stage and checks dataclasses;
+- :mod:`zwcore.scanline.replay`: a plan's passes simulated again on its part;
 - private: ``_models`` (nested stage targets), ``_tool_choice`` (which level
   becomes a stage, with which ball), ``_passes`` (pick-feed strips and
   scallops), ``_stage_passes`` (the passes of every stage and the flute rule),

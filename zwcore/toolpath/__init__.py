@@ -8,6 +8,8 @@
 - :mod:`zwcore.toolpath.scanline_paths`: raster paths of ball-end-mill stages;
 - :mod:`zwcore.toolpath.contour_paths`: rings of flat-end-mill stages, arcs, ramps;
 - :mod:`zwcore.toolpath.plans`: a whole plan's paths, program and verification;
+- :mod:`zwcore.toolpath.verify_plan`: a scan-line plan's program read back and simulated
+  tool stretch by tool stretch (``POST /v1/simulate`` with a task id);
 - private: ``_polyline`` (thinning, lifting out of gouges).
 """
 
