@@ -35,12 +35,12 @@ from zwcore.grid.zmap import ZMap
 from zwcore.scanline._checks import PassSpec, axis_weights, eval_rows
 from zwcore.scanline._passes import StripPlan, cell_cross_slopes, plan_strips
 from zwcore.scanline._stock import (
+    PassMemo,
     SimulatedPass,
     StockSim,
     left_over,
     run_pass,
     stride_for,
-    target_drop,
 )
 from zwcore.scanline._tool_choice import Level, Stage
 
@@ -149,7 +149,7 @@ class _Stage:
             self.ax_b, self.ay_b = np.maximum(self.ax_t, ax_o), np.maximum(self.ay_t, ay_o)
             self.slope_b = max(self.slope_t,
                                steepest_slope(self.on, lev.sx, lev.sy, extent=lev.cells))
-        self.target_cl = target_drop(lev.model, lev.sx, lev.sy, self.tool)
+        self.memo = PassMemo()  # the target's drop and the last pass, per position
 
     def strips(self, reached: bool, tolerance: float, extent_mm: tuple[float, float],
                ) -> StripPlan:
@@ -189,15 +189,17 @@ def _one_pass(plan: _Plan, st: _Stage, lift: bool,
     guess = st.finish_first or _reaches(st.on, lev.model,
                                         plan.leaves - tool.flute_length + plan.guard)
     before = plan.sim.stock.copy()
+    last = st.memo.last
     for attempt in (guess, True):
         strips = st.strips(attempt, plan.tolerance, plan.extent_mm)
         model = lev.model.copy()  # the flute rule raises it in place
         done = run_pass(plan.sim, model, (lev.sx, lev.sy), tool, strips.lines,
                         _stride(tool, strips, plan.tolerance, plan.zmap, lev.sx, lev.sy),
-                        st.region, plan.guard, lift=lift, target_cl=st.target_cl)
+                        st.region, plan.guard, lift=lift, memo=st.memo)
         if attempt or done.lifted_nodes or st.next_flute is not None:
             break
         plan.sim.stock[...] = before  # a finishing pass that reached: plan it again
+        st.memo.last = last
         # (and while such passes still get lifted, start from the finishing lines)
         st.finish_first = True
     return model, strips, done, before

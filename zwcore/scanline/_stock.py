@@ -43,11 +43,15 @@ from scipy import ndimage
 from zwcore.grid.tools import Tool
 from zwcore.grid.zmap import ZMap
 from zwcore.scanline import _stock_kernels as _k
+from zwcore.scanline._stock_grid import GRID_MODE_RADIUS, GridMode
 from zwcore.scanline.results import ScanLines
-from zwcore.sim import drop_cutter, envelope
+from zwcore.sim import drop_cutter
 
 __all__ = [
     "BLOCK",
+    "DROP_SHARE",
+    "INCREMENTAL",
+    "PassMemo",
     "Positions",
     "SimulatedPass",
     "StockSim",
@@ -218,6 +222,32 @@ class StockSim:
                         np.ascontiguousarray(model_cl), tool.radius, self.part.dx,
                         self.part.dy)
 
+    def top(self, pos: Positions, idx: NDArray[np.intp], tool: Tool, smax: F64,
+            grid_ok: bool) -> F64:
+        """Highest stock node within ``R`` of the positions ``idx`` (grid mode when they
+        are most of the input nodes and ``grid_ok``)."""
+        px, py = pos.x[idx], pos.y[idx]
+        grid = GridMode.of(px, py, self.part, tool, BLOCK) if grid_ok else None
+        if grid is not None:
+            return grid.top(self.stock, smax, self.part, px, py, tool)
+        return _k.top(self.stock, smax, BLOCK, px, py, tool.radius, self.part.dx,
+                      self.part.dy)
+
+    def cut(self, pos: Positions, idx: NDArray[np.intp], cl: F64, tool: Tool,
+            grid_ok: bool) -> NDArray[np.bool_]:
+        """Lower the stock by the ball at the positions ``idx`` with CL ``cl[idx]``;
+        returns the blocks where a node was lowered."""
+        smax = block_max(self.stock)
+        touched = np.zeros(smax.shape, dtype=bool)
+        px, py, c = pos.x[idx], pos.y[idx], np.ascontiguousarray(cl[idx])
+        grid = GridMode.of(px, py, self.part, tool, BLOCK) if grid_ok else None
+        if grid is not None:
+            grid.cut(self.stock, smax, self.part, px, py, c, tool, touched)
+        else:
+            _k.cut(self.stock, smax, BLOCK, px, py, c, tool.radius, self.part.dx,
+                   self.part.dy, touched)
+        return touched
+
 
 @dataclass(frozen=True, eq=False)
 class SimulatedPass:
@@ -232,7 +262,7 @@ class SimulatedPass:
 def run_pass(sim: StockSim, model: F64, spacing: tuple[float, float], tool: Tool,
              lines: ScanLines, stride: int, region: NDArray[np.bool_] | None,
              guard: float, *, lift: bool = True, target_cl: F64 | None = None,
-             ) -> SimulatedPass:
+             memo: PassMemo | None = None) -> SimulatedPass:
     """Simulate one pass over ``sim``'s stock, lifting ``model`` (in place) where the flute
     rule needs it.
 
@@ -246,69 +276,158 @@ def run_pass(sim: StockSim, model: F64, spacing: tuple[float, float], tool: Tool
     the model lies at or above the highest stock of the blocks its ball spans cuts
     nothing (and its depth of cut is 0). A position on a model node needs no drop-cutter
     against the part's nodes: the model contains them, and its CL there is at least
-    that of any surface under it.
+    that of any surface under it. The next pass of a stage on the same positions
+    (``memo``) visits fewer still (:func:`_next_state`).
 
     Parameters
     ----------
     target_cl : (my, mx) float64, optional
-        :func:`zwcore.sim.drop_cutter` of ``model`` as given (:func:`target_drop` if not
-        given).
+        :func:`zwcore.sim.drop_cutter` of ``model`` as given (else from ``memo``, or
+        :func:`target_drop`).
+    memo : PassMemo, optional
+        What the stage's passes share; updated to this pass.
 
     Returns
     -------
     SimulatedPass
     """
+    last = memo.last if memo is not None and INCREMENTAL else None
+    if (last is not None and last.lines is lines and last.stride == stride
+            and last.region is region):
+        state = _next_state(sim, tool, last)
+    else:
+        state = _first_state(sim, model, spacing, tool, lines, stride, region, target_cl,
+                             memo)
+    part = sim.part
+    pos, cand, top, cl = state.pos, state.cand, state.top, state.cl
+    base = cl.copy()
+    need = top[cand] - tool.flute_length + guard
+    bind = (need > cl[cand]) if lift else np.zeros(cand.size, dtype=bool)
+    lifted = 0
+    if bind.any():
+        bound = Positions(pos.x[cand[bind]], pos.y[cand[bind]])
+        if state.thin.k == 1:
+            lifted = _lift(model, spacing, bound, _on_nodes(bound, *spacing),
+                           np.ones(bound.size, dtype=bool), need[bind])
+        else:
+            lifted = state.thin.lift(model, spacing, bound, need[bind])
+        cl[cand[bind]] = need[bind]
+    cutters = cand if last is None or state.first else cand[cl[cand] < last.cl[cand]]
+    before = sim.stock.copy() if lifted else None
+    touched = sim.cut(pos, cutters, cl, tool, state.thin.k == 1)
+    depth = np.zeros(pos.size)
+    depth[cand] = np.maximum(top[cand] - cl[cand], 0.0)
+    depth[~np.isfinite(depth)] = 0.0
+    if memo is not None:
+        memo.last = _Last(state.lines, stride, region, pos, base, cl, top, touched,
+                          state.thin)
+    gouge = float(max(0.0, float(np.max(part.z - sim.stock))))
+    lowered = -1 if before is None else int(np.count_nonzero(sim.stock < before - guard))
+    along = part.dx if lines.direction == "x" else part.dy
+    return SimulatedPass(PassCut(pos, cl, depth, gouge), lifted, stride * along, lowered)
+
+
+class PassMemo:
+    """What the passes of one stage share: the drop-cutter of its target (computed once)
+    and the last pass's state per position (:func:`_next_state`)."""
+
+    def __init__(self) -> None:
+        self.last: _Last | None = None
+        self._drop: F64 | None = None
+        self._dropped = False
+
+    def target_cl(self, model: F64, sx: float, sy: float, tool: Tool,
+                  positions: int) -> F64 | None:
+        """:func:`target_drop` of the stage's target (the first pass's ``model``)."""
+        if not self._dropped:
+            self._drop, self._dropped = target_drop(model, sx, sy, tool, positions), True
+        return self._drop
+
+
+@dataclass(frozen=True, eq=False)
+class _Last:
+    """One pass, per position, for the next pass of its stage.
+
+    ``base`` is the unlifted CL (the target's; where the position may cut, at least the
+    part's nodes' too), ``cl`` the CL it cut at, ``top`` the highest stock before it
+    within ``R`` (-inf where that is known to lie at or under ``base``), ``touched`` the
+    blocks whose stock it lowered.
+    """
+
+    lines: ScanLines
+    stride: int
+    region: NDArray[np.bool_] | None
+    pos: Positions
+    base: F64
+    cl: F64
+    top: F64
+    touched: NDArray[np.bool_]
+    thin: _Thinning
+
+
+@dataclass(frozen=True, eq=False)
+class _State:
+    """A pass before the flute rule: positions, candidates (may cut), top, unlifted CL."""
+
+    lines: ScanLines
+    thin: _Thinning
+    pos: Positions
+    cand: NDArray[np.intp]
+    top: F64
+    cl: F64
+    first: bool
+
+
+def _first_state(sim: StockSim, model: F64, spacing: tuple[float, float], tool: Tool,
+                 lines: ScanLines, stride: int, region: NDArray[np.bool_] | None,
+                 target_cl: F64 | None, memo: PassMemo | None) -> _State:
+    """Every position of the pass: CL on the target, the part's nodes where it may cut."""
     sx, sy = spacing
     part = sim.part
     thin = _Thinning.of(lines, part, stride, tool, spacing)
     pos = positions(thin.lines, part, stride * thin.k, region, spacing)
     if target_cl is None:
-        target_cl = target_drop(model, sx, sy, tool)
+        target_cl = (memo.target_cl(model, sx, sy, tool, pos.size) if memo is not None
+                     else target_drop(model, sx, sy, tool, pos.size))
     if target_cl is None:  # a large ball on a fine model: dropped on its nodes here only
-        cl = _k.cl_part(model, block_max(model), BLOCK, pos.x, pos.y, np.full(pos.size, -np.inf),
-                        tool.radius, sx, sy)
+        cl = _k.cl_part(model, block_max(model), BLOCK, pos.x, pos.y,
+                        np.full(pos.size, -np.inf), tool.radius, sx, sy)
     else:
         cl = interpolate(target_cl, sx, sy, pos)
     smax = block_max(sim.stock)
     may = _k.may_cut(_grow_blocks(smax, tool.radius, part.dx, part.dy), BLOCK,
                      pos.x, pos.y, cl, 1.0 / part.dx, 1.0 / part.dy)
     act = np.flatnonzero(may)
-    sub = Positions(pos.x[act], pos.y[act])
-    on_node = _on_nodes(sub, sx, sy)
-    base = cl[act]
-    off = np.flatnonzero(~on_node)
+    off = act[~_on_nodes(Positions(pos.x[act], pos.y[act]), sx, sy)]
     if off.size:
-        base[off] = sim.base_cl(base[off], Positions(sub.x[off], sub.y[off]), tool)
-    grid = _GridMode.of(sub, part, tool) if thin.k == 1 else None
-    if grid is None:
-        top = _k.top(sim.stock, smax, BLOCK, sub.x, sub.y, tool.radius, part.dx, part.dy)
-    else:
-        top = grid.top(sim, smax, sub, tool)
-    need = top - tool.flute_length + guard
-    bind = (need > base) if lift else np.zeros(act.size, dtype=bool)
-    lifted = 0
-    if bind.any():
-        if thin.k == 1:
-            lifted = _lift(model, (sx, sy), sub, on_node & bind, bind, need)
-        else:
-            lifted = thin.lift(model, (sx, sy), Positions(sub.x[bind], sub.y[bind]), need[bind])
-        base[bind] = need[bind]
-    cl[act] = base
-    before = sim.stock.copy() if lifted else None
-    touched = np.zeros(smax.shape, dtype=bool)
-    if grid is None:
-        _k.cut(sim.stock, smax, BLOCK, sub.x, sub.y, base, tool.radius, part.dx, part.dy,
-               touched)
-    else:
-        grid.cut(sim, smax, sub, base, tool, touched)
-    depth = np.zeros(pos.size)
-    depth[act] = np.maximum(top - base, 0.0)
-    depth[~np.isfinite(depth)] = 0.0
+        cl[off] = sim.base_cl(cl[off], Positions(pos.x[off], pos.y[off]), tool)
+    top = np.full(pos.size, -np.inf)
+    top[act] = sim.top(pos, act, tool, smax, thin.k == 1)
+    return _State(thin.lines, thin, pos, act, top, cl, True)
 
-    gouge = float(max(0.0, float(np.max(part.z - sim.stock))))
-    lowered = -1 if before is None else int(np.count_nonzero(sim.stock < before - guard))
-    along = part.dx if lines.direction == "x" else part.dy
-    return SimulatedPass(PassCut(pos, cl, depth, gouge), lifted, stride * along, lowered)
+
+def _next_state(sim: StockSim, tool: Tool, last: _Last) -> _State:
+    """The next pass on the last pass's positions, visiting only what can change.
+
+    A position whose CL does not fall below the last pass's cuts nothing: the last pass
+    left the stock at or under its ball. A position whose highest stock within ``R``
+    lay at or under its unlifted CL still does (the stock only falls); its depth stays
+    0. The highest stock within ``R`` changes only for positions within ``R`` of a node
+    the last pass lowered (block by block): only those are visited again.
+    """
+    part = sim.part
+    pos = last.pos
+    cand = np.flatnonzero(last.top > last.base)
+    top = last.top.copy()
+    if cand.size:
+        grown = _grow_blocks(last.touched.astype(np.float64), tool.radius, part.dx,
+                             part.dy)
+        near = _k.may_cut(grown, BLOCK, pos.x[cand], pos.y[cand], np.zeros(cand.size),
+                          1.0 / part.dx, 1.0 / part.dy)
+        dirty = cand[near]
+        if dirty.size:
+            top[dirty] = sim.top(pos, dirty, tool, block_max(sim.stock), last.thin.k == 1)
+    return _State(last.lines, last.thin, pos, cand, top, last.base.copy(), False)
 
 
 #: Node visits one pass's simulation may make (positions times the nodes within a ball's
@@ -391,14 +510,35 @@ def _lift(model: F64, spacing: tuple[float, float], pos: Positions, node: NDArra
     return int(np.count_nonzero(model != old))
 
 
-def target_drop(model: F64, sx: float, sy: float, tool: Tool) -> F64 | None:
-    """:func:`drop` of a stage's target, or ``None`` where that would cost more than
-    :data:`MAX_PASS_WORK` node visits (a Ø20 ball over a fine model: 4e10 at 1024² and
-    0.1 mm). Then each pass drops the ball on the model's nodes at its positions only
-    (exact for the nodes; between them a bilinear model may hold the tool path up to
-    about ``spacing² / (8R)`` higher than simulated)."""
+def target_drop(model: F64, sx: float, sy: float, tool: Tool, positions: int) -> F64 | None:
+    """:func:`drop` of a stage's target, or ``None`` where dropping the ball at the pass's
+    ``positions`` alone costs less.
+
+    The whole-model drop is a grey dilation (:func:`zwcore.sim.drop_cutter`): about three
+    vector operations per four offsets of the ball's footprint at every model node, done
+    once per stage; dropping at the positions costs the footprint per position (block
+    skipping helps little on a model under the ball), per pass. The whole model is
+    dropped when it costs at most :data:`MAX_PASS_WORK` node visits or its nodes are at
+    most :data:`DROP_SHARE` times the positions (a small ball at the input's level: its
+    positions cover the model). Otherwise (a Ø20 ball finishing a fine model with few
+    positions: 4e10 node visits at 1024² and 0.1 mm) each pass drops the ball on the
+    model's nodes at its positions only (exact for the nodes; between them a bilinear
+    model may hold the tool path up to about ``spacing² / (8R)`` higher than simulated).
+    """
     work = model.size * math.pi * (tool.radius / sx + 1.0) * (tool.radius / sy + 1.0)
-    return drop(model, sx, sy, tool) if work <= 4 * MAX_PASS_WORK else None
+    if work <= 4 * MAX_PASS_WORK or (INCREMENTAL and model.size <= DROP_SHARE * positions):
+        return drop(model, sx, sy, tool)
+    return None
+
+
+#: See :func:`target_drop`.
+DROP_SHARE = 4
+
+#: The next pass of a stage visits only what can change (:func:`_next_state`), and
+#: :func:`target_drop` weighs the drop against the positions. ``False``: every pass
+#: simulates all its positions and the drop is bounded by the work alone (the method
+#: before; for ``bench/bench_scanline_core.py`` and the tests that compare the two).
+INCREMENTAL = True
 
 
 def drop(model: F64, sx: float, sy: float, tool: Tool) -> F64:
@@ -418,74 +558,3 @@ def _grow_blocks(smax: F64, r: float, dx: float, dy: float) -> F64:
     ga, gb = math.ceil(reach / (BLOCK * dy)), math.ceil(reach / (BLOCK * dx))
     out: F64 = ndimage.maximum_filter(smax, size=(2 * ga + 1, 2 * gb + 1), mode="nearest")
     return out
-
-
-#: Grid mode (below) for balls up to this many input spacings in radius.
-GRID_MODE_RADIUS = 12
-
-#: ... and when at least this share of the input nodes are positions of the pass.
-GRID_MODE_SHARE = 0.25
-
-
-class _GridMode:
-    """A pass whose positions are most of the input nodes (a ball at the input's own
-    level): the stock within ``R`` and the envelope as whole-grid operations (a flat-disc
-    dilation by row spans, :func:`zwcore.sim.envelope`), the kernels only for the
-    positions off the nodes (ends of extra segments, lines between grid lines)."""
-
-    def __init__(self, on: NDArray[np.bool_], rows: NDArray[np.intp],
-                 cols: NDArray[np.intp]) -> None:
-        self.on, self.rows, self.cols = on, rows, cols
-
-    @classmethod
-    def of(cls, pos: Positions, part: ZMap, tool: Tool) -> _GridMode | None:
-        if (tool.radius > GRID_MODE_RADIUS * min(part.dx, part.dy)
-                or pos.size < GRID_MODE_SHARE * part.z.size):
-            return None
-        on = _on_nodes(pos, part.dx, part.dy)
-        if np.count_nonzero(on) < GRID_MODE_SHARE * part.z.size:
-            return None
-        rows = np.rint(pos.y[on] / part.dy).astype(np.intp)
-        cols = np.rint(pos.x[on] / part.dx).astype(np.intp)
-        return cls(on, rows, cols)
-
-    def top(self, sim: StockSim, smax: F64, pos: Positions, tool: Tool) -> F64:
-        part = sim.part
-        out = np.empty(pos.size)
-        whole = _k.disc_max(sim.stock, _half_widths(tool.radius, part.dx, part.dy))
-        out[self.on] = whole[self.rows, self.cols]
-        off = ~self.on
-        if off.any():
-            out[off] = _k.top(sim.stock, smax, BLOCK, pos.x[off], pos.y[off], tool.radius,
-                            part.dx, part.dy)
-        return out
-
-    def cut(self, sim: StockSim, smax: F64, pos: Positions, cl: F64, tool: Tool,
-            touched: NDArray[np.bool_]) -> None:
-        """Lower the stock by the envelope of the positions (``touched``: blocks the
-        kernel lowered, for the positions off the nodes)."""
-        part = sim.part
-        off = ~self.on
-        high = float(sim.stock.max())  # a tip there cuts nothing
-        grid = np.full(part.shape, high)
-        grid[self.rows, self.cols] = np.minimum(cl[self.on], high)
-        env = envelope(grid, tool, part.dx, part.dy, "bilinear")
-        if off.any():
-            _k.cut(sim.stock, smax, BLOCK, pos.x[off], pos.y[off],
-                   np.ascontiguousarray(cl[off]), tool.radius, part.dx, part.dy, touched)
-        np.minimum(sim.stock, env, out=sim.stock)
-
-
-def _half_widths(r: float, dx: float, dy: float) -> NDArray[np.int64]:
-    """Per row offset ``a = 0..A``: the largest ``b`` with ``(a dy)² + (b dx)² <= r²``."""
-    a = np.arange(math.floor(r / dy + 1e-9) + 1)
-    rest = np.maximum(r * r - (a * dy) ** 2, 0.0)
-    out: NDArray[np.int64] = np.floor(np.sqrt(rest) / dx + 1e-9).astype(np.int64)
-    # the same test as the kernels' d² <= r², node by node
-    for n in range(a.size):
-        while out[n] >= 0 and (a[n] * dy) ** 2 + (out[n] * dx) ** 2 > r * r:
-            out[n] -= 1
-        while (a[n] * dy) ** 2 + ((out[n] + 1) * dx) ** 2 <= r * r:
-            out[n] += 1
-    return out
-

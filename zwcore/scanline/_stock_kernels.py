@@ -14,7 +14,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-__all__ = ["cl_part", "cut", "disc_max", "interpolate", "may_cut", "on_nodes", "points",
+__all__ = ["cl_part", "cut", "disc_max", "interpolate", "lower", "may_cut", "on_nodes", "points",
            "raise_box", "raise_corners", "top"]
 
 F64 = NDArray[np.float64]
@@ -264,3 +264,14 @@ def raise_box(model: F64, sx: float, sy: float, px: F64, py: F64, need: F64,
             for c in range(c0, c1 + 1):
                 if model[r, c] < need[n]:
                     model[r, c] = need[n]
+
+
+@njit(cache=True, nogil=True)
+def lower(s: F64, env: F64, b: int, touched: NDArray[np.bool_]) -> None:
+    """``s = min(s, env)`` in place; ``touched[i // b, k // b]`` set where a node was lowered."""
+    ny, nx = s.shape
+    for i in range(ny):
+        for k in range(nx):
+            if env[i, k] < s[i, k]:
+                s[i, k] = env[i, k]
+                touched[i // b, k // b] = True
