@@ -79,11 +79,7 @@ CUSP_SHARE = 0.25
 
 def block_max(z: F64, b: int = BLOCK) -> F64:
     """``(ceil(ny/b), ceil(nx/b))``: the largest value of every ``b x b`` block of nodes."""
-    ny, nx = z.shape
-    my, mx = -(-ny // b), -(-nx // b)
-    pad = np.full((my * b, mx * b), -np.inf)
-    pad[:ny, :nx] = z
-    out: F64 = pad.reshape(my, b, mx, b).max(axis=(1, 3))
+    out: F64 = _k.block_max(np.ascontiguousarray(z), b)
     return out
 
 
@@ -175,31 +171,29 @@ def left_over(stock: F64, surface: F64) -> tuple[float, float]:
 
 @dataclass(frozen=True, eq=False)
 class PassCut:
-    """One pass simulated: its positions, CL and real depth of cut, and stock figures.
+    """One pass simulated: its positions, real depth of cut, and stock figures.
 
     Attributes
     ----------
     positions : Positions
-    cl : (n,) float64
-    depth : (n,) float64
-        Highest stock before the pass within ``R`` of the axis, minus ``cl`` (>= 0).
+    depth_max, depth_mean : float
+        Of the depth of cut per position (highest stock before the pass within ``R`` of
+        the axis, minus its CL, >= 0): largest, and mean over the positions that cut.
     gouge : float
         ``max(part - stock after)`` at the input nodes, clipped at 0.
     """
 
     positions: Positions
-    cl: F64
-    depth: F64
+    depth_max: float
+    depth_mean: float
     gouge: float
 
-    @property
-    def depth_max(self) -> float:
-        return float(self.depth.max(initial=0.0))
-
-    @property
-    def depth_mean(self) -> float:
-        cutting = self.depth[self.depth > 0.0]
-        return float(cutting.mean()) if cutting.size else 0.0
+    @classmethod
+    def of(cls, positions: Positions, depth: F64, gouge: float) -> PassCut:
+        """From the depth of cut per position, (n,)."""
+        cutting = depth[depth > 0.0]
+        mean = float(cutting.mean()) if cutting.size else 0.0
+        return cls(positions, float(depth.max(initial=0.0)), mean, gouge)
 
 
 class StockSim:
@@ -299,10 +293,10 @@ def run_pass(sim: StockSim, model: F64, spacing: tuple[float, float], tool: Tool
         state = _first_state(sim, model, spacing, tool, lines, stride, region, target_cl,
                              memo)
     part = sim.part
-    pos, cand, top, cl = state.pos, state.cand, state.top, state.cl
-    base = cl.copy()
+    pos, cand, top, cl, depth = state.pos, state.cand, state.top, state.cl, state.depth
+    base = state.base
     need = top[cand] - tool.flute_length + guard
-    bind = (need > cl[cand]) if lift else np.zeros(cand.size, dtype=bool)
+    bind = (need > base[cand]) if lift else np.zeros(cand.size, dtype=bool)
     lifted = 0
     if bind.any():
         bound = Positions(pos.x[cand[bind]], pos.y[cand[bind]])
@@ -311,20 +305,20 @@ def run_pass(sim: StockSim, model: F64, spacing: tuple[float, float], tool: Tool
                            np.ones(bound.size, dtype=bool), need[bind])
         else:
             lifted = state.thin.lift(model, spacing, bound, need[bind])
-        cl[cand[bind]] = need[bind]
-    cutters = cand if last is None or state.first else cand[cl[cand] < last.cl[cand]]
+    new = np.where(bind, need, base[cand])
+    cutters = cand if state.first else cand[new < cl[cand]]
+    cl[cand] = new
+    d = top[cand] - new
+    depth[cand] = np.where(np.isfinite(d), np.maximum(d, 0.0), 0.0)
     before = sim.stock.copy() if lifted else None
     touched = sim.cut(pos, cutters, cl, tool, state.thin.k == 1)
-    depth = np.zeros(pos.size)
-    depth[cand] = np.maximum(top[cand] - cl[cand], 0.0)
-    depth[~np.isfinite(depth)] = 0.0
     if memo is not None:
-        memo.last = _Last(state.lines, stride, region, pos, base, cl, top, touched,
+        memo.last = _Last(state.lines, stride, region, pos, base, cl, top, depth, touched,
                           state.thin)
     gouge = float(max(0.0, float(np.max(part.z - sim.stock))))
     lowered = -1 if before is None else int(np.count_nonzero(sim.stock < before - guard))
     along = part.dx if lines.direction == "x" else part.dy
-    return SimulatedPass(PassCut(pos, cl, depth, gouge), lifted, stride * along, lowered)
+    return SimulatedPass(PassCut.of(pos, depth, gouge), lifted, stride * along, lowered)
 
 
 class PassMemo:
@@ -350,8 +344,8 @@ class _Last:
 
     ``base`` is the unlifted CL (the target's; where the position may cut, at least the
     part's nodes' too), ``cl`` the CL it cut at, ``top`` the highest stock before it
-    within ``R`` (-inf where that is known to lie at or under ``base``), ``touched`` the
-    blocks whose stock it lowered.
+    within ``R`` (-inf where that is known to lie at or under ``base``), ``depth`` its
+    depth of cut, ``touched`` the blocks whose stock it lowered.
     """
 
     lines: ScanLines
@@ -361,20 +355,25 @@ class _Last:
     base: F64
     cl: F64
     top: F64
+    depth: F64
     touched: NDArray[np.bool_]
     thin: _Thinning
 
 
 @dataclass(frozen=True, eq=False)
 class _State:
-    """A pass before the flute rule: positions, candidates (may cut), top, unlifted CL."""
+    """A pass before the flute rule: positions, the ones to decide again (``cand``),
+    and per position the highest stock within ``R``, unlifted CL, CL and depth so far
+    (fresh arrays: the pass fills ``cl`` and ``depth`` at ``cand``)."""
 
     lines: ScanLines
     thin: _Thinning
     pos: Positions
     cand: NDArray[np.intp]
     top: F64
+    base: F64
     cl: F64
+    depth: F64
     first: bool
 
 
@@ -403,31 +402,31 @@ def _first_state(sim: StockSim, model: F64, spacing: tuple[float, float], tool: 
         cl[off] = sim.base_cl(cl[off], Positions(pos.x[off], pos.y[off]), tool)
     top = np.full(pos.size, -np.inf)
     top[act] = sim.top(pos, act, tool, smax, thin.k == 1)
-    return _State(thin.lines, thin, pos, act, top, cl, True)
+    return _State(thin.lines, thin, pos, act, top, cl, cl.copy(), np.zeros(pos.size), True)
 
 
 def _next_state(sim: StockSim, tool: Tool, last: _Last) -> _State:
     """The next pass on the last pass's positions, visiting only what can change.
 
-    A position whose CL does not fall below the last pass's cuts nothing: the last pass
-    left the stock at or under its ball. A position whose highest stock within ``R``
-    lay at or under its unlifted CL still does (the stock only falls); its depth stays
-    0. The highest stock within ``R`` changes only for positions within ``R`` of a node
-    the last pass lowered (block by block): only those are visited again.
+    The stock only falls, and the last pass left it at or under the ball at every
+    position. So a position not lifted last time (CL = its unlifted CL) whose stock
+    within ``R`` is unchanged keeps its CL, depth and (not) binding, and cuts nothing;
+    one whose highest stock within ``R`` lay at or under its unlifted CL keeps that too.
+    Decided again: the positions lifted last time (their CL may fall, and they cut
+    where it does) and those within ``R`` of a block the last pass lowered (their
+    highest stock within ``R`` is read again).
     """
     part = sim.part
     pos = last.pos
-    cand = np.flatnonzero(last.top > last.base)
     top = last.top.copy()
-    if cand.size:
-        grown = _grow_blocks(last.touched.astype(np.float64), tool.radius, part.dx,
-                             part.dy)
-        near = _k.may_cut(grown, BLOCK, pos.x[cand], pos.y[cand], np.zeros(cand.size),
-                          1.0 / part.dx, 1.0 / part.dy)
-        dirty = cand[near]
-        if dirty.size:
-            top[dirty] = sim.top(pos, dirty, tool, block_max(sim.stock), last.thin.k == 1)
-    return _State(last.lines, last.thin, pos, cand, top, last.base.copy(), False)
+    grown = _grow_blocks(last.touched.astype(np.float64), tool.radius, part.dx, part.dy)
+    dirty = _k.near_blocks(grown, BLOCK, pos.x, pos.y, top, last.base, 1.0 / part.dx,
+                           1.0 / part.dy)
+    if dirty.size:
+        top[dirty] = sim.top(pos, dirty, tool, block_max(sim.stock), last.thin.k == 1)
+    cand = np.union1d(np.flatnonzero(last.cl > last.base), dirty)
+    return _State(last.lines, last.thin, pos, cand, top, last.base, last.cl.copy(),
+                  last.depth.copy(), False)
 
 
 #: Node visits one pass's simulation may make (positions times the nodes within a ball's

@@ -14,8 +14,8 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-__all__ = ["cl_part", "cut", "disc_max", "interpolate", "lower", "may_cut", "on_nodes", "points",
-           "raise_box", "raise_corners", "top"]
+__all__ = ["block_max", "cl_part", "cut", "disc_max", "interpolate", "lower", "may_cut",
+           "near_blocks", "on_nodes", "points", "raise_box", "raise_corners", "top"]
 
 F64 = NDArray[np.float64]
 
@@ -275,3 +275,36 @@ def lower(s: F64, env: F64, b: int, touched: NDArray[np.bool_]) -> None:
             if env[i, k] < s[i, k]:
                 s[i, k] = env[i, k]
                 touched[i // b, k // b] = True
+
+
+@njit(cache=True, nogil=True)
+def near_blocks(grown: F64, b: int, px: F64, py: F64, top: F64, base: F64, idx: float,
+                idy: float) -> NDArray[np.intp]:
+    """Indices of the positions with ``top > base`` whose block has ``grown > 0``."""
+    my, mx = grown.shape
+    out = np.empty(px.size, dtype=np.intp)
+    n = 0
+    for j in range(px.size):
+        if not top[j] > base[j]:
+            continue
+        bi = min(max(round(py[j] * idy) // b, 0), my - 1)
+        bk = min(max(round(px[j] * idx) // b, 0), mx - 1)
+        if grown[bi, bk] > 0.0:
+            out[n] = j
+            n += 1
+    return out[:n]
+
+
+@njit(cache=True, nogil=True)
+def block_max(z: F64, b: int) -> F64:
+    """``(ceil(ny/b), ceil(nx/b))``: the largest value of every ``b x b`` block."""
+    ny, nx = z.shape
+    my, mx = -(-ny // b), -(-nx // b)
+    out = np.full((my, mx), -np.inf)
+    for i in range(ny):
+        bi = i // b
+        for k in range(nx):
+            v = z[i, k]
+            if v > out[bi, k // b]:
+                out[bi, k // b] = v
+    return out
