@@ -188,18 +188,17 @@ def _one_pass(plan: _Plan, st: _Stage, lift: bool,
     lev, tool = st.lev, st.tool
     guess = st.finish_first or _reaches(st.on, lev.model,
                                         plan.leaves - tool.flute_length + plan.guard)
-    before = plan.sim.stock.copy()
-    last = st.memo.last
+    before, gouge = plan.sim.stock.copy(), plan.sim.gouge
     for attempt in (guess, True):
         strips = st.strips(attempt, plan.tolerance, plan.extent_mm)
         model = lev.model.copy()  # the flute rule raises it in place
         done = run_pass(plan.sim, model, (lev.sx, lev.sy), tool, strips.lines,
                         _stride(tool, strips, plan.tolerance, plan.zmap, lev.sx, lev.sy),
-                        st.region, plan.guard, lift=lift, memo=st.memo)
+                        st.region, plan.guard, lift=lift, memo=st.memo, before=before)
         if attempt or done.lifted_nodes or st.next_flute is not None:
             break
-        plan.sim.stock[...] = before  # a finishing pass that reached: plan it again
-        st.memo.last = last
+        plan.sim.restore(before, gouge)  # a finishing pass that reached: plan it again
+        st.memo.last = None  # (its state per position is this attempt's)
         # (and while such passes still get lifted, start from the finishing lines)
         st.finish_first = True
     return model, strips, done, before

@@ -164,9 +164,10 @@ def flute_lift(model: F64, sx: float, sy: float, pos: Positions, need: F64) -> i
 
 
 def left_over(stock: F64, surface: F64) -> tuple[float, float]:
-    """Largest and 95th-percentile ``stock - surface`` over the input nodes, mm."""
-    d = stock - surface
-    return float(d.max()), float(np.percentile(d, 95.0))
+    """Largest and 95th-percentile ``stock - surface`` over the input nodes, mm (as
+    ``np.percentile``; :func:`_stock_kernels.diff_max_p95` makes no temporaries)."""
+    hi, p95 = _k.diff_max_p95(np.ascontiguousarray(stock), np.ascontiguousarray(surface))
+    return float(hi), float(p95)
 
 
 @dataclass(frozen=True, eq=False)
@@ -209,6 +210,13 @@ class StockSim:
         self.part = part
         self.stock = np.full(part.shape, float(stock_top))
         self._zmax = block_max(part.z)
+        #: ``max(part - stock)`` so far, clipped at 0 (kept over the blocks each pass lowers)
+        self.gouge = max(0.0, float(part.z.max()) - float(stock_top))
+
+    def restore(self, stock: F64, gouge: float) -> None:
+        """Back to an earlier stock and its gouge."""
+        self.stock[...] = stock
+        self.gouge = gouge
 
     def base_cl(self, model_cl: F64, pos: Positions, tool: Tool) -> F64:
         """``max(model_cl, CL against the part's nodes)`` at the positions."""
@@ -256,7 +264,7 @@ class SimulatedPass:
 def run_pass(sim: StockSim, model: F64, spacing: tuple[float, float], tool: Tool,
              lines: ScanLines, stride: int, region: NDArray[np.bool_] | None,
              guard: float, *, lift: bool = True, target_cl: F64 | None = None,
-             memo: PassMemo | None = None) -> SimulatedPass:
+             memo: PassMemo | None = None, before: F64 | None = None) -> SimulatedPass:
     """Simulate one pass over ``sim``'s stock, lifting ``model`` (in place) where the flute
     rule needs it.
 
@@ -280,6 +288,8 @@ def run_pass(sim: StockSim, model: F64, spacing: tuple[float, float], tool: Tool
         :func:`target_drop`).
     memo : PassMemo, optional
         What the stage's passes share; updated to this pass.
+    before : (ny, nx) float64, optional
+        A copy of ``sim.stock`` as it is (else taken here when the pass is lifted).
 
     Returns
     -------
@@ -310,15 +320,18 @@ def run_pass(sim: StockSim, model: F64, spacing: tuple[float, float], tool: Tool
     cl[cand] = new
     d = top[cand] - new
     depth[cand] = np.where(np.isfinite(d), np.maximum(d, 0.0), 0.0)
-    before = sim.stock.copy() if lifted else None
+    if lifted and before is None:
+        before = sim.stock.copy()
     touched = sim.cut(pos, cutters, cl, tool, state.thin.k == 1)
     if memo is not None:
         memo.last = _Last(state.lines, stride, region, pos, base, cl, top, depth, touched,
                           state.thin)
-    gouge = float(max(0.0, float(np.max(part.z - sim.stock))))
-    lowered = -1 if before is None else int(np.count_nonzero(sim.stock < before - guard))
+    # nodes outside the blocks the pass lowered kept their stock
+    sim.gouge = max(sim.gouge, _k.blocks_diff_max(part.z, sim.stock, touched, BLOCK))
+    lowered = (-1 if not lifted or before is None
+               else _k.blocks_lowered(sim.stock, before, touched, BLOCK, guard))
     along = part.dx if lines.direction == "x" else part.dy
-    return SimulatedPass(PassCut.of(pos, depth, gouge), lifted, stride * along, lowered)
+    return SimulatedPass(PassCut.of(pos, depth, sim.gouge), lifted, stride * along, lowered)
 
 
 class PassMemo:
@@ -418,15 +431,17 @@ def _next_state(sim: StockSim, tool: Tool, last: _Last) -> _State:
     """
     part = sim.part
     pos = last.pos
-    top = last.top.copy()
+    top = last.top  # updated in place: the last pass's figures are kept as numbers
     grown = _grow_blocks(last.touched.astype(np.float64), tool.radius, part.dx, part.dy)
     dirty = _k.near_blocks(grown, BLOCK, pos.x, pos.y, top, last.base, 1.0 / part.dx,
                            1.0 / part.dy)
     if dirty.size:
         top[dirty] = sim.top(pos, dirty, tool, block_max(sim.stock), last.thin.k == 1)
-    cand = np.union1d(np.flatnonzero(last.cl > last.base), dirty)
-    return _State(last.lines, last.thin, pos, cand, top, last.base, last.cl.copy(),
-                  last.depth.copy(), False)
+    again = last.cl > last.base
+    again[dirty] = True
+    cand = np.flatnonzero(again)
+    return _State(last.lines, last.thin, pos, cand, top, last.base, last.cl, last.depth,
+                  False)
 
 
 #: Node visits one pass's simulation may make (positions times the nodes within a ball's

@@ -14,8 +14,9 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-__all__ = ["block_max", "cl_part", "cut", "disc_max", "interpolate", "lower", "may_cut",
-           "near_blocks", "on_nodes", "points", "raise_box", "raise_corners", "top"]
+__all__ = ["block_max", "blocks_diff_max", "blocks_lowered", "cl_part", "cut", "diff_max_p95",
+           "disc_max", "interpolate", "lower", "may_cut", "near_blocks", "on_nodes", "points",
+           "raise_box", "raise_corners", "top"]
 
 F64 = NDArray[np.float64]
 
@@ -308,3 +309,84 @@ def block_max(z: F64, b: int) -> F64:
             if v > out[bi, k // b]:
                 out[bi, k // b] = v
     return out
+
+
+@njit(cache=True, nogil=True)
+def blocks_diff_max(a: F64, s: F64, touched: NDArray[np.bool_], b: int) -> float:
+    """``max(a - s)`` over the nodes of the ``touched`` blocks (-inf: none)."""
+    ny, nx = a.shape
+    best = -np.inf
+    for bi in range(touched.shape[0]):
+        for bk in range(touched.shape[1]):
+            if not touched[bi, bk]:
+                continue
+            for i in range(bi * b, min(bi * b + b, ny)):
+                for k in range(bk * b, min(bk * b + b, nx)):
+                    d = a[i, k] - s[i, k]
+                    if d > best:
+                        best = d
+    return best
+
+
+@njit(cache=True, nogil=True)
+def blocks_lowered(s: F64, before: F64, touched: NDArray[np.bool_], b: int,
+                   guard: float) -> int:
+    """Nodes of the ``touched`` blocks with ``s < before - guard``."""
+    ny, nx = s.shape
+    n = 0
+    for bi in range(touched.shape[0]):
+        for bk in range(touched.shape[1]):
+            if not touched[bi, bk]:
+                continue
+            for i in range(bi * b, min(bi * b + b, ny)):
+                for k in range(bk * b, min(bk * b + b, nx)):
+                    if s[i, k] < before[i, k] - guard:
+                        n += 1
+    return n
+
+
+@njit(cache=True, nogil=True)
+def diff_max_p95(a: F64, s: F64) -> tuple[float, float]:
+    """Largest and 95th percentile (numpy's linear method) of ``a - s``, without the
+    difference as an array: a histogram of 65536 bins finds the bins of the two order
+    statistics, whose values alone are sorted."""
+    fa, fs = a.ravel(), s.ravel()
+    n = fa.size
+    lo_v, hi_v = np.inf, -np.inf
+    for j in range(n):
+        d = fa[j] - fs[j]
+        lo_v = min(lo_v, d)
+        hi_v = max(hi_v, d)
+    if n == 1 or not hi_v > lo_v:
+        return hi_v, hi_v
+    nb = 65536
+    scale = nb / (hi_v - lo_v)
+    counts = np.zeros(nb, dtype=np.int64)
+    for j in range(n):
+        counts[min(int(((fa[j] - fs[j]) - lo_v) * scale), nb - 1)] += 1
+    virtual = 0.95 * (n - 1)
+    r0 = math.floor(virtual)
+    r1 = min(r0 + 1, n - 1)
+    t = virtual - r0
+    below, b0 = 0, 0  # b0: bin holding rank r0; below: ranks before it
+    while below + counts[b0] <= r0:
+        below += counts[b0]
+        b0 += 1
+    b1 = b0
+    upto = below + counts[b0]
+    while upto <= r1:
+        b1 += 1
+        upto += counts[b1]
+    vals = np.empty(upto - below)
+    m = 0
+    for j in range(n):
+        d = fa[j] - fs[j]
+        k = min(int((d - lo_v) * scale), nb - 1)
+        if b0 <= k <= b1:
+            vals[m] = d
+            m += 1
+    vals.sort()
+    x0, x1 = vals[r0 - below], vals[r1 - below]
+    diff = x1 - x0
+    p95 = x1 - diff * (1.0 - t) if t >= 0.5 else x0 + diff * t
+    return hi_v, p95
