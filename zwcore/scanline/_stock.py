@@ -513,15 +513,9 @@ def _lift(model: F64, spacing: tuple[float, float], pos: Positions, node: NDArra
     the simulated CL next to a lift (it cuts less there, never more).
     """
     sx, sy = spacing
-    old = model.copy()
-    if node.any():
-        rows = np.rint(pos.y[node] / sy).astype(np.intp)
-        cols = np.rint(pos.x[node] / sx).astype(np.intp)
-        np.maximum.at(model, (rows, cols), need[node])
-    off = bind & ~node
-    if off.any():
-        flute_lift(model, sx, sy, Positions(pos.x[off], pos.y[off]), need[off])
-    return int(np.count_nonzero(model != old))
+    sel = np.flatnonzero(bind)
+    return int(_k.lift_nodes(model, 1.0 / sx, 1.0 / sy, pos.x[sel], pos.y[sel],
+                             np.ascontiguousarray(need[sel]), node[sel]))
 
 
 def target_drop(model: F64, sx: float, sy: float, tool: Tool, positions: int) -> F64 | None:

@@ -15,8 +15,8 @@ from numba import njit
 from numpy.typing import NDArray
 
 __all__ = ["block_max", "blocks_diff_max", "blocks_lowered", "cl_part", "cut", "diff_max_p95",
-           "disc_max", "interpolate", "lower", "may_cut", "near_blocks", "on_nodes", "points",
-           "raise_box", "raise_corners", "top"]
+           "disc_max", "interpolate", "lift_nodes", "lower", "may_cut", "near_blocks",
+           "on_nodes", "points", "raise_box", "raise_corners", "top"]
 
 F64 = NDArray[np.float64]
 
@@ -175,10 +175,35 @@ def may_cut(grown: F64, b: int, px: F64, py: F64, cl: F64, idx: float,
         out[n] = grown[bi, bk] > cl[n]
     return out
 @njit(cache=True, nogil=True)
+def _slide_max(s: F64, w: int, out: F64) -> None:
+    """``out[i, k] = max(s[i, k-w..k+w])`` (clamped to the row), by the van Herk /
+    Gil-Werman scheme: the row padded with ``w`` -inf each side, per block of
+    ``W = 2w+1`` a running maximum from its start (``g``) and from its end (``h``); every
+    window is one block's tail and the next block's head, ``max(h[k], g[k + 2w])``:
+    three operations per node whatever ``w``."""
+    ny, nx = s.shape
+    big_w = 2 * w + 1
+    m = nx + 2 * w
+    p = np.empty(m)
+    g = np.empty(m)
+    h = np.empty(m)
+    for i in range(ny):
+        for j in range(m):
+            p[j] = s[i, j - w] if w <= j < w + nx else -np.inf
+        for j in range(m):
+            g[j] = p[j] if j % big_w == 0 else max(g[j - 1], p[j])
+        for j in range(m - 1, -1, -1):
+            h[j] = p[j] if (j % big_w == big_w - 1 or j == m - 1) else max(h[j + 1], p[j])
+        for k in range(nx):
+            out[i, k] = max(h[k], g[k + 2 * w])
+
+
+@njit(cache=True, nogil=True)
 def disc_max(s: F64, widths: NDArray[np.int64]) -> F64:
     """Highest ``s`` within the disc of half-widths ``widths`` (per row offset ``a = 0..A``,
-    -1: none) of every node: per distinct width a sliding maximum along the rows, then
-    its rows shifted by each offset with that width folded into the result."""
+    -1: none) of every node: per distinct width a sliding maximum along the rows
+    (:func:`_slide_max`), then its rows shifted by each offset with that width folded
+    into the result."""
     ny, nx = s.shape
     out = np.full((ny, nx), -np.inf)
     slide = np.empty((ny, nx))
@@ -188,13 +213,7 @@ def disc_max(s: F64, widths: NDArray[np.int64]) -> F64:
         if w0 < 0 or done[w0]:
             continue
         done[w0] = True
-        for i in range(ny):
-            for k in range(nx):
-                m = s[i, k]
-                for kk in range(max(0, k - w0), min(nx, k + w0 + 1)):
-                    if s[i, kk] > m:
-                        m = s[i, kk]
-                slide[i, k] = m
+        _slide_max(s, w0, slide)
         for a in range(-a_max, a_max + 1):
             if widths[abs(a)] != w0:
                 continue
@@ -303,11 +322,12 @@ def block_max(z: F64, b: int) -> F64:
     my, mx = -(-ny // b), -(-nx // b)
     out = np.full((my, mx), -np.inf)
     for i in range(ny):
-        bi = i // b
-        for k in range(nx):
-            v = z[i, k]
-            if v > out[bi, k // b]:
-                out[bi, k // b] = v
+        row = out[i // b]
+        for bk in range(mx):
+            m = row[bk]
+            for k in range(bk * b, min(bk * b + b, nx)):
+                m = max(m, z[i, k])
+            row[bk] = m
     return out
 
 
@@ -390,3 +410,36 @@ def diff_max_p95(a: F64, s: F64) -> tuple[float, float]:
     diff = x1 - x0
     p95 = x1 - diff * (1.0 - t) if t >= 0.5 else x0 + diff * t
     return hi_v, p95
+
+
+@njit(cache=True, nogil=True)
+def lift_nodes(model: F64, isx: float, isy: float, px: F64, py: F64, need: F64,
+               on: NDArray[np.bool_]) -> int:
+    """Raise to ``need``: the node under each position ``on`` a node, else the corners
+    :func:`raise_corners` raises. Returns the number of distinct nodes raised."""
+    my, mx = model.shape
+    raised = np.empty(4 * px.size, dtype=np.int64)
+    m = 0
+    for n in range(px.size):
+        fx, fy = px[n] * isx, py[n] * isy
+        if on[n]:
+            r, c = min(max(round(fy), 0), my - 1), min(max(round(fx), 0), mx - 1)
+            if model[r, c] < need[n]:
+                model[r, c] = need[n]
+                raised[m] = r * mx + c
+                m += 1
+            continue
+        c0 = min(max(math.floor(fx), 0), max(mx - 2, 0))
+        r0 = min(max(math.floor(fy), 0), max(my - 2, 0))
+        tx, ty = fx - c0, fy - r0
+        for r in (r0, min(r0 + 1, my - 1)):
+            if (r != r0 and ty <= 0.0) or (r == r0 and r0 + 1 < my and ty >= 1.0):
+                continue
+            for c in (c0, min(c0 + 1, mx - 1)):
+                if (c != c0 and tx <= 0.0) or (c == c0 and c0 + 1 < mx and tx >= 1.0):
+                    continue
+                if model[r, c] < need[n]:
+                    model[r, c] = need[n]
+                    raised[m] = r * mx + c
+                    m += 1
+    return np.unique(raised[:m]).size
