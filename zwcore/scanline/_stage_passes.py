@@ -198,7 +198,7 @@ def _one_pass(plan: _Plan, st: _Stage, lift: bool,
         if attempt or done.lifted_nodes or st.next_flute is not None:
             break
         plan.sim.restore(before, gouge)  # a finishing pass that reached: plan it again
-        st.memo.last = None  # (its state per position is this attempt's)
+        st.memo.forget(strips.lines)
         # (and while such passes still get lifted, start from the finishing lines)
         st.finish_first = True
     return model, strips, done, before

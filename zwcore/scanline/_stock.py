@@ -295,9 +295,8 @@ def run_pass(sim: StockSim, model: F64, spacing: tuple[float, float], tool: Tool
     -------
     SimulatedPass
     """
-    last = memo.last if memo is not None and INCREMENTAL else None
-    if (last is not None and last.lines is lines and last.stride == stride
-            and last.region is region):
+    last = memo.find(lines, stride, region) if memo is not None and INCREMENTAL else None
+    if last is not None:
         state = _next_state(sim, tool, last)
     else:
         state = _first_state(sim, model, spacing, tool, lines, stride, region, target_cl,
@@ -324,8 +323,8 @@ def run_pass(sim: StockSim, model: F64, spacing: tuple[float, float], tool: Tool
         before = sim.stock.copy()
     touched = sim.cut(pos, cutters, cl, tool, state.thin.k == 1)
     if memo is not None:
-        memo.last = _Last(state.lines, stride, region, pos, base, cl, top, depth, touched,
-                          state.thin)
+        memo.keep(lines, _Last(state.lines, stride, region, pos, base, cl, top, depth,
+                               touched, state.thin))
     # nodes outside the blocks the pass lowered kept their stock
     sim.gouge = max(sim.gouge, _k.blocks_diff_max(part.z, sim.stock, touched, BLOCK))
     lowered = (-1 if not lifted or before is None
@@ -336,12 +335,33 @@ def run_pass(sim: StockSim, model: F64, spacing: tuple[float, float], tool: Tool
 
 class PassMemo:
     """What the passes of one stage share: the drop-cutter of its target (computed once)
-    and the last pass's state per position (:func:`_next_state`)."""
+    and, per set of scan lines, the last pass on them, per position (:func:`_next_state`),
+    with every block any pass lowered since."""
 
     def __init__(self) -> None:
-        self.last: _Last | None = None
+        self._last: dict[int, tuple[ScanLines, _Last]] = {}
         self._drop: F64 | None = None
         self._dropped = False
+
+    def find(self, lines: ScanLines, stride: int,
+             region: NDArray[np.bool_] | None) -> _Last | None:
+        """The last pass on these lines (same stride and region), if any."""
+        got = self._last.get(id(lines))
+        if got is None or got[0] is not lines:
+            return None
+        last = got[1]
+        return last if last.stride == stride and last.region is region else None
+
+    def keep(self, lines: ScanLines, last: _Last) -> None:
+        """Record a pass on ``lines``; the blocks it lowered count for the others too."""
+        for _, other in self._last.values():
+            np.logical_or(other.touched, last.touched, out=other.touched)
+        self._last[id(lines)] = (lines, last)
+
+    def forget(self, lines: ScanLines) -> None:
+        """Drop the state of a pass on ``lines`` that was undone (its stock restored: the
+        blocks it lowered stay marked for the others, which only costs a re-read)."""
+        self._last.pop(id(lines), None)
 
     def target_cl(self, model: F64, sx: float, sy: float, tool: Tool,
                   positions: int) -> F64 | None:
@@ -426,8 +446,8 @@ def _next_state(sim: StockSim, tool: Tool, last: _Last) -> _State:
     within ``R`` is unchanged keeps its CL, depth and (not) binding, and cuts nothing;
     one whose highest stock within ``R`` lay at or under its unlifted CL keeps that too.
     Decided again: the positions lifted last time (their CL may fall, and they cut
-    where it does) and those within ``R`` of a block the last pass lowered (their
-    highest stock within ``R`` is read again).
+    where it does) and those within ``R`` of a block any pass lowered since the last
+    one on these positions (their highest stock within ``R`` is read again).
     """
     part = sim.part
     pos = last.pos
