@@ -38,12 +38,21 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import ndimage
 
 from zwcore.grid.tools import Tool
 from zwcore.grid.zmap import ZMap
 from zwcore.scanline import _stock_kernels as _k
 from zwcore.scanline._stock_grid import GRID_MODE_RADIUS, GridMode
+from zwcore.scanline._stock_state import (
+    BLOCK,
+    Last,
+    PassMemo,
+    Positions,
+    State,
+    block_max,
+    grow_blocks,
+    next_state,
+)
 from zwcore.scanline.results import ScanLines
 from zwcore.sim import drop_cutter
 
@@ -69,30 +78,9 @@ __all__ = [
 
 F64 = NDArray[np.float64]
 
-#: Input nodes per side of the blocks the kernels skip whole.
-BLOCK = 8
-
 #: The cusp discrete positions may leave along a line, as a share of the pass's scallop
 #: (or of the tolerance, the larger).
 CUSP_SHARE = 0.25
-
-
-def block_max(z: F64, b: int = BLOCK) -> F64:
-    """``(ceil(ny/b), ceil(nx/b))``: the largest value of every ``b x b`` block of nodes."""
-    out: F64 = _k.block_max(np.ascontiguousarray(z), b)
-    return out
-
-
-@dataclass(frozen=True, eq=False)
-class Positions:
-    """Tool positions of one pass: ``x, y`` in mm from the grid's first node, ``(n,)``."""
-
-    x: F64
-    y: F64
-
-    @property
-    def size(self) -> int:
-        return int(self.x.size)
 
 
 def stride_for(tool: Tool, scallop: float, tolerance: float, spacing: float) -> int:
@@ -192,9 +180,8 @@ class PassCut:
     @classmethod
     def of(cls, positions: Positions, depth: F64, gouge: float) -> PassCut:
         """From the depth of cut per position, (n,)."""
-        cutting = depth[depth > 0.0]
-        mean = float(cutting.mean()) if cutting.size else 0.0
-        return cls(positions, float(depth.max(initial=0.0)), mean, gouge)
+        top, mean = _k.positive_max_mean(depth)
+        return cls(positions, float(top), float(mean), gouge)
 
 
 class StockSim:
@@ -212,6 +199,7 @@ class StockSim:
         self._zmax = block_max(part.z)
         #: ``max(part - stock)`` so far, clipped at 0 (kept over the blocks each pass lowers)
         self.gouge = max(0.0, float(part.z.max()) - float(stock_top))
+        self._grid_key: tuple[Positions, NDArray[np.intp], float, GridMode | None] | None = None
 
     def restore(self, stock: F64, gouge: float) -> None:
         """Back to an earlier stock and its gouge."""
@@ -229,11 +217,21 @@ class StockSim:
         """Highest stock node within ``R`` of the positions ``idx`` (grid mode when they
         are most of the input nodes and ``grid_ok``)."""
         px, py = pos.x[idx], pos.y[idx]
-        grid = GridMode.of(px, py, self.part, tool, BLOCK) if grid_ok else None
+        grid = self._grid(pos, idx, px, py, tool) if grid_ok else None
         if grid is not None:
             return grid.top(self.stock, smax, self.part, px, py, tool)
         return _k.top(self.stock, smax, BLOCK, px, py, tool.radius, self.part.dx,
                       self.part.dy)
+
+    def _grid(self, pos: Positions, idx: NDArray[np.intp], px: F64, py: F64,
+              tool: Tool) -> GridMode | None:
+        """:meth:`GridMode.of` the positions ``idx``, kept for the same ``pos`` and ``idx``
+        (a first pass reads the top and cuts at the same positions)."""
+        key = self._grid_key
+        if key is None or key[0] is not pos or key[1] is not idx or key[2] != tool.radius:
+            key = (pos, idx, tool.radius, GridMode.of(px, py, self.part, tool, BLOCK))
+            self._grid_key = key
+        return key[3]
 
     def cut(self, pos: Positions, idx: NDArray[np.intp], cl: F64, tool: Tool,
             grid_ok: bool) -> NDArray[np.bool_]:
@@ -242,7 +240,7 @@ class StockSim:
         smax = block_max(self.stock)
         touched = np.zeros(smax.shape, dtype=bool)
         px, py, c = pos.x[idx], pos.y[idx], np.ascontiguousarray(cl[idx])
-        grid = GridMode.of(px, py, self.part, tool, BLOCK) if grid_ok else None
+        grid = self._grid(pos, idx, px, py, tool) if grid_ok else None
         if grid is not None:
             grid.cut(self.stock, smax, self.part, px, py, c, tool, touched)
         else:
@@ -279,7 +277,7 @@ def run_pass(sim: StockSim, model: F64, spacing: tuple[float, float], tool: Tool
     nothing (and its depth of cut is 0). A position on a model node needs no drop-cutter
     against the part's nodes: the model contains them, and its CL there is at least
     that of any surface under it. The next pass of a stage on the same positions
-    (``memo``) visits fewer still (:func:`_next_state`).
+    (``memo``) visits fewer still (:func:`_stock_state.next_state`).
 
     Parameters
     ----------
@@ -297,7 +295,7 @@ def run_pass(sim: StockSim, model: F64, spacing: tuple[float, float], tool: Tool
     """
     last = memo.find(lines, stride, region) if memo is not None and INCREMENTAL else None
     if last is not None:
-        state = _next_state(sim, tool, last)
+        state = next_state(sim, tool, last)
     else:
         state = _first_state(sim, model, spacing, tool, lines, stride, region, target_cl,
                              memo)
@@ -323,7 +321,7 @@ def run_pass(sim: StockSim, model: F64, spacing: tuple[float, float], tool: Tool
         before = sim.stock.copy()
     touched = sim.cut(pos, cutters, cl, tool, state.thin.k == 1)
     if memo is not None:
-        memo.keep(lines, _Last(state.lines, stride, region, pos, base, cl, top, depth,
+        memo.keep(lines, Last(state.lines, stride, region, pos, base, cl, top, depth,
                                touched, state.thin))
     # nodes outside the blocks the pass lowered kept their stock
     sim.gouge = max(sim.gouge, _k.blocks_diff_max(part.z, sim.stock, touched, BLOCK))
@@ -333,101 +331,27 @@ def run_pass(sim: StockSim, model: F64, spacing: tuple[float, float], tool: Tool
     return SimulatedPass(PassCut.of(pos, depth, sim.gouge), lifted, stride * along, lowered)
 
 
-class PassMemo:
-    """What the passes of one stage share: the drop-cutter of its target (computed once)
-    and, per set of scan lines, the last pass on them, per position (:func:`_next_state`),
-    with every block any pass lowered since."""
-
-    def __init__(self) -> None:
-        self._last: dict[int, tuple[ScanLines, _Last]] = {}
-        self._drop: F64 | None = None
-        self._dropped = False
-
-    def find(self, lines: ScanLines, stride: int,
-             region: NDArray[np.bool_] | None) -> _Last | None:
-        """The last pass on these lines (same stride and region), if any."""
-        got = self._last.get(id(lines))
-        if got is None or got[0] is not lines:
-            return None
-        last = got[1]
-        return last if last.stride == stride and last.region is region else None
-
-    def keep(self, lines: ScanLines, last: _Last) -> None:
-        """Record a pass on ``lines``; the blocks it lowered count for the others too."""
-        for _, other in self._last.values():
-            np.logical_or(other.touched, last.touched, out=other.touched)
-        self._last[id(lines)] = (lines, last)
-
-    def forget(self, lines: ScanLines) -> None:
-        """Drop the state of a pass on ``lines`` that was undone (its stock restored: the
-        blocks it lowered stay marked for the others, which only costs a re-read)."""
-        self._last.pop(id(lines), None)
-
-    def target_cl(self, model: F64, sx: float, sy: float, tool: Tool,
-                  positions: int) -> F64 | None:
-        """:func:`target_drop` of the stage's target (the first pass's ``model``)."""
-        if not self._dropped:
-            self._drop, self._dropped = target_drop(model, sx, sy, tool, positions), True
-        return self._drop
-
-
-@dataclass(frozen=True, eq=False)
-class _Last:
-    """One pass, per position, for the next pass of its stage.
-
-    ``base`` is the unlifted CL (the target's; where the position may cut, at least the
-    part's nodes' too), ``cl`` the CL it cut at, ``top`` the highest stock before it
-    within ``R`` (-inf where that is known to lie at or under ``base``), ``depth`` its
-    depth of cut, ``touched`` the blocks whose stock it lowered.
-    """
-
-    lines: ScanLines
-    stride: int
-    region: NDArray[np.bool_] | None
-    pos: Positions
-    base: F64
-    cl: F64
-    top: F64
-    depth: F64
-    touched: NDArray[np.bool_]
-    thin: _Thinning
-
-
-@dataclass(frozen=True, eq=False)
-class _State:
-    """A pass before the flute rule: positions, the ones to decide again (``cand``),
-    and per position the highest stock within ``R``, unlifted CL, CL and depth so far
-    (fresh arrays: the pass fills ``cl`` and ``depth`` at ``cand``)."""
-
-    lines: ScanLines
-    thin: _Thinning
-    pos: Positions
-    cand: NDArray[np.intp]
-    top: F64
-    base: F64
-    cl: F64
-    depth: F64
-    first: bool
-
-
 def _first_state(sim: StockSim, model: F64, spacing: tuple[float, float], tool: Tool,
                  lines: ScanLines, stride: int, region: NDArray[np.bool_] | None,
-                 target_cl: F64 | None, memo: PassMemo | None) -> _State:
+                 target_cl: F64 | None, memo: PassMemo | None) -> State:
     """Every position of the pass: CL on the target, the part's nodes where it may cut."""
     sx, sy = spacing
     part = sim.part
     thin = _Thinning.of(lines, part, stride, tool, spacing)
     pos = positions(thin.lines, part, stride * thin.k, region, spacing)
-    if target_cl is None:
-        target_cl = (memo.target_cl(model, sx, sy, tool, pos.size) if memo is not None
-                     else target_drop(model, sx, sy, tool, pos.size))
+    if target_cl is None and memo is not None:
+        if not memo.dropped:  # the stage's target: the first pass's model
+            memo.drop, memo.dropped = target_drop(model, sx, sy, tool, pos.size), True
+        target_cl = memo.drop
+    elif target_cl is None:
+        target_cl = target_drop(model, sx, sy, tool, pos.size)
     if target_cl is None:  # a large ball on a fine model: dropped on its nodes here only
         cl = _k.cl_part(model, block_max(model), BLOCK, pos.x, pos.y,
                         np.full(pos.size, -np.inf), tool.radius, sx, sy)
     else:
         cl = interpolate(target_cl, sx, sy, pos)
     smax = block_max(sim.stock)
-    may = _k.may_cut(_grow_blocks(smax, tool.radius, part.dx, part.dy), BLOCK,
+    may = _k.may_cut(grow_blocks(smax, tool.radius, part.dx, part.dy), BLOCK,
                      pos.x, pos.y, cl, 1.0 / part.dx, 1.0 / part.dy)
     act = np.flatnonzero(may)
     off = act[~_on_nodes(Positions(pos.x[act], pos.y[act]), sx, sy)]
@@ -435,33 +359,7 @@ def _first_state(sim: StockSim, model: F64, spacing: tuple[float, float], tool: 
         cl[off] = sim.base_cl(cl[off], Positions(pos.x[off], pos.y[off]), tool)
     top = np.full(pos.size, -np.inf)
     top[act] = sim.top(pos, act, tool, smax, thin.k == 1)
-    return _State(thin.lines, thin, pos, act, top, cl, cl.copy(), np.zeros(pos.size), True)
-
-
-def _next_state(sim: StockSim, tool: Tool, last: _Last) -> _State:
-    """The next pass on the last pass's positions, visiting only what can change.
-
-    The stock only falls, and the last pass left it at or under the ball at every
-    position. So a position not lifted last time (CL = its unlifted CL) whose stock
-    within ``R`` is unchanged keeps its CL, depth and (not) binding, and cuts nothing;
-    one whose highest stock within ``R`` lay at or under its unlifted CL keeps that too.
-    Decided again: the positions lifted last time (their CL may fall, and they cut
-    where it does) and those within ``R`` of a block any pass lowered since the last
-    one on these positions (their highest stock within ``R`` is read again).
-    """
-    part = sim.part
-    pos = last.pos
-    top = last.top  # updated in place: the last pass's figures are kept as numbers
-    grown = _grow_blocks(last.touched.astype(np.float64), tool.radius, part.dx, part.dy)
-    dirty = _k.near_blocks(grown, BLOCK, pos.x, pos.y, top, last.base, 1.0 / part.dx,
-                           1.0 / part.dy)
-    if dirty.size:
-        top[dirty] = sim.top(pos, dirty, tool, block_max(sim.stock), last.thin.k == 1)
-    again = last.cl > last.base
-    again[dirty] = True
-    cand = np.flatnonzero(again)
-    return _State(last.lines, last.thin, pos, cand, top, last.base, last.cl, last.depth,
-                  False)
+    return State(thin.lines, thin, pos, act, top, cl, cl.copy(), np.zeros(pos.size), True)
 
 
 #: Node visits one pass's simulation may make (positions times the nodes within a ball's
@@ -562,7 +460,7 @@ def target_drop(model: F64, sx: float, sy: float, tool: Tool, positions: int) ->
 #: See :func:`target_drop`.
 DROP_SHARE = 4
 
-#: The next pass of a stage visits only what can change (:func:`_next_state`), and
+#: The next pass of a stage visits only what can change (:func:`_stock_state.next_state`), and
 #: :func:`target_drop` weighs the drop against the positions. ``False``: every pass
 #: simulates all its positions and the drop is bounded by the work alone (the method
 #: before; for ``bench/bench_scanline_core.py`` and the tests that compare the two).
@@ -577,12 +475,3 @@ def drop(model: F64, sx: float, sy: float, tool: Tool) -> F64:
 def _on_nodes(pos: Positions, sx: float, sy: float) -> NDArray[np.bool_]:
     """Positions that sit on a node of spacing ``sx, sy`` (to 1e-9 of the spacing)."""
     return _k.on_nodes(pos.x, pos.y, 1.0 / sx, 1.0 / sy)
-
-
-def _grow_blocks(smax: F64, r: float, dx: float, dy: float) -> F64:
-    """Block maxima grown by the blocks a ball of radius ``r`` centred in a block reaches."""
-    # a position lies within half a spacing of the node whose block it is looked up in
-    reach = r + max(dx, dy)
-    ga, gb = math.ceil(reach / (BLOCK * dy)), math.ceil(reach / (BLOCK * dx))
-    out: F64 = ndimage.maximum_filter(smax, size=(2 * ga + 1, 2 * gb + 1), mode="nearest")
-    return out

@@ -44,11 +44,9 @@ class GridMode:
         if (tool.radius > GRID_MODE_RADIUS * min(part.dx, part.dy)
                 or px.size < GRID_MODE_SHARE * part.z.size):
             return None
-        on = _k.on_nodes(px, py, 1.0 / part.dx, 1.0 / part.dy)
-        if np.count_nonzero(on) < GRID_MODE_SHARE * part.z.size:
+        on, rows, cols = _k.node_index(px, py, 1.0 / part.dx, 1.0 / part.dy)
+        if rows.size < GRID_MODE_SHARE * part.z.size:
             return None
-        rows = np.rint(py[on] / part.dy).astype(np.intp)
-        cols = np.rint(px[on] / part.dx).astype(np.intp)
         return cls(on, rows, cols, b)
 
     def top(self, stock: F64, smax: F64, part: ZMap, px: F64, py: F64, tool: Tool) -> F64:

@@ -16,7 +16,8 @@ from numpy.typing import NDArray
 
 __all__ = ["block_max", "blocks_diff_max", "blocks_lowered", "cl_part", "cut", "diff_max_p95",
            "disc_max", "interpolate", "lift_nodes", "lower", "may_cut", "near_blocks",
-           "on_nodes", "points", "raise_box", "raise_corners", "top"]
+           "node_index", "on_nodes", "points", "positive_max_mean", "raise_box",
+           "raise_corners", "top"]
 
 F64 = NDArray[np.float64]
 
@@ -443,3 +444,35 @@ def lift_nodes(model: F64, isx: float, isy: float, px: F64, py: F64, need: F64,
                     raised[m] = r * mx + c
                     m += 1
     return np.unique(raised[:m]).size
+
+
+@njit(cache=True, nogil=True)
+def positive_max_mean(d: F64) -> tuple[float, float]:
+    """``max(d, 0)`` and the mean of the positive values (0 without any)."""
+    best, total, n = 0.0, 0.0, 0
+    for j in range(d.size):
+        v = d[j]
+        if v > 0.0:
+            total += v
+            n += 1
+            if v > best:
+                best = v
+    return best, (total / n if n else 0.0)
+
+
+@njit(cache=True, nogil=True)
+def node_index(px: F64, py: F64, isx: float, isy: float,
+               ) -> tuple[NDArray[np.bool_], NDArray[np.intp], NDArray[np.intp]]:
+    """:func:`on_nodes`, and the row and column of the positions on a node."""
+    on = np.empty(px.size, dtype=np.bool_)
+    rows = np.empty(px.size, dtype=np.intp)
+    cols = np.empty(px.size, dtype=np.intp)
+    m = 0
+    for n in range(px.size):
+        fx, fy = px[n] * isx, py[n] * isy
+        rx, ry = round(fx), round(fy)
+        on[n] = abs(fx - rx) <= 1e-9 and abs(fy - ry) <= 1e-9
+        if on[n]:
+            rows[m], cols[m] = ry, rx
+            m += 1
+    return on, rows[:m], cols[:m]
