@@ -191,10 +191,18 @@ def _one_pass(plan: _Plan, st: _Stage, lift: bool,
     before, gouge = plan.sim.stock.copy(), plan.sim.gouge
     for attempt in (guess, True):
         strips = st.strips(attempt, plan.tolerance, plan.extent_mm)
-        model = lev.model.copy()  # the flute rule raises it in place
-        done = run_pass(plan.sim, model, (lev.sx, lev.sy), tool, strips.lines,
-                        _stride(tool, strips, plan.tolerance, plan.zmap, lev.sx, lev.sy),
-                        st.region, plan.guard, lift=lift, memo=st.memo, before=before)
+        stride = _stride(tool, strips, plan.tolerance, plan.zmap, lev.sx, lev.sy)
+        for _ in range(2):
+            model = lev.model.copy()  # the flute rule raises it in place
+            done = run_pass(plan.sim, model, (lev.sx, lev.sy), tool, strips.lines, stride,
+                            st.region, plan.guard, lift=lift, memo=st.memo, before=before)
+            if not (done.incremental and done.lifted_nodes and done.lowered == 0):
+                break
+            # A lifted pass that lowers nothing stalls the stage: decided on every
+            # position (the incremental pass skips the ones that only re-cut their own
+            # envelope, which in grid mode can still round lower).
+            plan.sim.restore(before, gouge)
+            st.memo.forget(strips.lines)
         if attempt or done.lifted_nodes or st.next_flute is not None:
             break
         plan.sim.restore(before, gouge)  # a finishing pass that reached: plan it again

@@ -251,12 +251,14 @@ class StockSim:
 
 @dataclass(frozen=True, eq=False)
 class SimulatedPass:
-    """What :func:`run_pass` did: the cut and the model nodes the flute rule raised."""
+    """What :func:`run_pass` did: the cut and the model nodes the flute rule raised
+    (``incremental``: as a stage's next pass, :func:`_stock_state.next_state`)."""
 
     cut: PassCut
     lifted_nodes: int
     spacing: float
     lowered: int
+    incremental: bool = False
 
 
 def run_pass(sim: StockSim, model: F64, spacing: tuple[float, float], tool: Tool,
@@ -328,7 +330,8 @@ def run_pass(sim: StockSim, model: F64, spacing: tuple[float, float], tool: Tool
     lowered = (-1 if not lifted or before is None
                else _k.blocks_lowered(sim.stock, before, touched, BLOCK, guard))
     along = part.dx if lines.direction == "x" else part.dy
-    return SimulatedPass(PassCut.of(pos, depth, sim.gouge), lifted, stride * along, lowered)
+    return SimulatedPass(PassCut.of(pos, depth, sim.gouge), lifted, stride * along, lowered,
+                         not state.first)
 
 
 def _first_state(sim: StockSim, model: F64, spacing: tuple[float, float], tool: Tool,
