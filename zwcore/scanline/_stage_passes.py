@@ -183,8 +183,9 @@ def _stride(tool: Tool, strips: StripPlan, tolerance: float, zmap: ZMap, sx: flo
 
 
 def _one_pass(plan: _Plan, st: _Stage, lift: bool,
-              ) -> tuple[F64, StripPlan, SimulatedPass, F64]:
-    """Simulate the stage's next pass; its model, lines, simulation and the stock before."""
+              ) -> tuple[F64, StripPlan, SimulatedPass, F64, bool]:
+    """Simulate the stage's next pass; its model, lines, simulation, the stock before and
+    whether its lines were laid for a pass that reaches the target."""
     lev, tool = st.lev, st.tool
     guess = st.finish_first or _reaches(st.on, lev.model,
                                         plan.leaves - tool.flute_length + plan.guard)
@@ -209,7 +210,7 @@ def _one_pass(plan: _Plan, st: _Stage, lift: bool,
         st.memo.forget(strips.lines)
         # (and while such passes still get lifted, start from the finishing lines)
         st.finish_first = True
-    return model, strips, done, before
+    return model, strips, done, before, attempt
 
 
 def _stall_note(tool: Tool, lev: Level) -> str:
@@ -228,7 +229,7 @@ def _stage_passes(plan: _Plan, st: _Stage) -> F64:
                           / (0.25 * tool.flute_length)) + 4
     lifts, stalled = 0, False
     while True:
-        model, strips, done, before = _one_pass(plan, st, not stalled)
+        model, strips, done, before, on_target = _one_pass(plan, st, not stalled)
         reached = done.lifted_nodes == 0
         if plan.out:  # what the previous pass left over this one's model
             plan.out[-1].left_next = left_over(before, upsampled(model, scale, zmap.shape))
@@ -238,7 +239,9 @@ def _stage_passes(plan: _Plan, st: _Stage) -> F64:
                 stalled = True
                 if plan.notes is not None:
                     plan.notes.append(_stall_note(tool, lev))
-        slope = st.slope_t if reached else st.slope_b
+        # the slope the pass's lines were laid on (an intermediate pass laid on the bound
+        # may still reach the target: its cross slopes are the bound's)
+        slope = st.slope_t if reached and on_target else st.slope_b
         plan.out.append(PassSpec(
             lev.index, lev.sx, lev.sy, tool, model, strips,
             slope, st.rest, st.merged, lev.concave_radius,
