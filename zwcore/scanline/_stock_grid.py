@@ -80,11 +80,11 @@ def _half_widths(r: float, dx: float, dy: float) -> NDArray[np.int64]:
     a = np.arange(math.floor(r / dy + 1e-9) + 1)
     rest = np.maximum(r * r - (a * dy) ** 2, 0.0)
     out: NDArray[np.int64] = np.floor(np.sqrt(rest) / dx + 1e-9).astype(np.int64)
-    # the same test as the kernels' d² <= r², node by node
+    # the same test as the kernels' d² <= r² RIM, node by node
     for n in range(a.size):
-        while out[n] >= 0 and (a[n] * dy) ** 2 + (out[n] * dx) ** 2 > r * r:
+        while out[n] >= 0 and (a[n] * dy) ** 2 + (out[n] * dx) ** 2 > r * r * _k.RIM:
             out[n] -= 1
-        while (a[n] * dy) ** 2 + ((out[n] + 1) * dx) ** 2 <= r * r:
+        while (a[n] * dy) ** 2 + ((out[n] + 1) * dx) ** 2 <= r * r * _k.RIM:
             out[n] += 1
     return out
 

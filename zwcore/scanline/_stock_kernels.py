@@ -3,7 +3,7 @@
 Positions are ``(px, py)`` in mm from the grid's first node; node ``(i, k)`` sits at
 ``(k dx, i dy)``. The kernels visit, per position, the input nodes within ``r`` in blocks
 of ``b x b`` nodes and skip a block whose maximum (``zmax``, ``smax``) cannot change the
-answer. A node exactly ``r`` away counts as within.
+answer. A node exactly ``r`` away counts as within (:data:`RIM`).
 """
 
 from __future__ import annotations
@@ -20,6 +20,12 @@ __all__ = ["block_max", "blocks_diff_max", "blocks_lowered", "cl_part", "cut", "
            "raise_corners", "top"]
 
 F64 = NDArray[np.float64]
+
+#: A node counts as within ``r`` of a position when ``d² <= r² RIM``: a node exactly ``r``
+#: away (``(3, 4)`` spacings of 0.1 mm from a Ø1 ball's axis) is then within whatever the
+#: rounding of ``k dx - p``, as in the whole-grid envelope (:mod:`zwcore.sim`) and
+#: :func:`zwcore.scanline._stock_grid._half_widths`; heights use the exact ``r²``.
+RIM = 1.0 + 1e-12
 
 
 @njit(cache=True, nogil=True)
@@ -42,7 +48,7 @@ def cl_part(z: F64, zmax: F64, b: int, px: F64, py: F64, cl0: F64, r: float, dx:
              dy: float) -> F64:
     """``max(cl0, max over nodes q within r of z[q] - h(|q - c|))`` per position (ball)."""
     ny, nx = z.shape
-    r2 = r * r
+    r2, rin = r * r, r * r * RIM
     out = cl0.copy()
     for n in range(px.size):
         p, q = px[n], py[n]
@@ -54,15 +60,15 @@ def cl_part(z: F64, zmax: F64, b: int, px: F64, py: F64, cl0: F64, r: float, dx:
         for bi in range(i0 // b, i1 // b + 1):
             for bk in range(k0 // b, k1 // b + 1):
                 dm2 = _block_dist2(p, q, bi, bk, b, ny, nx, dx, dy)
-                if dm2 > r2 or zmax[bi, bk] - (r - math.sqrt(r2 - dm2)) <= best:
+                if dm2 > rin or zmax[bi, bk] - (r - math.sqrt(max(r2 - dm2, 0.0))) <= best:
                     continue
                 for i in range(max(i0, bi * b), min(i1, bi * b + b - 1) + 1):
                     ey = i * dy - q
                     for k in range(max(k0, bk * b), min(k1, bk * b + b - 1) + 1):
                         ex = k * dx - p
                         d2 = ex * ex + ey * ey
-                        if d2 <= r2:
-                            v = z[i, k] - (r - math.sqrt(r2 - d2))
+                        if d2 <= rin:
+                            v = z[i, k] - (r - math.sqrt(max(r2 - d2, 0.0)))
                             if v > best:
                                 best = v
         out[n] = best
@@ -72,7 +78,7 @@ def top(s: F64, smax: F64, b: int, px: F64, py: F64, r: float, dx: float,
          dy: float) -> F64:
     """Highest stock node within ``r`` of each position (-inf: none)."""
     ny, nx = s.shape
-    r2 = r * r
+    rin = r * r * RIM
     out = np.full(px.size, -np.inf)
     for n in range(px.size):
         p, q = px[n], py[n]
@@ -84,13 +90,13 @@ def top(s: F64, smax: F64, b: int, px: F64, py: F64, r: float, dx: float,
         for bi in range(i0 // b, i1 // b + 1):
             for bk in range(k0 // b, k1 // b + 1):
                 if smax[bi, bk] <= best or _block_dist2(p, q, bi, bk, b, ny, nx, dx,
-                                                        dy) > r2:
+                                                        dy) > rin:
                     continue
                 for i in range(max(i0, bi * b), min(i1, bi * b + b - 1) + 1):
                     ey = i * dy - q
                     for k in range(max(k0, bk * b), min(k1, bk * b + b - 1) + 1):
                         ex = k * dx - p
-                        if ex * ex + ey * ey <= r2 and s[i, k] > best:
+                        if ex * ex + ey * ey <= rin and s[i, k] > best:
                             best = s[i, k]
         out[n] = best
     return out
@@ -104,7 +110,7 @@ def cut(s: F64, smax: F64, b: int, px: F64, py: F64, cl: F64, r: float, dx: floa
     a node was lowered.
     """
     ny, nx = s.shape
-    r2 = r * r
+    r2, rin = r * r, r * r * RIM
     for n in range(px.size):
         p, q, c = px[n], py[n], cl[n]
         k0, k1 = _span(p, r, dx, nx)
@@ -114,15 +120,15 @@ def cut(s: F64, smax: F64, b: int, px: F64, py: F64, cl: F64, r: float, dx: floa
         for bi in range(i0 // b, i1 // b + 1):
             for bk in range(k0 // b, k1 // b + 1):
                 dm2 = _block_dist2(p, q, bi, bk, b, ny, nx, dx, dy)
-                if dm2 > r2 or smax[bi, bk] <= c + (r - math.sqrt(r2 - dm2)):
+                if dm2 > rin or smax[bi, bk] <= c + (r - math.sqrt(max(r2 - dm2, 0.0))):
                     continue
                 for i in range(max(i0, bi * b), min(i1, bi * b + b - 1) + 1):
                     ey = i * dy - q
                     for k in range(max(k0, bk * b), min(k1, bk * b + b - 1) + 1):
                         ex = k * dx - p
                         d2 = ex * ex + ey * ey
-                        if d2 <= r2:
-                            v = c + (r - math.sqrt(r2 - d2))
+                        if d2 <= rin:
+                            v = c + (r - math.sqrt(max(r2 - d2, 0.0)))
                             if v < s[i, k]:
                                 s[i, k] = v
                                 touched[bi, bk] = True
