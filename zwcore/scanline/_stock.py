@@ -28,7 +28,8 @@ Cost: three numba kernels visit, per position, the input nodes within ``R`` bloc
 block (8 x 8 nodes) and skip a block when its maximum cannot change the answer (branch
 and bound for the drop-cutter and the top, a block whose stock lies under the ball
 everywhere for the envelope): near linear in the positions times the nodes a ball
-really touches.
+really touches. A stage's later passes on the same lines visit only the positions whose
+CL may fall and those near stock that changed (:mod:`zwcore.scanline._stock_state`).
 """
 
 from __future__ import annotations
