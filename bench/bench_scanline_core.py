@@ -1,17 +1,23 @@
 """Time plan_scanline on 513², 1025², 2049² synthetic parts and on Mount Rushmore.
 
-Prints the per-phase breakdown (the plan's own timings) and the time ratios
-between sizes in the same run. Usage: ``python bench/bench_scanline_core.py``.
+Prints wall and CPU seconds, the per-phase breakdown (the plan's own timings) and the
+growth ratios per x4 cells in the same run, for the simulated stock as planned (a
+stage's next pass visits only what can change) and, unless ``--no-before``, as before
+(``_stock.INCREMENTAL = False``: every pass simulates every position; the kernels are
+today's in both). Usage: ``python bench/bench_scanline_core.py [--no-before]``.
 """
 
 from __future__ import annotations
 
+import itertools
 import pathlib
+import sys
 import time
 
 import numpy as np
 
 from zwcore.grid.zmap import ZMap
+from zwcore.scanline import _stock
 from zwcore.scanline.planner import plan_scanline
 
 DATA = pathlib.Path(__file__).resolve().parents[2] / "shared" / "data"
@@ -30,17 +36,19 @@ def synthetic(n: int) -> ZMap:
     return ZMap(z, dx=step, dy=step)
 
 
-def run(name: str, zmap: ZMap, repeat: int = 3) -> float:
-    best = float("inf")
+def run(name: str, zmap: ZMap, repeat: int = 3) -> tuple[float, float]:
+    """Best wall and CPU seconds of ``repeat`` plans; prints the plan's figures."""
+    best, cpu = float("inf"), float("inf")
     plan = None
     for _ in range(repeat):
-        t = time.perf_counter()
+        t, c = time.perf_counter(), time.process_time()
         plan = plan_scanline(zmap)
         best = min(best, time.perf_counter() - t)
+        cpu = min(cpu, time.process_time() - c)
     assert plan is not None
     phases = ", ".join(f"{k} {v * 1e3:.0f}" for k, v in plan.timings)
     c = plan.checks
-    print(f"{name:>22s} {zmap.shape[0]}x{zmap.shape[1]}: {best:.3f} s  "
+    print(f"{name:>22s} {zmap.shape[0]}x{zmap.shape[1]}: {best:.3f} s wall, {cpu:.3f} s CPU  "
           f"[{phases} ms]  stages {len(plan.stages)}  tools {' > '.join(plan.tool_sequence)}  "
           f"ok {c.ok}")
     # The simulated stock (issue 11 part 4): its share is the passes_simulated phase.
@@ -48,14 +56,32 @@ def run(name: str, zmap: ZMap, repeat: int = 3) -> float:
           f"lifted passes {sum(s.sim_lifted_nodes > 0 for s in plan.stages)}, "
           f"depth over flute {c.max_depth_over_flute:+.3f} mm (ok {c.depth_of_cut}), "
           f"gouge {c.sim_max_gouge:.1e} mm, left over part max {c.sim_left_over_part_max:.3f} "
-          f"p95 {c.sim_left_over_part_p95:.4f} mm")
-    return best
+          f"p95 {c.sim_left_over_part_p95:.4f} mm", flush=True)
+    return best, cpu
+
+
+def _ratios(label: str, times: dict[int, tuple[float, float]]) -> None:
+    sizes = sorted(times)
+    for what, k in (("wall", 0), ("CPU", 1)):
+        steps = ", ".join(f"{b}/{a} {times[b][k] / times[a][k]:.2f}"
+                          for a, b in itertools.pairwise(sizes))
+        print(f"{label} {what} ratios: {steps} (cells x4 each)")
 
 
 def main() -> None:
-    times = {n: run(f"synthetic {n}", synthetic(n)) for n in (513, 1025, 2049)}
-    print(f"ratios: 1025/513 {times[1025] / times[513]:.2f}, 2049/1025 "
-          f"{times[2049] / times[1025]:.2f} (cells x4 each)")
+    before = "--no-before" not in sys.argv
+    sizes = (513, 1025, 2049)
+    parts = {n: synthetic(n) for n in sizes}
+    plan_scanline(synthetic(129))  # load the compiled kernels
+    times = {n: run(f"synthetic {n}", parts[n], 3 if n < 2049 else 1) for n in sizes}
+    _ratios("planned", times)
+    if before:
+        _stock.INCREMENTAL = False
+        old = {n: run(f"before: synthetic {n}", parts[n], 1) for n in sizes}
+        _stock.INCREMENTAL = True
+        _ratios("before", old)
+        print("speed-up (before/planned, wall): "
+              + ", ".join(f"{n}² {old[n][0] / times[n][0]:.2f}" for n in sizes))
     path = DATA / "mount_rush_zmap_0.1mm.npy"
     if path.exists():
         z = np.load(path).astype(np.float64)

@@ -35,12 +35,12 @@ from zwcore.grid.zmap import ZMap
 from zwcore.scanline._checks import PassSpec, axis_weights, eval_rows
 from zwcore.scanline._passes import StripPlan, cell_cross_slopes, plan_strips
 from zwcore.scanline._stock import (
+    PassMemo,
     SimulatedPass,
     StockSim,
     left_over,
     run_pass,
     stride_for,
-    target_drop,
 )
 from zwcore.scanline._tool_choice import Level, Stage
 
@@ -149,7 +149,7 @@ class _Stage:
             self.ax_b, self.ay_b = np.maximum(self.ax_t, ax_o), np.maximum(self.ay_t, ay_o)
             self.slope_b = max(self.slope_t,
                                steepest_slope(self.on, lev.sx, lev.sy, extent=lev.cells))
-        self.target_cl = target_drop(lev.model, lev.sx, lev.sy, self.tool)
+        self.memo = PassMemo()  # the target's drop and the last pass, per position
 
     def strips(self, reached: bool, tolerance: float, extent_mm: tuple[float, float],
                ) -> StripPlan:
@@ -183,24 +183,34 @@ def _stride(tool: Tool, strips: StripPlan, tolerance: float, zmap: ZMap, sx: flo
 
 
 def _one_pass(plan: _Plan, st: _Stage, lift: bool,
-              ) -> tuple[F64, StripPlan, SimulatedPass, F64]:
-    """Simulate the stage's next pass; its model, lines, simulation and the stock before."""
+              ) -> tuple[F64, StripPlan, SimulatedPass, F64, bool]:
+    """Simulate the stage's next pass; its model, lines, simulation, the stock before and
+    whether its lines were laid for a pass that reaches the target."""
     lev, tool = st.lev, st.tool
     guess = st.finish_first or _reaches(st.on, lev.model,
                                         plan.leaves - tool.flute_length + plan.guard)
-    before = plan.sim.stock.copy()
+    before, gouge = plan.sim.stock.copy(), plan.sim.gouge
     for attempt in (guess, True):
         strips = st.strips(attempt, plan.tolerance, plan.extent_mm)
-        model = lev.model.copy()  # the flute rule raises it in place
-        done = run_pass(plan.sim, model, (lev.sx, lev.sy), tool, strips.lines,
-                        _stride(tool, strips, plan.tolerance, plan.zmap, lev.sx, lev.sy),
-                        st.region, plan.guard, lift=lift, target_cl=st.target_cl)
+        stride = _stride(tool, strips, plan.tolerance, plan.zmap, lev.sx, lev.sy)
+        for _ in range(2):
+            model = lev.model.copy()  # the flute rule raises it in place
+            done = run_pass(plan.sim, model, (lev.sx, lev.sy), tool, strips.lines, stride,
+                            st.region, plan.guard, lift=lift, memo=st.memo, before=before)
+            if not (done.incremental and done.lifted_nodes and done.lowered == 0):
+                break
+            # A lifted pass that lowers nothing stalls the stage: decided on every
+            # position (the incremental pass skips the ones that only re-cut their own
+            # envelope, which in grid mode can still round lower).
+            plan.sim.restore(before, gouge)
+            st.memo.forget(strips.lines)
         if attempt or done.lifted_nodes or st.next_flute is not None:
             break
-        plan.sim.stock[...] = before  # a finishing pass that reached: plan it again
+        plan.sim.restore(before, gouge)  # a finishing pass that reached: plan it again
+        st.memo.forget(strips.lines)
         # (and while such passes still get lifted, start from the finishing lines)
         st.finish_first = True
-    return model, strips, done, before
+    return model, strips, done, before, attempt
 
 
 def _stall_note(tool: Tool, lev: Level) -> str:
@@ -219,7 +229,7 @@ def _stage_passes(plan: _Plan, st: _Stage) -> F64:
                           / (0.25 * tool.flute_length)) + 4
     lifts, stalled = 0, False
     while True:
-        model, strips, done, before = _one_pass(plan, st, not stalled)
+        model, strips, done, before, on_target = _one_pass(plan, st, not stalled)
         reached = done.lifted_nodes == 0
         if plan.out:  # what the previous pass left over this one's model
             plan.out[-1].left_next = left_over(before, upsampled(model, scale, zmap.shape))
@@ -229,7 +239,9 @@ def _stage_passes(plan: _Plan, st: _Stage) -> F64:
                 stalled = True
                 if plan.notes is not None:
                     plan.notes.append(_stall_note(tool, lev))
-        slope = st.slope_t if reached else st.slope_b
+        # the slope the pass's lines were laid on (an intermediate pass laid on the bound
+        # may still reach the target: its cross slopes are the bound's)
+        slope = st.slope_t if reached and on_target else st.slope_b
         plan.out.append(PassSpec(
             lev.index, lev.sx, lev.sy, tool, model, strips,
             slope, st.rest, st.merged, lev.concave_radius,

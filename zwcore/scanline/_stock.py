@@ -28,7 +28,8 @@ Cost: three numba kernels visit, per position, the input nodes within ``R`` bloc
 block (8 x 8 nodes) and skip a block when its maximum cannot change the answer (branch
 and bound for the drop-cutter and the top, a block whose stock lies under the ball
 everywhere for the envelope): near linear in the positions times the nodes a ball
-really touches.
+really touches. A stage's later passes on the same lines visit only the positions whose
+CL may fall and those near stock that changed (:mod:`zwcore.scanline._stock_state`).
 """
 
 from __future__ import annotations
@@ -38,16 +39,29 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import ndimage
 
 from zwcore.grid.tools import Tool
 from zwcore.grid.zmap import ZMap
 from zwcore.scanline import _stock_kernels as _k
+from zwcore.scanline._stock_grid import GRID_MODE_RADIUS, GridMode
+from zwcore.scanline._stock_state import (
+    BLOCK,
+    Last,
+    PassMemo,
+    Positions,
+    State,
+    block_max,
+    grow_blocks,
+    next_state,
+)
 from zwcore.scanline.results import ScanLines
-from zwcore.sim import drop_cutter, envelope
+from zwcore.sim import drop_cutter
 
 __all__ = [
     "BLOCK",
+    "DROP_SHARE",
+    "INCREMENTAL",
+    "PassMemo",
     "Positions",
     "SimulatedPass",
     "StockSim",
@@ -65,34 +79,9 @@ __all__ = [
 
 F64 = NDArray[np.float64]
 
-#: Input nodes per side of the blocks the kernels skip whole.
-BLOCK = 8
-
 #: The cusp discrete positions may leave along a line, as a share of the pass's scallop
 #: (or of the tolerance, the larger).
 CUSP_SHARE = 0.25
-
-
-def block_max(z: F64, b: int = BLOCK) -> F64:
-    """``(ceil(ny/b), ceil(nx/b))``: the largest value of every ``b x b`` block of nodes."""
-    ny, nx = z.shape
-    my, mx = -(-ny // b), -(-nx // b)
-    pad = np.full((my * b, mx * b), -np.inf)
-    pad[:ny, :nx] = z
-    out: F64 = pad.reshape(my, b, mx, b).max(axis=(1, 3))
-    return out
-
-
-@dataclass(frozen=True, eq=False)
-class Positions:
-    """Tool positions of one pass: ``x, y`` in mm from the grid's first node, ``(n,)``."""
-
-    x: F64
-    y: F64
-
-    @property
-    def size(self) -> int:
-        return int(self.x.size)
 
 
 def stride_for(tool: Tool, scallop: float, tolerance: float, spacing: float) -> int:
@@ -164,38 +153,36 @@ def flute_lift(model: F64, sx: float, sy: float, pos: Positions, need: F64) -> i
 
 
 def left_over(stock: F64, surface: F64) -> tuple[float, float]:
-    """Largest and 95th-percentile ``stock - surface`` over the input nodes, mm."""
-    d = stock - surface
-    return float(d.max()), float(np.percentile(d, 95.0))
+    """Largest and 95th-percentile ``stock - surface`` over the input nodes, mm (as
+    ``np.percentile``; :func:`_stock_kernels.diff_max_p95` makes no temporaries)."""
+    hi, p95 = _k.diff_max_p95(np.ascontiguousarray(stock), np.ascontiguousarray(surface))
+    return float(hi), float(p95)
 
 
 @dataclass(frozen=True, eq=False)
 class PassCut:
-    """One pass simulated: its positions, CL and real depth of cut, and stock figures.
+    """One pass simulated: its positions, real depth of cut, and stock figures.
 
     Attributes
     ----------
     positions : Positions
-    cl : (n,) float64
-    depth : (n,) float64
-        Highest stock before the pass within ``R`` of the axis, minus ``cl`` (>= 0).
+    depth_max, depth_mean : float
+        Of the depth of cut per position (highest stock before the pass within ``R`` of
+        the axis, minus its CL, >= 0): largest, and mean over the positions that cut.
     gouge : float
         ``max(part - stock after)`` at the input nodes, clipped at 0.
     """
 
     positions: Positions
-    cl: F64
-    depth: F64
+    depth_max: float
+    depth_mean: float
     gouge: float
 
-    @property
-    def depth_max(self) -> float:
-        return float(self.depth.max(initial=0.0))
-
-    @property
-    def depth_mean(self) -> float:
-        cutting = self.depth[self.depth > 0.0]
-        return float(cutting.mean()) if cutting.size else 0.0
+    @classmethod
+    def of(cls, positions: Positions, depth: F64, gouge: float) -> PassCut:
+        """From the depth of cut per position, (n,)."""
+        top, mean = _k.positive_max_mean(depth)
+        return cls(positions, float(top), float(mean), gouge)
 
 
 class StockSim:
@@ -211,6 +198,14 @@ class StockSim:
         self.part = part
         self.stock = np.full(part.shape, float(stock_top))
         self._zmax = block_max(part.z)
+        #: ``max(part - stock)`` so far, clipped at 0 (kept over the blocks each pass lowers)
+        self.gouge = max(0.0, float(part.z.max()) - float(stock_top))
+        self._grid_key: tuple[Positions, NDArray[np.intp], float, GridMode | None] | None = None
+
+    def restore(self, stock: F64, gouge: float) -> None:
+        """Back to an earlier stock and its gouge."""
+        self.stock[...] = stock
+        self.gouge = gouge
 
     def base_cl(self, model_cl: F64, pos: Positions, tool: Tool) -> F64:
         """``max(model_cl, CL against the part's nodes)`` at the positions."""
@@ -218,21 +213,59 @@ class StockSim:
                         np.ascontiguousarray(model_cl), tool.radius, self.part.dx,
                         self.part.dy)
 
+    def top(self, pos: Positions, idx: NDArray[np.intp], tool: Tool, smax: F64,
+            grid_ok: bool) -> F64:
+        """Highest stock node within ``R`` of the positions ``idx`` (grid mode when they
+        are most of the input nodes and ``grid_ok``)."""
+        px, py = pos.x[idx], pos.y[idx]
+        grid = self._grid(pos, idx, px, py, tool) if grid_ok else None
+        if grid is not None:
+            return grid.top(self.stock, smax, self.part, px, py, tool)
+        return _k.top(self.stock, smax, BLOCK, px, py, tool.radius, self.part.dx,
+                      self.part.dy)
+
+    def _grid(self, pos: Positions, idx: NDArray[np.intp], px: F64, py: F64,
+              tool: Tool) -> GridMode | None:
+        """:meth:`GridMode.of` the positions ``idx``, kept for the same ``pos`` and ``idx``
+        (a first pass reads the top and cuts at the same positions)."""
+        key = self._grid_key
+        if key is None or key[0] is not pos or key[1] is not idx or key[2] != tool.radius:
+            key = (pos, idx, tool.radius, GridMode.of(px, py, self.part, tool, BLOCK))
+            self._grid_key = key
+        return key[3]
+
+    def cut(self, pos: Positions, idx: NDArray[np.intp], cl: F64, tool: Tool,
+            grid_ok: bool) -> NDArray[np.bool_]:
+        """Lower the stock by the ball at the positions ``idx`` with CL ``cl[idx]``;
+        returns the blocks where a node was lowered."""
+        smax = block_max(self.stock)
+        touched = np.zeros(smax.shape, dtype=bool)
+        px, py, c = pos.x[idx], pos.y[idx], np.ascontiguousarray(cl[idx])
+        grid = self._grid(pos, idx, px, py, tool) if grid_ok else None
+        if grid is not None:
+            grid.cut(self.stock, smax, self.part, px, py, c, tool, touched)
+        else:
+            _k.cut(self.stock, smax, BLOCK, px, py, c, tool.radius, self.part.dx,
+                   self.part.dy, touched)
+        return touched
+
 
 @dataclass(frozen=True, eq=False)
 class SimulatedPass:
-    """What :func:`run_pass` did: the cut and the model nodes the flute rule raised."""
+    """What :func:`run_pass` did: the cut and the model nodes the flute rule raised
+    (``incremental``: as a stage's next pass, :func:`_stock_state.next_state`)."""
 
     cut: PassCut
     lifted_nodes: int
     spacing: float
     lowered: int
+    incremental: bool = False
 
 
 def run_pass(sim: StockSim, model: F64, spacing: tuple[float, float], tool: Tool,
              lines: ScanLines, stride: int, region: NDArray[np.bool_] | None,
              guard: float, *, lift: bool = True, target_cl: F64 | None = None,
-             ) -> SimulatedPass:
+             memo: PassMemo | None = None, before: F64 | None = None) -> SimulatedPass:
     """Simulate one pass over ``sim``'s stock, lifting ``model`` (in place) where the flute
     rule needs it.
 
@@ -246,69 +279,91 @@ def run_pass(sim: StockSim, model: F64, spacing: tuple[float, float], tool: Tool
     the model lies at or above the highest stock of the blocks its ball spans cuts
     nothing (and its depth of cut is 0). A position on a model node needs no drop-cutter
     against the part's nodes: the model contains them, and its CL there is at least
-    that of any surface under it.
+    that of any surface under it. The next pass of a stage on the same positions
+    (``memo``) visits fewer still (:func:`_stock_state.next_state`).
 
     Parameters
     ----------
     target_cl : (my, mx) float64, optional
-        :func:`zwcore.sim.drop_cutter` of ``model`` as given (:func:`target_drop` if not
-        given).
+        :func:`zwcore.sim.drop_cutter` of ``model`` as given (else from ``memo``, or
+        :func:`target_drop`).
+    memo : PassMemo, optional
+        What the stage's passes share; updated to this pass.
+    before : (ny, nx) float64, optional
+        A copy of ``sim.stock`` as it is (else taken here when the pass is lifted).
 
     Returns
     -------
     SimulatedPass
     """
+    last = memo.find(lines, stride, region) if memo is not None and INCREMENTAL else None
+    if last is not None:
+        state = next_state(sim, tool, last)
+    else:
+        state = _first_state(sim, model, spacing, tool, lines, stride, region, target_cl,
+                             memo)
+    part = sim.part
+    pos, cand, top, cl, depth = state.pos, state.cand, state.top, state.cl, state.depth
+    base = state.base
+    need = top[cand] - tool.flute_length + guard
+    bind = (need > base[cand]) if lift else np.zeros(cand.size, dtype=bool)
+    lifted = 0
+    if bind.any():
+        bound = Positions(pos.x[cand[bind]], pos.y[cand[bind]])
+        if state.thin.k == 1:
+            lifted = _lift(model, spacing, bound, _on_nodes(bound, *spacing),
+                           np.ones(bound.size, dtype=bool), need[bind])
+        else:
+            lifted = state.thin.lift(model, spacing, bound, need[bind])
+    new = np.where(bind, need, base[cand])
+    cutters = cand if state.first else cand[new < cl[cand]]
+    cl[cand] = new
+    d = top[cand] - new
+    depth[cand] = np.where(np.isfinite(d), np.maximum(d, 0.0), 0.0)
+    if lifted and before is None:
+        before = sim.stock.copy()
+    touched = sim.cut(pos, cutters, cl, tool, state.thin.k == 1)
+    if memo is not None:
+        memo.keep(lines, Last(state.lines, stride, region, pos, base, cl, top, depth,
+                               touched, state.thin))
+    # nodes outside the blocks the pass lowered kept their stock
+    sim.gouge = max(sim.gouge, _k.blocks_diff_max(part.z, sim.stock, touched, BLOCK))
+    lowered = (-1 if not lifted or before is None
+               else _k.blocks_lowered(sim.stock, before, touched, BLOCK, guard))
+    along = part.dx if lines.direction == "x" else part.dy
+    return SimulatedPass(PassCut.of(pos, depth, sim.gouge), lifted, stride * along, lowered,
+                         not state.first)
+
+
+def _first_state(sim: StockSim, model: F64, spacing: tuple[float, float], tool: Tool,
+                 lines: ScanLines, stride: int, region: NDArray[np.bool_] | None,
+                 target_cl: F64 | None, memo: PassMemo | None) -> State:
+    """Every position of the pass: CL on the target, the part's nodes where it may cut."""
     sx, sy = spacing
     part = sim.part
     thin = _Thinning.of(lines, part, stride, tool, spacing)
     pos = positions(thin.lines, part, stride * thin.k, region, spacing)
-    if target_cl is None:
-        target_cl = target_drop(model, sx, sy, tool)
+    if target_cl is None and memo is not None:
+        if not memo.dropped:  # the stage's target: the first pass's model
+            memo.drop, memo.dropped = target_drop(model, sx, sy, tool, pos.size), True
+        target_cl = memo.drop
+    elif target_cl is None:
+        target_cl = target_drop(model, sx, sy, tool, pos.size)
     if target_cl is None:  # a large ball on a fine model: dropped on its nodes here only
-        cl = _k.cl_part(model, block_max(model), BLOCK, pos.x, pos.y, np.full(pos.size, -np.inf),
-                        tool.radius, sx, sy)
+        cl = _k.cl_part(model, block_max(model), BLOCK, pos.x, pos.y,
+                        np.full(pos.size, -np.inf), tool.radius, sx, sy)
     else:
         cl = interpolate(target_cl, sx, sy, pos)
     smax = block_max(sim.stock)
-    may = _k.may_cut(_grow_blocks(smax, tool.radius, part.dx, part.dy), BLOCK,
+    may = _k.may_cut(grow_blocks(smax, tool.radius, part.dx, part.dy), BLOCK,
                      pos.x, pos.y, cl, 1.0 / part.dx, 1.0 / part.dy)
     act = np.flatnonzero(may)
-    sub = Positions(pos.x[act], pos.y[act])
-    on_node = _on_nodes(sub, sx, sy)
-    base = cl[act]
-    off = np.flatnonzero(~on_node)
+    off = act[~_on_nodes(Positions(pos.x[act], pos.y[act]), sx, sy)]
     if off.size:
-        base[off] = sim.base_cl(base[off], Positions(sub.x[off], sub.y[off]), tool)
-    grid = _GridMode.of(sub, part, tool) if thin.k == 1 else None
-    if grid is None:
-        top = _k.top(sim.stock, smax, BLOCK, sub.x, sub.y, tool.radius, part.dx, part.dy)
-    else:
-        top = grid.top(sim, smax, sub, tool)
-    need = top - tool.flute_length + guard
-    bind = (need > base) if lift else np.zeros(act.size, dtype=bool)
-    lifted = 0
-    if bind.any():
-        if thin.k == 1:
-            lifted = _lift(model, (sx, sy), sub, on_node & bind, bind, need)
-        else:
-            lifted = thin.lift(model, (sx, sy), Positions(sub.x[bind], sub.y[bind]), need[bind])
-        base[bind] = need[bind]
-    cl[act] = base
-    before = sim.stock.copy() if lifted else None
-    touched = np.zeros(smax.shape, dtype=bool)
-    if grid is None:
-        _k.cut(sim.stock, smax, BLOCK, sub.x, sub.y, base, tool.radius, part.dx, part.dy,
-               touched)
-    else:
-        grid.cut(sim, smax, sub, base, tool, touched)
-    depth = np.zeros(pos.size)
-    depth[act] = np.maximum(top - base, 0.0)
-    depth[~np.isfinite(depth)] = 0.0
-
-    gouge = float(max(0.0, float(np.max(part.z - sim.stock))))
-    lowered = -1 if before is None else int(np.count_nonzero(sim.stock < before - guard))
-    along = part.dx if lines.direction == "x" else part.dy
-    return SimulatedPass(PassCut(pos, cl, depth, gouge), lifted, stride * along, lowered)
+        cl[off] = sim.base_cl(cl[off], Positions(pos.x[off], pos.y[off]), tool)
+    top = np.full(pos.size, -np.inf)
+    top[act] = sim.top(pos, act, tool, smax, thin.k == 1)
+    return State(thin.lines, thin, pos, act, top, cl, cl.copy(), np.zeros(pos.size), True)
 
 
 #: Node visits one pass's simulation may make (positions times the nodes within a ball's
@@ -380,25 +435,40 @@ def _lift(model: F64, spacing: tuple[float, float], pos: Positions, node: NDArra
     the simulated CL next to a lift (it cuts less there, never more).
     """
     sx, sy = spacing
-    old = model.copy()
-    if node.any():
-        rows = np.rint(pos.y[node] / sy).astype(np.intp)
-        cols = np.rint(pos.x[node] / sx).astype(np.intp)
-        np.maximum.at(model, (rows, cols), need[node])
-    off = bind & ~node
-    if off.any():
-        flute_lift(model, sx, sy, Positions(pos.x[off], pos.y[off]), need[off])
-    return int(np.count_nonzero(model != old))
+    sel = np.flatnonzero(bind)
+    return int(_k.lift_nodes(model, 1.0 / sx, 1.0 / sy, pos.x[sel], pos.y[sel],
+                             np.ascontiguousarray(need[sel]), node[sel]))
 
 
-def target_drop(model: F64, sx: float, sy: float, tool: Tool) -> F64 | None:
-    """:func:`drop` of a stage's target, or ``None`` where that would cost more than
-    :data:`MAX_PASS_WORK` node visits (a Ø20 ball over a fine model: 4e10 at 1024² and
-    0.1 mm). Then each pass drops the ball on the model's nodes at its positions only
-    (exact for the nodes; between them a bilinear model may hold the tool path up to
-    about ``spacing² / (8R)`` higher than simulated)."""
+def target_drop(model: F64, sx: float, sy: float, tool: Tool, positions: int) -> F64 | None:
+    """:func:`drop` of a stage's target, or ``None`` where dropping the ball at the pass's
+    ``positions`` alone costs less.
+
+    The whole-model drop is a grey dilation (:func:`zwcore.sim.drop_cutter`): about three
+    vector operations per four offsets of the ball's footprint at every model node, done
+    once per stage; dropping at the positions costs the footprint per position (block
+    skipping helps little on a model under the ball), per pass. The whole model is
+    dropped when it costs at most :data:`MAX_PASS_WORK` node visits or its nodes are at
+    most :data:`DROP_SHARE` times the positions (a small ball at the input's level: its
+    positions cover the model). Otherwise (a Ø20 ball finishing a fine model with few
+    positions: 4e10 node visits at 1024² and 0.1 mm) each pass drops the ball on the
+    model's nodes at its positions only (exact for the nodes; between them a bilinear
+    model may hold the tool path up to about ``spacing² / (8R)`` higher than simulated).
+    """
     work = model.size * math.pi * (tool.radius / sx + 1.0) * (tool.radius / sy + 1.0)
-    return drop(model, sx, sy, tool) if work <= 4 * MAX_PASS_WORK else None
+    if work <= 4 * MAX_PASS_WORK or (INCREMENTAL and model.size <= DROP_SHARE * positions):
+        return drop(model, sx, sy, tool)
+    return None
+
+
+#: See :func:`target_drop`.
+DROP_SHARE = 4
+
+#: The next pass of a stage visits only what can change (:func:`_stock_state.next_state`), and
+#: :func:`target_drop` weighs the drop against the positions. ``False``: every pass
+#: simulates all its positions and the drop is bounded by the work alone (the method
+#: before; for ``bench/bench_scanline_core.py`` and the tests that compare the two).
+INCREMENTAL = True
 
 
 def drop(model: F64, sx: float, sy: float, tool: Tool) -> F64:
@@ -409,83 +479,3 @@ def drop(model: F64, sx: float, sy: float, tool: Tool) -> F64:
 def _on_nodes(pos: Positions, sx: float, sy: float) -> NDArray[np.bool_]:
     """Positions that sit on a node of spacing ``sx, sy`` (to 1e-9 of the spacing)."""
     return _k.on_nodes(pos.x, pos.y, 1.0 / sx, 1.0 / sy)
-
-
-def _grow_blocks(smax: F64, r: float, dx: float, dy: float) -> F64:
-    """Block maxima grown by the blocks a ball of radius ``r`` centred in a block reaches."""
-    # a position lies within half a spacing of the node whose block it is looked up in
-    reach = r + max(dx, dy)
-    ga, gb = math.ceil(reach / (BLOCK * dy)), math.ceil(reach / (BLOCK * dx))
-    out: F64 = ndimage.maximum_filter(smax, size=(2 * ga + 1, 2 * gb + 1), mode="nearest")
-    return out
-
-
-#: Grid mode (below) for balls up to this many input spacings in radius.
-GRID_MODE_RADIUS = 12
-
-#: ... and when at least this share of the input nodes are positions of the pass.
-GRID_MODE_SHARE = 0.25
-
-
-class _GridMode:
-    """A pass whose positions are most of the input nodes (a ball at the input's own
-    level): the stock within ``R`` and the envelope as whole-grid operations (a flat-disc
-    dilation by row spans, :func:`zwcore.sim.envelope`), the kernels only for the
-    positions off the nodes (ends of extra segments, lines between grid lines)."""
-
-    def __init__(self, on: NDArray[np.bool_], rows: NDArray[np.intp],
-                 cols: NDArray[np.intp]) -> None:
-        self.on, self.rows, self.cols = on, rows, cols
-
-    @classmethod
-    def of(cls, pos: Positions, part: ZMap, tool: Tool) -> _GridMode | None:
-        if (tool.radius > GRID_MODE_RADIUS * min(part.dx, part.dy)
-                or pos.size < GRID_MODE_SHARE * part.z.size):
-            return None
-        on = _on_nodes(pos, part.dx, part.dy)
-        if np.count_nonzero(on) < GRID_MODE_SHARE * part.z.size:
-            return None
-        rows = np.rint(pos.y[on] / part.dy).astype(np.intp)
-        cols = np.rint(pos.x[on] / part.dx).astype(np.intp)
-        return cls(on, rows, cols)
-
-    def top(self, sim: StockSim, smax: F64, pos: Positions, tool: Tool) -> F64:
-        part = sim.part
-        out = np.empty(pos.size)
-        whole = _k.disc_max(sim.stock, _half_widths(tool.radius, part.dx, part.dy))
-        out[self.on] = whole[self.rows, self.cols]
-        off = ~self.on
-        if off.any():
-            out[off] = _k.top(sim.stock, smax, BLOCK, pos.x[off], pos.y[off], tool.radius,
-                            part.dx, part.dy)
-        return out
-
-    def cut(self, sim: StockSim, smax: F64, pos: Positions, cl: F64, tool: Tool,
-            touched: NDArray[np.bool_]) -> None:
-        """Lower the stock by the envelope of the positions (``touched``: blocks the
-        kernel lowered, for the positions off the nodes)."""
-        part = sim.part
-        off = ~self.on
-        high = float(sim.stock.max())  # a tip there cuts nothing
-        grid = np.full(part.shape, high)
-        grid[self.rows, self.cols] = np.minimum(cl[self.on], high)
-        env = envelope(grid, tool, part.dx, part.dy, "bilinear")
-        if off.any():
-            _k.cut(sim.stock, smax, BLOCK, pos.x[off], pos.y[off],
-                   np.ascontiguousarray(cl[off]), tool.radius, part.dx, part.dy, touched)
-        np.minimum(sim.stock, env, out=sim.stock)
-
-
-def _half_widths(r: float, dx: float, dy: float) -> NDArray[np.int64]:
-    """Per row offset ``a = 0..A``: the largest ``b`` with ``(a dy)² + (b dx)² <= r²``."""
-    a = np.arange(math.floor(r / dy + 1e-9) + 1)
-    rest = np.maximum(r * r - (a * dy) ** 2, 0.0)
-    out: NDArray[np.int64] = np.floor(np.sqrt(rest) / dx + 1e-9).astype(np.int64)
-    # the same test as the kernels' d² <= r², node by node
-    for n in range(a.size):
-        while out[n] >= 0 and (a[n] * dy) ** 2 + (out[n] * dx) ** 2 > r * r:
-            out[n] -= 1
-        while (a[n] * dy) ** 2 + ((out[n] + 1) * dx) ** 2 <= r * r:
-            out[n] += 1
-    return out
-
