@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, assume, given, settings
+from hypothesis import HealthCheck, assume, example, given, settings
 from hypothesis import strategies as st
 
 from zwcore.arcs.fit import ArcChain, Segment, fit_arcs
@@ -636,6 +636,12 @@ def test_never_fails_on_valid_curves(case):
 @settings(max_examples=25, deadline=None)
 @given(st.lists(st.tuples(st.floats(-5, 5), st.floats(-5, 5)), min_size=2, max_size=40),
        st.floats(0.01, 1.0), st.booleans())
+# found by hypothesis: a closed curve of two points 1e-8 apart (there and back, far below
+# the tolerance, so no corners) got a fallback chain whose closing junction kinked by
+# 43 degrees; it is one full circle on the two points' segment
+@example([(0.0, 0.0), (1e-8, 0.0)], 0.1, True)
+@example([(4.9, 4.9), (4.9 + 1e-8, 4.9 + 7e-9)], 0.01, True)
+@example([(0.0, 0.0), (0.15, 0.0)], 0.1, True)
 def test_never_fails_on_random_polygons(raw, tol, closed):
     pts = np.array(raw, dtype=float)
     if len(dedup(pts, closed, tol, widest=False)) < 2:
