@@ -13,8 +13,8 @@ from zwcore.arcs._pieces import Piece, ToleranceBand
 from zwcore.arcs._polygon import polygon_run
 from zwcore.arcs._prepare import Prepared
 from zwcore.arcs._search import Fitter, Stuck
-from zwcore.arcs._states import State
 from zwcore.arcs._start import free_start
+from zwcore.arcs._states import State
 from zwcore.arcs._straight import Anchor
 from zwcore.arcs.verify import deviations
 
