@@ -125,7 +125,10 @@ def sweep_loop_start(
     again; the count depends on that tangent in a way no local rule predicts (the
     closure lands at a good or a bad place), so a few separate fits from turned start
     tangents (:data:`LOOP_START_TURNS`) are tried; returns the shortest with its two
-    deviations (each at most ``lim``) when it is shorter than ``pieces``.
+    deviations (each at most ``lim``) when it is shorter than ``pieces``. A turned fit
+    starts with a short piece and wins it back, if at all, at the closure; one whose
+    every state is :data:`LOOP_SWEEP_BEHIND` pieces behind the first fit ``pieces`` at
+    the same sample is dropped there (about half of the sweep's work).
     """
     samples, tol, m_last = prep.samples, prep.tol, prep.m_last
     fz = Fitter(samples, tol, 0.95, max_radius)
