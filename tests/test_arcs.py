@@ -459,6 +459,10 @@ DATA = Path(__file__).resolve().parent / "data"
     # 1,282: the refit along it laid a flat arc over the 8 mm end part instead and was
     # two segments longer, so it was dropped (a second round anchors that part too)
     "refit_new_flat_end_arc",
+    # no noise, 1 mm sampling: the 26.8 mm middle straight part is an arc of radius 767;
+    # the refit along it splits both fillets into two arcs and is two segments longer
+    pytest.param("refit_split_fillets", marks=pytest.mark.xfail(
+        strict=True, reason="open: the refit along the straight part costs two segments")),
 ])
 def test_saved_lines_and_fillets_give_lines(name):
     """Lines-and-fillets curves hypothesis once found failing (points, straight parts)."""
