@@ -138,7 +138,12 @@ def _piece_growth(geo: FloatArray, q: int, x: float, y: float, ux: float,
     if kappa == 0.0:
         if not 0.0 <= u <= length:
             return 1.0, 0.0, 0.0
-        return abs(dv), 0.0, min(u, length - u)
+        # the foot moves along the line at the rate du
+        if du > 0.0:
+            return abs(dv), 0.0, (length - u) / du
+        if du < 0.0:
+            return abs(dv), 0.0, u / -du
+        return abs(dv), 0.0, np.inf
     # the radial direction in the piece's frame, scaled by |kappa| (stable for tiny ones)
     gu = kappa * u
     gv = kappa * v - 1.0
@@ -150,7 +155,12 @@ def _piece_growth(geo: FloatArray, q: int, x: float, y: float, ux: float,
     ang = phi if kappa > 0.0 else -phi
     if ang < 0.0:
         ang += 2.0 * math.pi
-    margin = min(ang, abs(kappa * length) - ang)
+    # the cosine between the move and the arc's direction at the foot: while the foot
+    # turns by less than asin(|cos|) it keeps turning the same way, towards the end
+    # (cos > 0) or the start of the arc
+    cos = (dv * gu - du * gv) / n
+    margin = abs(kappa * length) - ang if cos > 0.0 else ang
+    margin = min(margin, math.asin(min(abs(cos), 1.0)))
     if not margin > 0.0:
         return 1.0, 0.0, 0.0
     # the foot turns by at most h / (rho - h) <= 2 h / rho about the centre
@@ -271,7 +281,13 @@ def _segment_growth(samples: FloatArray, s: int, x: float, y: float, tx: float, 
     # the piece's tangent at sg
     qx = tx * c - ty * sn
     qy = tx * sn + ty * c
-    return abs(ex * qy - ey * qx), min(lam, sl - lam)
+    # the foot moves along the segment at the rate cos (the tangent's component along
+    # it), which keeps its sign while the tangent turns by less than asin(|cos|)
+    cos = ex * qx + ey * qy
+    reach = sl - lam if cos > 0.0 else lam
+    if kappa != 0.0:
+        reach = min(reach, math.asin(min(abs(cos), 1.0)) / abs(kappa))
+    return abs(ex * qy - ey * qx), reach
 
 
 @njit(cache=True, nogil=True, error_model="numpy")

@@ -150,6 +150,8 @@ def sweep_loop_start(
         tt = rotate(t0, d)
         fit = Fitter(samples, tol, 0.95, max_radius)
         fit.cutoff = behind
+        # (the first fit found no full circle; the samples and the band are the same)
+        fit.one_piece_runs = False
         try:
             alt, _ = fit.run(0, m_last, True, allow_forced=False, t_start=tt)
         except Stuck:
