@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, assume, given, settings
+from hypothesis import HealthCheck, assume, example, given, settings
 from hypothesis import strategies as st
 
 from zwcore.arcs.fit import ArcChain, Segment, fit_arcs
@@ -455,6 +455,14 @@ DATA = Path(__file__).resolve().parent / "data"
     # no noise; the chain ended with a flat arc of radius 318 mm after a 92 degree
     # fillet: the refit's ending on the short last straight part had 9 pieces
     "short_last_straight_flat_arc",
+    # no noise, 1 mm sampling; the 25.7 mm middle straight part was an arc of radius
+    # 1,282: the refit along it laid a flat arc over the 8 mm end part instead and was
+    # two segments longer, so it was dropped (a second round anchors that part too)
+    "refit_new_flat_end_arc",
+    # no noise, 1 mm sampling: the 26.8 mm middle straight part is an arc of radius 767;
+    # the refit along it splits both fillets into two arcs and is two segments longer
+    pytest.param("refit_split_fillets", marks=pytest.mark.xfail(
+        strict=True, reason="open: the refit along the straight part costs two segments")),
 ])
 def test_saved_lines_and_fillets_give_lines(name):
     """Lines-and-fillets curves hypothesis once found failing (points, straight parts)."""
@@ -636,6 +644,12 @@ def test_never_fails_on_valid_curves(case):
 @settings(max_examples=25, deadline=None)
 @given(st.lists(st.tuples(st.floats(-5, 5), st.floats(-5, 5)), min_size=2, max_size=40),
        st.floats(0.01, 1.0), st.booleans())
+# found by hypothesis: a closed curve of two points 1e-8 apart (there and back, far below
+# the tolerance, so no corners) got a fallback chain whose closing junction kinked by
+# 43 degrees; it is one full circle on the two points' segment
+@example([(0.0, 0.0), (1e-8, 0.0)], 0.1, True)
+@example([(4.9, 4.9), (4.9 + 1e-8, 4.9 + 7e-9)], 0.01, True)
+@example([(0.0, 0.0), (0.15, 0.0)], 0.1, True)
 def test_never_fails_on_random_polygons(raw, tol, closed):
     pts = np.array(raw, dtype=float)
     if len(dedup(pts, closed, tol, widest=False)) < 2:

@@ -103,14 +103,98 @@ def _to_pieces(geo: FloatArray, qs: IntArray, x: float, y: float) -> float:
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
+def _nearest_piece(geo: FloatArray, qs: IntArray, x: float, y: float) -> tuple[float, int]:
+    """Distance of ``(x, y)`` to the pieces ``qs`` and the piece it is measured to."""
+    d = np.inf
+    best = -1
+    for q in qs:
+        dq = point_arc_distance(x, y, geo[q, 0], geo[q, 1], geo[q, 2], geo[q, 3],
+                                geo[q, 4], geo[q, 5], geo[q, 6], geo[q, 7], d)
+        if dq < d:
+            d, best = dq, q
+    return d, best
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _piece_growth(geo: FloatArray, q: int, x: float, y: float, ux: float,
+                  uy: float) -> tuple[float, float, float]:
+    """How the distance of a point moving from ``(x, y)`` along the unit direction
+    ``(ux, uy)`` to piece ``q`` can grow: ``(slope, curv, reach)``, the distance after a
+    move ``h <= reach`` is at most ``d + slope h + curv h^2 / 2``.
+
+    Valid while the point's foot stays inside the piece (``reach``: 0 when it is not
+    inside): the distance is then the line's ``|v|`` (linear in ``h``) or the circle's
+    ``|rho - R|``, ``rho`` the distance to the centre, convex along a line with
+    ``rho'' <= 1 / rho`` (``rho >= rho0 / 2`` within the reach).
+    """
+    px, py, tx, ty, kappa, length = geo[q, 0], geo[q, 1], geo[q, 2], geo[q, 3], \
+        geo[q, 4], geo[q, 5]
+    dx = x - px
+    dy = y - py
+    u = dx * tx + dy * ty
+    v = dy * tx - dx * ty
+    du = ux * tx + uy * ty
+    dv = uy * tx - ux * ty
+    if kappa == 0.0:
+        if not 0.0 <= u <= length:
+            return 1.0, 0.0, 0.0
+        # the foot moves along the line at the rate du
+        if du > 0.0:
+            return abs(dv), 0.0, (length - u) / du
+        if du < 0.0:
+            return abs(dv), 0.0, u / -du
+        return abs(dv), 0.0, np.inf
+    # the radial direction in the piece's frame, scaled by |kappa| (stable for tiny ones)
+    gu = kappa * u
+    gv = kappa * v - 1.0
+    n = math.hypot(gu, gv)
+    if not n > 0.0:
+        return 1.0, 0.0, 0.0
+    rho = n / abs(kappa)
+    phi = math.atan2(gu, -gv)
+    ang = phi if kappa > 0.0 else -phi
+    if ang < 0.0:
+        ang += 2.0 * math.pi
+    # the cosine between the move and the arc's direction at the foot: while the foot
+    # turns by less than asin(|cos|) it keeps turning the same way, towards the end
+    # (cos > 0) or the start of the arc
+    cos = (dv * gu - du * gv) / n
+    margin = abs(kappa * length) - ang if cos > 0.0 else ang
+    margin = min(margin, math.asin(min(abs(cos), 1.0)))
+    if not margin > 0.0:
+        return 1.0, 0.0, 0.0
+    # the foot turns by at most h / (rho - h) <= 2 h / rho about the centre
+    return abs(du * gu + dv * gv) / n, 2.0 / rho, 0.5 * rho * min(margin, 1.0)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _safe_move(d: float, worst: float, slope: float, curv: float, reach: float) -> float:
+    """How far a point measured at distance ``d`` can move before its distance may
+    exceed ``worst``: 1-Lipschitz, and within ``reach`` the bound ``d + slope h +
+    curv h^2 / 2`` (:func:`_piece_growth`, :func:`_segment_growth`); a hair short of it
+    (rounding of the dense points' positions)."""
+    room = worst - d
+    if not room > 0.0:
+        return 0.0
+    h = room
+    if reach > h:
+        # the root of curv h^2 / 2 + slope h = room (the stable form)
+        h2 = 2.0 * room / (slope + math.sqrt(slope * slope + 2.0 * curv * room))
+        h = max(h, min(h2, reach))
+    return h * (1.0 - 1e-9)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
 def _polyline_to_chain(samples: FloatArray, geo: FloatArray, ks: IntArray, js: IntArray,
                        off: IntArray, tol: float) -> float:
     """Largest distance of the dense polyline points to the chain: to the pieces covering
     samples near each point's segment, to every piece where that exceeds ``tol``.
 
     Points that cannot raise the maximum are skipped: along one segment the distance to
-    a fixed set of pieces changes no faster than the position (1-Lipschitz), so a point
-    within ``worst - d`` of one measured at ``d`` is no farther than ``worst``.
+    a fixed set of pieces changes no faster than the position (1-Lipschitz), and no
+    faster than the distance to the nearest piece grows (:func:`_piece_growth`: nearly
+    parallel curves drift apart slowly), so a point whose bound from the last measured
+    one is within ``worst`` is no farther than ``worst``.
     """
     nseg = len(samples) - 1
     total = off[nseg] + 1
@@ -121,19 +205,27 @@ def _polyline_to_chain(samples: FloatArray, geo: FloatArray, ks: IntArray, js: I
         qs = idx[start[s] : start[s + 1]]
         # (the final vertex counts as a point of the last segment)
         hi = off[s + 1] if s < nseg - 1 else total
-        have = False
-        lx = ly = ld = 0.0
-        for i in range(off[s], hi):
+        sx = samples[s + 1, 0] - samples[s, 0]
+        sy = samples[s + 1, 1] - samples[s, 1]
+        sl = math.hypot(sx, sy)
+        ux, uy = (sx / sl, sy / sl) if sl > 0.0 else (1.0, 0.0)
+        # the spacing of the segment's dense points
+        dl = sl / max(off[s + 1] - off[s], 1)
+        i = off[s]
+        while i < hi:
             x, y = _dense_point(samples, off, s, i)
-            if have and ld <= worst:
-                room = worst - ld
-                if (x - lx) * (x - lx) + (y - ly) * (y - ly) <= room * room:
-                    continue
-            d = _to_pieces(geo, qs, x, y)
-            lx, ly, ld, have = x, y, d, True
+            d, q = _nearest_piece(geo, qs, x, y)
+            slope, curv, reach = 1.0, 0.0, 0.0
+            if q >= 0 and d <= tol:
+                slope, curv, reach = _piece_growth(geo, q, x, y, ux, uy)
             if not d <= tol:
                 d = _to_pieces(geo, every, x, y)
             worst = max(worst, d)
+            # the next points within the safe move cannot raise the maximum
+            skip = 0
+            if dl > 0.0:
+                skip = int(min(_safe_move(d, worst, slope, curv, reach) / dl, hi))
+            i += 1 + skip
     if nseg == 0:
         worst = _to_pieces(geo, every, samples[0, 0], samples[0, 1])
     return worst
@@ -163,6 +255,39 @@ def _segments_near(samples: FloatArray, x: float, y: float, m: int) -> tuple[flo
             d2 = qx * qx + qy * qy
             best = s
     return math.sqrt(d2), best
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _segment_growth(samples: FloatArray, s: int, x: float, y: float, tx: float, ty: float,
+                    kappa: float, sg: float) -> tuple[float, float]:
+    """``(slope, reach)`` of the distance of a point moving along the piece from ``(x,
+    y)`` (arc length ``sg``; start tangent ``t``, curvature ``kappa``) to segment ``s``:
+    while its foot stays inside the segment (a move of at most ``reach``) the distance
+    is ``|w|``, ``w`` the offset from the segment's line, with ``|w'| <= slope`` at the
+    start and ``|w''| <= |kappa|``."""
+    ax, ay = samples[s, 0], samples[s, 1]
+    ex = samples[s + 1, 0] - ax
+    ey = samples[s + 1, 1] - ay
+    sl = math.hypot(ex, ey)
+    if not sl > 0.0:
+        return 1.0, 0.0
+    ex /= sl
+    ey /= sl
+    lam = (x - ax) * ex + (y - ay) * ey
+    if not 0.0 <= lam <= sl:
+        return 1.0, 0.0
+    a = kappa * sg
+    c, sn = math.cos(a), math.sin(a)
+    # the piece's tangent at sg
+    qx = tx * c - ty * sn
+    qy = tx * sn + ty * c
+    # the foot moves along the segment at the rate cos (the tangent's component along
+    # it), which keeps its sign while the tangent turns by less than asin(|cos|)
+    cos = ex * qx + ey * qy
+    reach = sl - lam if cos > 0.0 else lam
+    if kappa != 0.0:
+        reach = min(reach, math.asin(min(abs(cos), 1.0)) / abs(kappa))
+    return abs(ex * qy - ey * qx), reach
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -203,30 +328,39 @@ def _chain_to_polyline(samples: FloatArray, geo: FloatArray, ks: IntArray, js: I
             foot[i] = max(foot[i], foot[i - 1])
         ptr = 0
         # the last measured point (arc length, distance, nearest segment): the distance
-        # to that segment grows no faster than the arc length (see _polyline_to_chain)
-        have = False
-        ls = ld = 0.0
-        lseg = 0
-        for i in range(n):
-            sg = length if i == n - 1 else i * (length / (n - 1))
+        # to that segment grows no faster than the arc length (see _polyline_to_chain),
+        # nor, while the foot stays on it, than its offset from the segment's line
+        # (slope: the sine of the angle between them, |second derivative| <= |kappa|)
+        ds = length / (n - 1)
+        i = 0
+        while i < n:
+            sg = length if i == n - 1 else i * ds
             while ptr < nf and foot[ptr] <= sg:
                 ptr += 1
             m = k + ptr - 1
-            if (have and i < n - 1 and max(m - 3, 0) <= lseg <= min(m + 3, nseg - 1)
-                    and ld + (sg - ls) <= worst):
-                continue
             if i == n - 1:
                 x, y = geo[q, 6], geo[q, 7]
             else:
                 x, y = arc_xy(px, py, tx, ty, kappa, sg)
             if nseg == 0:
-                d = math.hypot(x - samples[0, 0], y - samples[0, 1])
-            else:
-                d, lseg = _segments_near(samples, x, y, m)
-                ls, ld, have = sg, d, True
-                if not d <= tol:
-                    d = _all_segments(samples, x, y)
+                worst = max(worst, math.hypot(x - samples[0, 0], y - samples[0, 1]))
+                i += 1
+                continue
+            d, lseg = _segments_near(samples, x, y, m)
+            slope, reach = _segment_growth(samples, lseg, x, y, tx, ty, kappa, sg)
+            if not d <= tol:
+                d = _all_segments(samples, x, y)
             worst = max(worst, d)
+            # skip the points within the safe move whose window (segments m-3..m+3 of
+            # their foot) still holds lseg; the last point is always measured
+            lim = sg + _safe_move(d, worst, slope, abs(kappa), reach)
+            pf = lseg + 4 - k  # from this foot on, m > lseg + 3
+            if 0 <= pf < nf:
+                lim = min(lim, np.nextafter(foot[pf], -np.inf))
+            nxt = i + 1
+            if ds > 0.0 and lim > sg:
+                nxt = max(nxt, min(int(lim / ds) + 1, n - 1))
+            i = nxt
     return worst
 
 

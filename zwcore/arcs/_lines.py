@@ -75,11 +75,15 @@ def refit_along_straight_runs(
     bad = arcs_over_straight(got[0], samples, a, b, tol, **pins)
     best, best_key = got, (len(bad), 0)
     tried: list[list[tuple[float, ...]]] = []
-    for own in (False, True) if bad else ():
-        anchors = anchors_of(got[0], bad, samples, a, b, tol, **pins, own_lines=own)
+    # the refit with the fewest arcs over straight runs that still has some (its new
+    # ones: straight runs the plain fit did not lay an arc over), for a second round
+    near: tuple[tuple[int, int], list[Piece], dict[int, Anchor]] | None = None
+
+    def refits(anchors: list[Anchor]) -> None:
+        nonlocal best, best_key, near
         key = [(an.i0, an.i1, *an.q, *an.d) for an in anchors]
         if not anchors or key in tried:
-            continue
+            return
         tried.append(key)
         alts = [_merge_lines(fit(anchors))]
         if band is not None and pin_end:
@@ -89,12 +93,22 @@ def refit_along_straight_runs(
                 if not forced:
                     alts.extend((ch, []) for ch in shorter_ends(base, band, b, ends, land))
         for alt in alts:
-            n_bad = len(arcs_over_straight(alt[0], samples, a, b, tol, **pins))
+            alt_bad = arcs_over_straight(alt[0], samples, a, b, tol, **pins)
+            n_bad = len(alt_bad)
             extra = len(alt[0]) - len(got[0])
             if n_bad < len(bad) and extra <= len(bad) - n_bad and (n_bad, extra) < best_key:
                 best, best_key = alt, (n_bad, extra)
+            if n_bad and not alt[1] and (near is None or (n_bad, extra) < near[0]):
+                near = ((n_bad, extra), alt[0], alt_bad)
+
+    for own in (False, True) if bad else ():
+        refits(anchors_of(got[0], bad, samples, a, b, tol, **pins, own_lines=own))
         if best_key[0] == 0:
-            break
+            return best
+    if bad and near is not None:
+        # a second round: the refit laid an arc over a straight run the plain fit did not
+        # (a short end run, say, after the chain moved): anchor those too
+        refits(anchors_of(near[1], near[2], samples, a, b, tol, **pins))
     return best
 
 

@@ -26,6 +26,7 @@ tolerance, and the last resort is a filleted-polyline stretch
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 from numpy.typing import NDArray
@@ -97,6 +98,9 @@ class Fitter:
         self.straight: StraightRuns | None = None
         #: landing biarcs found at the last level, joining the beam one level later
         self._landed: list[State] = []
+        #: given a new level, True when the chains it continues cannot be worth
+        #: finishing (the run then raises :class:`Stuck`; the loop start sweep)
+        self.cutoff: Callable[[list[State]], bool] | None = None
 
     # -- the beam ---------------------------------------------------------------
 
@@ -129,6 +133,8 @@ class Fitter:
             if done is not None:
                 return done, forced_at
             nxt = self._expand(level, b)
+            if nxt and self.cutoff is not None and self.cutoff(nxt):
+                raise Stuck
             if nxt:
                 level = nxt
                 continue

@@ -123,14 +123,19 @@ def one_piece_to_end(
 def full_circle(band: ToleranceBand, a: int, b: int) -> Piece | None:
     """A whole closed run as one full circle through its first sample (if it fits)."""
     pts = band.samples[a:b]
-    if len(pts) < 3:
+    if len(pts) == 2:
+        # a loop of two points (there and back): the circle on their segment as its
+        # diameter (within half the segment of it both ways)
+        c = pts.mean(axis=0)
+    elif len(pts) < 2:
         return None
-    c0 = pts.mean(axis=0)
-    x = pts - c0
-    mat = np.column_stack([x[:, 0], x[:, 1], np.ones(len(x))])
-    rhs = (x * x).sum(axis=1)
-    sol, *_ = np.linalg.lstsq(mat, rhs, rcond=None)
-    c = c0 + 0.5 * sol[:2]
+    else:
+        c0 = pts.mean(axis=0)
+        x = pts - c0
+        mat = np.column_stack([x[:, 0], x[:, 1], np.ones(len(x))])
+        rhs = (x * x).sum(axis=1)
+        sol, *_ = np.linalg.lstsq(mat, rhs, rcond=None)
+        c = c0 + 0.5 * sol[:2]
     p = band.samples[a]
     r = float(np.hypot(*(p - c)))
     if not (r > 0 and math.isfinite(r)):
@@ -142,7 +147,9 @@ def full_circle(band: ToleranceBand, a: int, b: int) -> Piece | None:
     t = np.array([-rv[1], rv[0]]) if kap > 0 else np.array([rv[1], -rv[0]])
     if abs(kap) < band.kmin:  # any small radius: the whole loop is one circle
         return None
-    res = band.verify(p, t, kap, a, b, 0.0)
+    # (two points: the second is the first's antipode, its foot point ambiguous, so the
+    # circle's length is given)
+    res = band.verify(p, t, kap, a, b, 0.0, 2.0 * math.pi * r if len(pts) == 2 else None)
     if res is None or abs(abs(kap * res[0]) - 2.0 * math.pi) > 1e-6:
         return None
     piece = band.make_piece(p, t, kap, a, b, (2.0 * math.pi / abs(kap), p.copy(), 0.0))

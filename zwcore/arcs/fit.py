@@ -43,7 +43,9 @@ Method (as built)
    any state within ``Fitter.CLOSE_SPAN`` single-piece reaches of the end. The
    count depends on the start tangent at the seam, so loops of up to
    ``LOOP_SWEEP_MAX_SAMPLES`` samples are also fitted from a few turned start
-   tangents (``LOOP_START_TURNS``) and the shortest valid chain is kept.
+   tangents (``LOOP_START_TURNS``) and the shortest valid chain is kept; a turned fit
+   is dropped as soon as its whole beam is ``LOOP_SWEEP_BEHIND`` pieces behind the
+   first fit at the same sample.
 7. Verification: every piece is checked two-sided with conservative analytic
    bounds while fitting; the finished chain is measured densely
    (:mod:`zwcore.arcs.verify`), and a bridged chain that fails that measurement is

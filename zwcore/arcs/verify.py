@@ -8,7 +8,10 @@ segments ``k-2..j+2``, and a chain point with the few segments around the foot
 point it falls between. Distances to a subset are upper bounds of the true ones,
 so the figures are conservative; samples whose local figure exceeds the
 tolerance (never on a correct chain) are re-measured against everything.
-Cost is linear in the number of samples.
+Samples that cannot raise the maximum found so far are jumped over (a bound of how
+fast the distance grows from the last measured sample: 1-Lipschitz, and slower along
+a nearly parallel piece or segment), so the figure is the maximum over all samples
+at the cost of a few measurements per polyline segment where the band is not full.
 """
 
 from __future__ import annotations
