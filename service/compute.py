@@ -288,6 +288,18 @@ class ComputePool:
                     initializer=_watch_server, initargs=(os.getpid(),))
             return self._process_pool
 
+    def start_processes(self) -> list[concurrent.futures.Future[int]]:
+        """Start the worker processes now, not on the first Python-bound request.
+
+        A cold start (the forkserver importing the core and loading the arc kernels)
+        costs a few seconds of CPU; paid at service start, no client waits for it.
+        Returns one no-op job per worker (their pids), nothing to wait for.
+        """
+        if not self.processes:
+            return []
+        pool = self._processes()
+        return [pool.schedule(os.getpid, timeout=self.timeout) for _ in range(self.processes)]
+
     def _submit(self, kind: str, fn: Callable[..., T],
                 args: tuple[Any, ...]) -> tuple[concurrent.futures.Future[T], Callable[[], None]]:
         """Start the job; returns its future and how to stop it at its deadline."""

@@ -93,6 +93,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
                                      timeout=settings.compute_timeout_seconds,
                                      memory_budget=settings.memory_budget_bytes,
                                      memory_wait=settings.memory_wait_seconds)
+        if settings.prestart_workers:
+            app.state.pool.start_processes()
         trimmer = asyncio.ensure_future(trim_when_idle(app.state.pool))
         try:
             yield

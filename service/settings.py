@@ -112,7 +112,10 @@ class Settings(BaseSettings):
     workers: int = Field(default_factory=_cpu_count, gt=0, description="Compute pool threads.")
     process_workers: int = Field(
         default_factory=_cpu_count, ge=0, description="Worker processes for Python-bound work "
-        "(arc fitting), started on first use; 0: it runs in the threads.")
+        "(arc fitting); 0: it runs in the threads.")
+    prestart_workers: bool = Field(
+        True, description="Start the worker processes when the service starts (their cold "
+        "start costs seconds of CPU); false: on first use.")
     max_pending: int = Field(16, ge=0,
                              description="Computations queued beyond the pool before shedding.")
     log_level: str = Field("INFO", description="Python logging level.")

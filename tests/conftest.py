@@ -47,6 +47,8 @@ def make_client(tmp_path, **overrides: object) -> TestClient:  # type: ignore[no
     from service.main import create_app
     from service.settings import Settings
 
+    # workers start on first use in tests: most tests never use them
+    overrides.setdefault("prestart_workers", False)
     return TestClient(create_app(Settings(data_dir=tmp_path, **overrides)))  # type: ignore[arg-type]
 
 

@@ -140,3 +140,14 @@ def test_workers_exit_when_the_server_is_killed_hard() -> None:
     assert pids, out.stderr.decode()
     for pid in pids:
         assert _gone(pid, within=10), f"worker {pid} outlived its server"
+
+
+def test_workers_start_with_the_service_when_asked(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    # a cold worker costs seconds of CPU: paid at start, not by the first arc request
+    with make_client(tmp_path, process_workers=1, prestart_workers=True) as c:
+        pool = c.app.state.pool  # type: ignore[attr-defined]
+        assert pool._process_pool is not None and pool._process_pool.active
+        (job,) = pool.start_processes()  # one more no-op on the already started worker
+        assert job.result(timeout=60) not in (os.getpid(), None)
+    with make_client(tmp_path, process_workers=1) as c:  # tests' default: on first use
+        assert c.app.state.pool._process_pool is None  # type: ignore[attr-defined]
