@@ -164,11 +164,18 @@ def test_flat_part_single_stage() -> None:
 # --------------------------------------------------------------------------
 
 
+_BORDER_XFAIL = pytest.mark.xfail(strict=True, reason="issue 11 parts 2-3: rest balls now follow "
+                                  "the simulated stock, which the finishing ball leaves above the "
+                                  "tolerance on the part's downhill borders (scan lines end at the "
+                                  "grid's edge) and on steep chords (bilinear-safe drop): the "
+                                  "largest ball is the main one, not the last; see test_reach.py")
+
+
 def _largest_within(r: float) -> Tool:
     return next(t for t in BALLS if t.radius <= r)
 
 
-@pytest.mark.parametrize("r", [3.5, 7.0])
+@pytest.mark.parametrize("r", [3.5, pytest.param(7.0, marks=_BORDER_XFAIL)])
 def test_spherical_bowl_finished_with_largest_fitting_ball(r: float) -> None:
     h = r / 70.0
     half = r * np.sin(np.radians(55.0)) / np.sqrt(2.0)
@@ -197,6 +204,11 @@ def test_fillet_finished_with_largest_fitting_ball(wall_deg: float) -> None:
     assert plan.stages[-1].tool == _largest_within(r)
 
 
+@pytest.mark.xfail(strict=True, reason="issue 11 parts 2-3: rest balls now follow the "
+                   "simulated stock, which the finishing ball leaves above the tolerance on "
+                   "the part's downhill borders (scan lines end at the grid's edge) and on "
+                   "steep chords (bilinear-safe drop): the largest ball is the main one, not "
+                   "the last; see tests/test_reach.py")
 @pytest.mark.parametrize("tools", [None, [Tool("A", "ball", 6.0, 12.0),
                                           Tool("B", "ball", 2.0, 4.0)]])
 def test_convex_dome_finished_with_largest_tool(tools: list[Tool] | None) -> None:
@@ -235,7 +247,7 @@ def test_finishing_pick_feed_reduced_on_steep_wall() -> None:
     # Only the strips across the walls are reduced, the rest keep the spacing.
     assert last.reduced_strips == 2 and last.pick_feed_max == pytest.approx(0.02)
     assert last.scallop_height <= 0.001
-    assert any("no tool fits" in n for n in plan.notes)
+    assert any("no tool reaches" in n for n in plan.notes)
 
 
 def test_wall_climbed_along_the_lines_needs_no_reduction() -> None:
