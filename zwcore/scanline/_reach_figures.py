@@ -17,6 +17,7 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import NDArray
 
+from zwcore.grid.tools import Tool
 from zwcore.grid.zmap import ZMap
 from zwcore.scanline._reach import concave_radii
 from zwcore.scanline._regions import TOOL_CHANGE_MM, Chain, flat_pick_feed, region_boxes
@@ -30,10 +31,26 @@ F64 = NDArray[np.float64]
 
 
 def _rest_reason(rule: RestRegion, frac: float, tol: float) -> str:
+    prev = rule.previous.id if rule.previous is not None else "the ball before"
     return (f"simulated stock: {rule.seed_nodes} nodes still more than {tol:g} mm above the "
             f"part (up to {rule.left_before:.4g} mm) where {rule.tool.id}'s bilinear closing "
-            f"lies more than {tol:g} mm lower, grown by its radius: {100 * frac:.3g} % of "
-            f"the part")
+            f"lies more than {tol:g} mm below {prev}'s, grown by its radius: "
+            f"{100 * frac:.3g} % of the part")
+
+
+def _left_note(last: Tool, tol: float, area: float, height: float, sharp: float,
+               need: float) -> str:
+    text = (f"no tool reaches everywhere: after the last ball {last.id} (R {last.radius:g} "
+            f"mm) the simulated stock stays more than {tol:g} mm above the part on "
+            f"{area:.4g} mm² (up to {height:.4g} mm)")
+    if sharp > 0.0:
+        text += (f"; {sharp:.4g} mm² of it in corners sharper than the ball, which would "
+                 f"need a ball of radius at most {need:.3g} mm (the part's concave radius)")
+    if sharp < area:
+        text += (f"; {area - sharp:.4g} mm² where the part is not sharper than the ball: "
+                 "left by the passes (scallops, the grid's border where the scan lines end, "
+                 "steep chords that hold the ball up on the bilinear surface)")
+    return text
 
 
 def with_reach(zmap: ZMap, stages: list[ScanlineStage], checks: ScanlineChecks,
@@ -87,17 +104,18 @@ def with_reach(zmap: ZMap, stages: list[ScanlineStage], checks: ScanlineChecks,
     above = left > tol
     unreachable = float(above.sum()) * dx * dy
     height = float(left[above].max()) if above.any() else 0.0
-    need = float(concave_radii(zmap.z, dx, dy)[above].min()) if above.any() else math.inf
     last = out[-1].tool
+    rho = concave_radii(zmap.z, dx, dy)
+    sharp = above & (rho < last.radius)  # a smaller ball would be needed there
+    need = float(rho[sharp].min()) if sharp.any() else math.inf
     if above.any():
-        notes.append(
-            f"no tool reaches everywhere: after the last ball {last.id} (R {last.radius:g} "
-            f"mm) the simulated stock stays more than {tol:g} mm above the part on "
-            f"{unreachable:.4g} mm² (up to {height:.4g} mm); there it would need a ball of "
-            f"radius at most {need:.3g} mm (the part's concave radius there)")
+        notes.append(_left_note(last, tol, unreachable, height, float(sharp.sum()) * dx * dy,
+                                need))
     roughing_fit = all(c.tool.radius <= c.level.concave_radius or c.rest > 0.0
                        or c.reach is not None or c.region is not None for c in chosen)
-    checks = dataclasses.replace(checks, tools_fit=roughing_fit and not above.any())
+    # the tools fit unless material is left in corners sharper than the last ball (what
+    # the passes leave elsewhere is in the figures, not a question of fit)
+    checks = dataclasses.replace(checks, tools_fit=roughing_fit and not sharp.any())
     length = sum(a / pf for _, a, pf in finishing) + TOOL_CHANGE_MM * (len(finishing) - 1)
     summary = ReachSummary(
         finishing_tools=tuple(t for t, _, _ in finishing),

@@ -37,7 +37,7 @@ from zwcore.grid.zmap import ZMap
 from zwcore.scanline._models import Target
 from zwcore.scanline._reach import ball_reach
 from zwcore.scanline._regions import Chain
-from zwcore.scanline._rest import RestRegion
+from zwcore.scanline._rest import RestRegion, RestShared
 
 __all__ = ["REST_FLUTE_SHARE", "REST_MAX_CELLS", "Level", "Stage", "StageReach", "ball_rest",
            "choose", "finishing_stages", "levels"]
@@ -173,8 +173,9 @@ def finishing_stages(levels: list[Level], chain: Chain, tolerance: float,
     main = chain.stages[0]
     out.append(Stage(finest, main.tool, [], 0.0, None,
                      StageReach(1.0, (), 1, main.cut_length, main.rest_max, main.reason)))
+    shared = RestShared([main.tool])
     for tool in balls[1:]:
-        rule = RestRegion(part, tool, tolerance, last=tool is balls[-1])
+        rule = RestRegion(part, tool, tolerance, shared, last=tool is balls[-1])
         out.append(Stage(finest, tool, [], 0.0, rule, None))
     return out
 
