@@ -1,118 +1,129 @@
-"""Tool choice by reach: speed at 513², 1025², 2049² and the Mount Rushmore chain.
+"""Tool choice by reach and rest regions: plan time before/after, and Mount Rushmore.
 
-Prints, in one run: the whole scan-line plan's time and its reach phase (the
-finishing-ball choice and rest regions) on the synthetic part of
-``bench_scanline_core.py`` at three sizes with the ratios between them; then Mount
-Rushmore (../shared/data): the tool sequence, each finishing ball's region area and
-estimated cut length, and the finishing cut length against finishing the whole
-part with the smallest ball (both at the flat pick-feed that holds the tolerance).
-Usage: ``python bench/bench_reach.py [--tolerance 0.01] [--no-sizes]``.
+Prints, in one run: the whole scan-line plan's time (best of ``--repeat``) with its
+phases on the synthetic part of ``bench_scanline_core.py`` at 513² and 1025², for the
+code of another tree (``--before``, default ``/work/main``: the plan without reach) and
+of this one, each in its own process, and the ratios after/before and 1025²/513²; then
+Mount Rushmore (../shared/data) with this tree: the tool sequence, each finishing
+ball's region area, and the finishing cut length against finishing the whole part with
+the smallest ball (both region area over the flat pick-feed that holds the tolerance).
+Usage: ``python bench/bench_reach.py [--before /work/main] [--sizes 513 1025]``.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
+import os
+import subprocess
 import sys
 import time
 from pathlib import Path
 
-import numpy as np
-
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-sys.path.insert(0, str(ROOT / "bench"))
-
-from bench_scanline_core import synthetic  # noqa: E402
-
-from zwcore import ZMap, plan_scanline  # noqa: E402
-from zwcore.grid.tools import default_tools  # noqa: E402
-from zwcore.scanline._regions import finishing_chain, flat_pick_feed  # noqa: E402
-
 DATA = ROOT.parent / "shared" / "data" / "mount_rush_zmap_0.1mm.npy"
 
 
-def _timed(zmap: ZMap, tol: float, repeat: int) -> tuple[float, float, object]:
-    best, reach, plan = float("inf"), float("inf"), None
-    for _ in range(repeat):
-        t = time.perf_counter()
-        plan = plan_scanline(zmap, tolerance=tol)
-        took = time.perf_counter() - t
-        if took < best:
-            best = took
-            reach = dict(plan.timings).get("reach", float("nan"))
-    return best, reach, plan
+def _child(sizes: list[int], repeat: int) -> None:
+    """Time the plans with the code on ``sys.path`` (run in a subprocess)."""
+    sys.path.insert(0, str(ROOT / "bench"))
+    from bench_scanline_core import synthetic
+
+    from zwcore.scanline.planner import plan_scanline
+
+    plan_scanline(synthetic(65))  # compile / load the kernels outside the timing
+    out = {}
+    for n in sizes:
+        zmap = synthetic(n)
+        best, phases = float("inf"), {}
+        for _ in range(repeat):
+            t = time.perf_counter()
+            plan = plan_scanline(zmap)
+            took = time.perf_counter() - t
+            if took < best:
+                best = took
+                phases = {}
+                for name, sec in plan.timings:
+                    phases[name] = phases.get(name, 0.0) + sec
+        out[n] = {"seconds": best, "phases": phases, "passes": len(plan.stages),
+                  "tools": list(plan.tool_sequence)}
+    print(json.dumps(out))
 
 
-def sizes(tol: float) -> None:
-    print("synthetic part (bench_scanline_core.py), whole plan and its reach phase:")
-    times = {}
-    for n in (513, 1025, 2049):
-        best, reach, plan = _timed(synthetic(n), tol, 3 if n < 2049 else 2)
-        times[n] = (best, reach)
-        r = plan.reach  # type: ignore[attr-defined]
-        regions = ", ".join(f"{s.tool.id} {100 * s.region_area_fraction:.1f} %"
-                            for s in plan.stages  # type: ignore[attr-defined]
-                            if s.region is not None and s.pass_index == 1)
-        print(f"  {n}x{n}: plan {best:.3f} s, reach {reach:.3f} s, finishing "
-              f"{' > '.join(r.finishing_tools)} (regions: {regions or 'none'}), "
-              f"cut {r.finishing_cut_length:.0f} mm vs {r.smallest_ball_cut_length:.0f} mm "
-              f"with the smallest ball everywhere (factor "
-              f"{r.smallest_ball_cut_length / r.finishing_cut_length:.2f})")
-    for a, b in ((513, 1025), (1025, 2049)):
-        print(f"  ratio {b}/{a} (cells x4): plan {times[b][0] / times[a][0]:.2f}, "
-              f"reach {times[b][1] / times[a][1]:.2f}")
+def _run(tree: str, sizes: list[int], repeat: int) -> dict[str, dict]:
+    env = dict(os.environ, PYTHONPATH=tree)
+    cmd = [sys.executable, str(Path(__file__).resolve()), "--child", "--repeat", str(repeat),
+           "--sizes", *map(str, sizes)]
+    done = subprocess.run(cmd, env=env, cwd=tree, capture_output=True, text=True, check=True)
+    return json.loads(done.stdout.strip().splitlines()[-1])
 
 
-def rushmore(tol: float) -> None:
+def _sizes(before: str, sizes: list[int], repeat: int) -> None:
+    runs = {"before": _run(before, sizes, repeat), "after": _run(str(ROOT), sizes, repeat)}
+    print("| code | cells | plan s | passes | tools | phases (s) |")
+    print("| --- | --- | --- | --- | --- | --- |")
+    for name, run in runs.items():
+        for n in sizes:
+            r = run[str(n)]
+            ph = ", ".join(f"{k} {v:.2f}" for k, v in r["phases"].items() if v >= 0.01)
+            print(f"| {name} | {n}² | {r['seconds']:.2f} | {r['passes']} | "
+                  f"{' > '.join(r['tools'])} | {ph} |")
+    for n in sizes:
+        b, a = runs["before"][str(n)]["seconds"], runs["after"][str(n)]["seconds"]
+        print(f"after / before at {n}²: {a / b:.2f}")
+    if len(sizes) > 1:
+        for name, run in runs.items():
+            lo, hi = run[str(sizes[0])]["seconds"], run[str(sizes[-1])]["seconds"]
+            print(f"{name}: {sizes[-1]}² / {sizes[0]}²: {hi / lo:.2f}")
+
+
+def _rushmore() -> None:
+    import numpy as np
+
+    sys.path.insert(0, str(ROOT))
+    from zwcore import ZMap, plan_scanline
+
     if not DATA.exists():
         print(f"no data at {DATA}")
         return
     z = np.load(DATA).astype(np.float64)
-    zmap = ZMap(z, x0=-40.958, y0=-24.696, dx=0.1, dy=0.1)
-    best, reach, plan = _timed(zmap, tol, 1)
-    r = plan.reach  # type: ignore[attr-defined]
-    area = (z.shape[0] - 1) * (z.shape[1] - 1) * 0.01
-    print(f"\nMount Rushmore {z.shape[0]}x{z.shape[1]}, tolerance {tol:g}: plan {best:.2f} s "
-          f"(reach {reach:.2f} s), checks ok {plan.checks.ok}")  # type: ignore[attr-defined]
-    print(f"  tool sequence: {' > '.join(plan.tool_sequence)}")  # type: ignore[attr-defined]
-    print("  | finishing ball | region % | region mm² | est. cut length mm | regions |")
-    print("  | --- | --- | --- | --- | --- |")
-    seen = set()
-    for s in plan.stages:  # type: ignore[attr-defined]
-        if s.level != plan.depth or s.tool.id in seen:  # type: ignore[attr-defined]
-            continue
-        seen.add(s.tool.id)
-        print(f"  | {s.tool.id} | {100 * s.region_area_fraction:.1f} | "
-              f"{s.region_area_fraction * area:.0f} | {s.estimated_cut_length:.0f} | "
-              f"{s.region_count} |")
-    small = r.finishing_tools[-1]
-    last = next(s for s in plan.stages if s.tool.id == small)  # type: ignore[attr-defined]
-    print(f"  finishing cut length {r.finishing_cut_length:.0f} mm against "
-          f"{r.smallest_ball_cut_length:.0f} mm with the smallest ball everywhere: "
-          f"factor {r.smallest_ball_cut_length / r.finishing_cut_length:.2f}")
-    if len(r.finishing_tools) > 1:
-        whole = area / flat_pick_feed(last.tool.radius, tol)
-        print(f"  {small} alone: {last.estimated_cut_length:.0f} mm in its regions against "
-              f"{whole:.0f} mm over the whole part: "
-              f"factor {whole / last.estimated_cut_length:.2f}")
-    chain = finishing_chain(z, 0.1, 0.1, list(default_tools("ball")), tol)
-    print("  least estimated finishing cut length with each ball as the main one, mm: "
-          + ", ".join(f"{k} {v:.0f}" for k, v in chain.by_main.items()))
-    print(f"  unreachable by every ball: {r.unreachable_area:.1f} mm², up to "
-          f"{r.unreachable_max_height:.2f} mm")
-    for note in plan.notes:  # type: ignore[attr-defined]
-        print(f"  note: {note}")
+    zmap = ZMap(z, dx=0.1, dy=0.1)
+    t = time.perf_counter()
+    plan = plan_scanline(zmap)
+    took = time.perf_counter() - t
+    area = z.size * 0.01
+    print(f"\nMount Rushmore {z.shape[0]} x {z.shape[1]} at 0.1 mm: plan {took:.2f} s, "
+          f"{len(plan.stages)} passes, {' > '.join(plan.tool_sequence)}")
+    print("phases: " + ", ".join(f"{k} {v:.2f}" for k, v in plan.timings if v >= 0.01))
+    for s in plan.stages:
+        if s.level == plan.depth and s.pass_index == 1:
+            print(f"  {s.tool.id}: region {100 * s.region_area_fraction:.1f} % "
+                  f"({s.region_area_fraction * area:.0f} mm²), {s.pass_count} passes, "
+                  f"estimated cut {s.estimated_cut_length:.0f} mm")
+    r = plan.reach
+    if r is not None:
+        print(f"finishing cut {r.finishing_cut_length:.0f} mm, smallest ball everywhere "
+              f"{r.smallest_ball_cut_length:.0f} mm: factor "
+              f"{r.smallest_ball_cut_length / r.finishing_cut_length:.2f}")
+        print(f"left above the tolerance: {r.unreachable_area:.0f} mm², up to "
+              f"{r.unreachable_max_height:.2f} mm")
 
 
 def main() -> None:
     ap = argparse.ArgumentParser()
-    ap.add_argument("--tolerance", type=float, nargs="*", default=[0.01])
-    ap.add_argument("--no-sizes", action="store_true")
+    ap.add_argument("--before", default="/work/main")
+    ap.add_argument("--sizes", type=int, nargs="*", default=[513, 1025])
+    ap.add_argument("--repeat", type=int, default=1)
+    ap.add_argument("--child", action="store_true")
+    ap.add_argument("--no-rushmore", action="store_true")
     args = ap.parse_args()
-    if not args.no_sizes:
-        sizes(args.tolerance[0])
-    for tol in args.tolerance:
-        rushmore(tol)
+    if args.child:
+        _child(args.sizes, args.repeat)
+        return
+    if args.sizes:
+        _sizes(args.before, args.sizes, args.repeat)
+    if not args.no_rushmore:
+        _rushmore()
 
 
 if __name__ == "__main__":

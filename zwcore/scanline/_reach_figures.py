@@ -32,9 +32,11 @@ F64 = NDArray[np.float64]
 
 def _rest_reason(rule: RestRegion, frac: float, tol: float) -> str:
     prev = rule.previous.id if rule.previous is not None else "the ball before"
+    than = ("the simulated stock (the closing of " + prev + " too large to compute)"
+            if rule.against_stock else prev + "'s")
     return (f"simulated stock: {rule.seed_nodes} nodes still more than {tol:g} mm above the "
             f"part (up to {rule.left_before:.4g} mm) where {rule.tool.id}'s bilinear closing "
-            f"lies more than {tol:g} mm below {prev}'s, grown by its radius: "
+            f"lies more than {tol:g} mm below {than}, grown by its radius: "
             f"{100 * frac:.3g} % of the part")
 
 

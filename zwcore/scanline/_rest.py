@@ -32,12 +32,18 @@ from zwcore.grid.tools import Tool
 from zwcore.grid.zmap import ZMap
 from zwcore.scanline._reach import concave_radii, within_distance
 from zwcore.scanline._regions import TOOL_CHANGE_MM, flat_pick_feed
-from zwcore.sim import closing
+from zwcore.sim import closing, simulation_work
 
 __all__ = ["RestRegion", "RestShared"]
 
 F64 = NDArray[np.float64]
 B8 = NDArray[np.bool_]
+
+#: Most node-offset pairs (:func:`zwcore.sim.simulation_work`) the closing of the ball
+#: before may take (a few seconds: the 45° fillet part needs 2.8e9); beyond, this
+#: ball's closing is compared with the simulated stock itself, which sends it to more
+#: nodes (scallops and borders too).
+REST_CLOSING_WORK = 1 << 32
 
 #: The ball before is compared only within ``2R`` of nodes whose concave radius is below
 #: this many times its radius.
@@ -85,6 +91,9 @@ class RestRegion:
         After the call: most stock over the part when the stage began, mm.
     previous : Tool or None
         After the call: the ball compared with.
+    against_stock : bool
+        After the call: the ball before's closing was too large a computation and this
+        ball's closing was compared with the stock instead.
     """
 
     part: ZMap
@@ -95,6 +104,7 @@ class RestRegion:
     seed_nodes: int = 0
     left_before: float = 0.0
     previous: Tool | None = None
+    against_stock: bool = False
     region: B8 | None = field(default=None, repr=False)
 
     def __call__(self, stock: F64) -> B8:
@@ -105,7 +115,7 @@ class RestRegion:
         self.previous = self.shared.ran[-1]
         seed = rest > self.tolerance
         if seed.any():
-            seed = self._better(seed)
+            seed = self._better(seed, rest)
         self.seed_nodes = int(seed.sum())
         worth = self.seed_nodes * self.part.dx * self.part.dy / flat_pick_feed(
             self.tool.radius, self.tolerance)
@@ -117,7 +127,7 @@ class RestRegion:
             self.shared.closings.clear()  # the stock changes: closings of a new ball before
         return self.region
 
-    def _better(self, seed: B8) -> B8:
+    def _better(self, seed: B8, rest: F64) -> B8:
         """Seed nodes where this ball's closing lies more than the tolerance below the
         previous ball's: first where the previous ball's closing leaves more than the
         tolerance at all (one closing per previous ball and stock, shared by the
@@ -131,12 +141,25 @@ class RestRegion:
         seed = seed & self._near_tight(prev)
         if not seed.any():
             return seed
-        theirs, _ = self._on_window(seed, prev)
-        seed = seed & (theirs > self.tolerance)
-        if not seed.any():
-            return seed
+        if self._work(seed, prev) <= REST_CLOSING_WORK:
+            theirs, _ = self._on_window(seed, prev)
+            seed = seed & (theirs > self.tolerance)
+            if not seed.any():
+                return seed
+        else:  # too large a closing: compared with what the stock shows (more nodes)
+            self.against_stock = True
+            theirs = rest
         mine, inside = self._on_window(seed, self.tool)
         return seed & inside & (mine < theirs - self.tolerance)
+
+    def _work(self, seed: B8, tool: Tool) -> int:
+        """Node-offset pairs of the ball's closing on the seed's window."""
+        ga = math.ceil(2.0 * tool.radius / self.part.dy) + 2
+        gb = math.ceil(2.0 * tool.radius / self.part.dx) + 2
+        rows = np.flatnonzero(seed.any(axis=1))
+        cols = np.flatnonzero(seed.any(axis=0))
+        shape = (int(rows[-1] - rows[0]) + 1 + 4 * ga, int(cols[-1] - cols[0]) + 1 + 4 * gb)
+        return simulation_work(shape, tool, self.part.dx, self.part.dy)
 
     def _near_tight(self, tool: Tool) -> B8:
         sh = self.shared
