@@ -1,11 +1,10 @@
 """Tool choice of the scan-line plan: which level becomes a stage, with which ball.
 
-Finishing (issue 11): the balls that finish the part and where each works come
-from simulated reach on the part's nodes (:mod:`zwcore.scanline._regions`): a main
-ball over the whole part, then smaller balls each in its rest region. Their stage
-models step down from what the main ball leaves (its simulated surface, where it
-is more than the tolerance above the part) to the part itself, so the flute-length
-lift between them sees the rest material as depth of cut.
+Finishing (issue 11): the estimate of reach on the part's nodes
+(:mod:`zwcore.scanline._regions`) ranks the main ball, which machines the whole part;
+every smaller ball after it is a candidate whose region is decided from the simulated
+stock when its stage begins (:mod:`zwcore.scanline._rest`). Every finishing stage
+targets the part: the flute rule on the simulated stock sees the rest as depth of cut.
 
 Roughing: levels are taken from the finest towards the coarsest; a coarser level
 becomes a stage only when it admits a strictly larger ball than the stage after it,

@@ -17,12 +17,14 @@ Everything comes off one lifted single-knot MRR of the part:
    wherever that was already below the level before. Without the clip every
    coarse level of a walled part rose above the stock and was skipped, and
    the whole part was machined with the finishing ball.
-3. Tool choice (:mod:`zwcore.scanline._tool_choice`). Finishing: the balls and
-   their regions from simulated reach on the part's nodes
-   (:mod:`zwcore.scanline._regions`, :mod:`zwcore.scanline._reach`): a main ball over
-   the whole part, then smaller balls each in its rest region, chosen for the least
-   estimated finishing cut length; their targets step down from what the main ball
-   leaves to the part, all at the part's level. Roughing: levels are taken from the
+3. Tool choice (:mod:`zwcore.scanline._tool_choice`). Finishing: the estimate of
+   reach on the part's nodes (:mod:`zwcore.scanline._regions`,
+   :mod:`zwcore.scanline._reach`) ranks the main ball (least estimated finishing cut
+   length), which machines the whole part; each smaller ball after it machines the
+   region the simulated stock calls for when its stage begins
+   (:mod:`zwcore.scanline._rest`); every finishing stage targets the part. The reach
+   figures come from the final simulated stock (:mod:`zwcore.scanline._reach_figures`).
+   Roughing: levels are taken from the
    finest towards the coarsest; a coarser level becomes a stage only when it admits a
    strictly larger ball than the stage after it, so radii never grow in machining
    order; a level that admits the same ball merges into the finer stage. A level
