@@ -400,3 +400,35 @@ def test_read_only_grids_are_accepted() -> None:
     out = nodal_closing(z, cl, 2.0, 0.5, 0.5, np.ones(z.shape, dtype=bool))
     np.testing.assert_allclose(out, brute_closing(zmap.z, 2.0, 0.5, 0.5), atol=1e-9)
     assert plan_scanline(ZMap(z, dx=0.5, dy=0.5)).checks.ok
+
+
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), small=st.sampled_from([0.5, 1.0, 1.5]),
+       left=st.floats(0.0, 2.0))
+def test_rest_region_stays_near_the_material_left(seed: int, small: float, left: float) -> None:
+    """A rest ball's region lies within its (conservatively grown) radius of nodes where
+    the stock stands more than the tolerance above the part, and is empty when nothing
+    is left (brute-force distances)."""
+    from zwcore.scanline._rest import RestRegion, RestShared
+
+    rng = np.random.default_rng(seed)
+    n, h = 41, 0.25
+    y, x = np.mgrid[0:n, 0:n] * h
+    z = np.zeros((n, n))
+    for _ in range(3):  # pits and grooves: concave detail for the balls
+        cx, cy, r = rng.uniform(0, 10, 3)
+        z -= rng.uniform(0.5, 3.0) * (np.hypot(x - cx, y - cy) < 0.5 + r / 3)
+    part = ZMap(z, dx=h, dy=h)
+    stock = z + left * (rng.random(z.shape) < 0.3)
+    big, tool = Tool("big", "ball", 8.0, 16.0), Tool("s", "ball", 2 * small, 8.0)
+    rule = RestRegion(part, tool, 0.01, RestShared([big]), last=True)
+    region = rule(stock)
+    above = np.argwhere(stock - z > 0.01) * h
+    if above.size == 0:
+        assert not region.any()
+        return
+    nodes = np.argwhere(region) * h
+    if nodes.size:
+        d = np.min(np.hypot(*(nodes[:, None, :] - above[None, :, :]).transpose(2, 0, 1)),
+                   axis=1)
+        assert d.max() <= small * (1 + 2**0.5 / 2) + 2 * h + 1e-9
