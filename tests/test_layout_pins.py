@@ -18,6 +18,20 @@ The stage models and every earlier figure stayed the same; the body gained
 ``path_length``, ``path_length_whole_strips`` and ``extra_segments`` per stage
 and the reason text says the extra lines run over the stretches that need them
 (checked against the old body, field by field, before re-pinning).
+
+Re-pinned on purpose again: ``scanline`` for issue 11, parts 2-3 (tool choice by
+simulated reach, rest regions). The old digest already failed on main before this
+change (drift of the figures since the last pin); this change alters the plan on
+purpose: the finishing ball of this part comes from its simulated reach, the
+roughing balls' rest is simulated, and every stage gained the region fields
+(``region_area_fraction``, ``region_boxes``, ``region_count``,
+``estimated_cut_length``, ``reach_rest_max``, ``reach_reason``, ``region``) and the
+body a ``reach`` summary. The task id is unchanged (same request).
+
+Re-pinned on purpose: ``scanline`` for issue 11 parts 2-3 brought back on the simulated
+stock: every finishing stage targets the part, rest balls' regions come from the
+simulated stock the passes before them leave, and the reach summary is read off the
+final simulated stock (the plan changes; the request and task id do not).
 """
 
 from __future__ import annotations
@@ -60,7 +74,7 @@ PINNED: dict[str, tuple[str, str]] = {
     "mrr": ("b1500866fbd1fdfbf5316dd1ae2173f8c32f5260c9b4e878b3c9f6dba7610746",
             "511b56c84f0f5b7c3b3699bb21052e244b35645644ad5df5ecb96d9ae068b23c"),
     "scanline": ("0d373fe45ad19e3b0af762cc5bf3f023ae1ecd34c414f499db31a0f7bee50cc5",
-                 "c46e0f92230c5994d885f312c350ce7f0451b2f7cdce0a925fc2079ab770e31b"),
+                 "fdddb81e2f65af0f6c118d2c624fd398663e4e1779e2b108bb71df6ca3a98a7a"),
     "contour": ("af4786a3c0c89d765d85abbeb7289898a35f887b14e5abbe03ef564b2b881010",
                 "451e40e57762313c96b6500671840cc7a1e474220a35a9f05768aff603afad78"),
     # (re-pinned twice: issue 14 names results by operation id, ``fit_arcs``; issue 15

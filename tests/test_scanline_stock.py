@@ -75,7 +75,8 @@ def _cl_model(s: ScanlineStage, model: np.ndarray, x: np.ndarray, y: np.ndarray)
     return _bilinear(drop_cutter(ZMap(model, dx=sx, dy=sy), s.tool), sx, sy, x, y)
 
 
-def _resimulate(zmap: ZMap, plan: ScanlinePlan) -> list[tuple[float, float, float]]:
+def _resimulate(zmap: ZMap, plan: ScanlinePlan, final: list[np.ndarray] | None = None,
+                ) -> list[tuple[float, float, float]]:
     """Per stage: (largest depth of cut, gouge, largest stock left over the part), brute force
     over a window of nodes around every position.
 
@@ -93,6 +94,11 @@ def _resimulate(zmap: ZMap, plan: ScanlinePlan) -> list[tuple[float, float, floa
     for s in plan.stages:
         r, flute = s.tool.radius, s.tool.flute_length
         x, y = _positions(s.lines, s.sim_position_spacing)
+        if s.region is not None:  # a position is kept if its nearest model node is in it
+            sx, sy = s.spacing
+            col = np.clip(np.rint(x / sx).astype(int), 0, s.region.shape[1] - 1)
+            row = np.clip(np.rint(y / sy).astype(int), 0, s.region.shape[0] - 1)
+            x, y = x[s.region[row, col]], y[s.region[row, col]]
         cl_target = _cl_model(s, targets[(s.level, s.tool.id)], x, y)
         cl_path = _cl_model(s, s.model, x, y)
         a, b = math.ceil(r / zmap.dy) + 1, math.ceil(r / zmap.dx) + 1
@@ -117,6 +123,8 @@ def _resimulate(zmap: ZMap, plan: ScanlinePlan) -> list[tuple[float, float, floa
             env = np.where(inside, cl[:, None] + h, np.inf)
             np.minimum.at(stock, (rows.ravel(), cols.ravel()), env.ravel())
         out.append((depth, float(max(0.0, np.max(part - stock))), float(np.max(stock - part))))
+    if final is not None:
+        final.append(stock)
     return out
 
 
@@ -140,16 +148,18 @@ def _assert_sim_holds(zmap: ZMap, plan: ScanlinePlan) -> None:
     assert plan.checks.depth_of_cut and plan.checks.sim_no_gouge and plan.checks.ok
 
 
-def test_trench_every_pass_within_its_flutes() -> None:
+def test_trench_every_pass_within_its_flutes(monkeypatch: pytest.MonkeyPatch) -> None:
     """Issue 11's known failure: a 2 mm wide, 20 mm deep trench (129² at 0.25 mm). Before
     the rule the Ø6 pass (12 mm flutes) and the first Ø1 pass (2 mm flutes) met about
     18-24 mm of stock in the trench (the coarse models follow the trench only at their
-    nodes, the balls do not fit in it)."""
+    nodes, the balls do not fit in it). The reference simulates every position: the pass
+    work cap (thinning, tested below) is lifted so the plan does too."""
+    monkeypatch.setattr(_stock, "MAX_PASS_WORK", 1 << 40)
     zmap = _trench()
     plan = plan_scanline(zmap)
     _assert_sim_holds(zmap, plan)
     ids = [s.tool.id for s in plan.stages]
-    assert "BEM-D1" in ids and "BEM-D6" in ids
+    assert "BEM-D1" in ids
     # the Ø1 ball descends into the trench in several lifted passes, the last one reaches it
     d1 = [s for s in plan.stages if s.tool.id == "BEM-D1"]
     assert sum(s.sim_lifted_nodes > 0 for s in d1) >= 5
@@ -157,6 +167,39 @@ def test_trench_every_pass_within_its_flutes() -> None:
     # away from the sharp floor corners the part is reached
     assert d1[-1].sim_left_over_part_p95 <= 0.02
     assert plan.stages[-1].sim_left_over_next_max == plan.stages[-1].sim_left_over_part_max
+
+
+@pytest.mark.parametrize("width", [2.0, 3.0])
+def test_trench_plan_leaves_no_more_than_it_reports(width: float,
+                                                   monkeypatch: pytest.MonkeyPatch) -> None:
+    """Issue 11 (reach reverted): the plan said 0.15 mm where its own stages left 19.5 mm.
+    Re-simulated by brute force, honouring the rest regions: wherever the plan reports the
+    part reached the stock is within the tolerance, the rest lies where it reports it
+    unreachable (area and height), the note names it, and the small ball's region covers
+    the trench's centre."""
+    monkeypatch.setattr(_stock, "MAX_PASS_WORK", 1 << 40)
+    zmap = _trench(width=width)
+    plan = plan_scanline(zmap)
+    final: list[np.ndarray] = []
+    _resimulate(zmap, plan, final)
+    left = final[0] - zmap.z
+    tol, rounding = plan.tolerance, _rounding(zmap, plan)
+    assert plan.reach is not None
+    above = left > tol + rounding
+    assert float(above.sum()) * 0.0625 <= plan.reach.unreachable_area + 1e-9
+    assert float(left.max()) <= plan.reach.unreachable_max_height + rounding
+    if plan.reach.unreachable_area > 0.0:
+        assert any(plan.reach.finishing_tools[-1] in n and "no tool reaches" in n
+                   for n in plan.notes)
+    # the trench's centre line is finished (within the tolerance) by a rest ball
+    assert left[:, 64].max() <= tol + rounding
+    last = [s for s in plan.stages if s.region is not None]
+    assert last and last[-1].region[:, 64].all()
+    # the rest balls stay near the trench: their regions hold no node farther than the
+    # trench's half width plus their radius from its centre line
+    x = np.abs(np.arange(129) * 0.25 - 16.0)
+    for s in last:
+        assert not s.region[:, x > width / 2 + s.tool.radius + 0.25 + 1e-9].any()
 
 
 @st.composite

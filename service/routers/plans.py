@@ -148,11 +148,36 @@ def scanline_result(zmap: ZMap, tools: list[Tool], tolerance: float, stock_top: 
         return canonical_grid(stage.model, x0=zmap.x0, y0=zmap.y0, dx=sx, dy=sy,
                               interpolation="bilinear")
 
+    stages = _stages(plan.stages, ScanlineStageOut, model if include_models else None)
+    for entry, stage in zip(stages, plan.stages, strict=True):
+        entry.update(_region_fields(stage, zmap, include_models))
     return {"stock_top": plan.stock_top, "stock_top_source": plan.stock_top_source,
             "tolerance": tolerance, "tool_sequence": list(plan.tool_sequence),
-            "stages": _stages(plan.stages, ScanlineStageOut, model if include_models else None),
+            "stages": stages,
             "checks": _pick(plan.checks, ScanlineChecksOut), "notes": list(plan.notes),
-            **({"toolpaths": section} if section is not None else {})}
+            **({"toolpaths": section} if section is not None else {}),
+            **({"reach": _reach_summary(plan.reach)} if plan.reach is not None else {})}
+
+
+def _region_fields(stage: Any, zmap: ZMap, include_models: bool) -> dict[str, Any]:
+    """A scan-line stage's rest region: boxes in the grid's coordinates, and its mask
+    grid (1/0 per node of the stage model's grid) when models were asked for."""
+    boxes = [{"x_min": zmap.x0 + b[0], "y_min": zmap.y0 + b[1], "x_max": zmap.x0 + b[2],
+              "y_max": zmap.y0 + b[3], "area": b[4]} for b in stage.region_boxes]
+    region = None
+    if include_models and stage.region is not None:
+        sx, sy = stage.spacing
+        region = canonical_grid(stage.region.astype(np.float64), x0=zmap.x0, y0=zmap.y0,
+                                dx=sx, dy=sy, interpolation="cell")
+    return {"region_boxes": boxes, "region": region}
+
+
+def _reach_summary(reach: Any) -> dict[str, Any]:
+    out = {name: _plain(getattr(reach, name)) for name in (
+        "finishing_tools", "finishing_cut_length", "smallest_ball_cut_length",
+        "unreachable_area", "unreachable_max_height", "needed_radius")}
+    out["cut_length_factor"] = reach.smallest_ball_cut_length / reach.finishing_cut_length
+    return out
 
 
 def bound_contour_slabs(zmap: ZMap, tools: list[Tool], given: list[ToolIn] | None,

@@ -43,6 +43,14 @@ class ScanlinePlanRequest(ToolpathOptions):
     include_models: StrictBool = Field(False, description="return each stage's model grid")
 
 
+class RegionBoxOut(BaseModel):
+    x_min: float
+    y_min: float
+    x_max: float
+    y_max: float
+    area: float = Field(description="mm²")
+
+
 class ScanlineStageOut(BaseModel):
     index: int
     tool: ToolOut
@@ -109,6 +117,43 @@ class ScanlineStageOut(BaseModel):
     sim_left_over_part_max: float = Field(
         0.0, description="simulated stock after the stage minus the part: largest, mm")
     sim_left_over_part_p95: float = Field(0.0, description="the same, 95th percentile, mm")
+    # --- tool choice by reach and rest regions (issue 11, parts 2-3) ---
+    region_area_fraction: float = Field(
+        1.0, description="share of the part's nodes this stage's ball machines (1: all)")
+    region_boxes: list[RegionBoxOut] = Field(
+        default_factory=list, description="bounding boxes of the region's connected parts "
+        "(largest first, at most 64; empty when the stage machines the whole part)")
+    region_count: int = Field(1, description="connected parts of the region")
+    estimated_cut_length: float | None = Field(
+        None, description="finishing stages: region area / the pick-feed that holds the "
+        "tolerance on a flat, mm (what the choice of finishing balls minimises); null for "
+        "roughing")
+    reach_rest_max: float = Field(
+        0.0, description="most material the ball leaves over its target in the reach "
+        "simulation (finishing: over the part after it and the balls before), mm")
+    reach_reason: str | None = Field(None, description="why this ball, from the simulation")
+    region: GridOut | None = Field(
+        None, description="with include_models: where the ball machines, 1 or 0 per node of "
+        "the stage model's grid; null for a stage over the whole part")
+
+
+class ScanlineReachOut(BaseModel):
+    """The finishing balls chosen by simulated reach, and what none of them reaches."""
+
+    finishing_tools: list[str] = Field(description="main finishing ball, then rest balls")
+    finishing_cut_length: float = Field(
+        description="estimated finishing cut length of those balls in their regions "
+        "(area / flat pick-feed at the tolerance, plus 250 mm per tool change), mm")
+    smallest_ball_cut_length: float = Field(
+        description="the same estimate with the smallest library ball over the whole part, mm")
+    cut_length_factor: float = Field(
+        description="smallest_ball_cut_length / finishing_cut_length")
+    unreachable_area: float = Field(
+        description="area where even the last ball leaves more than the tolerance, mm²")
+    unreachable_max_height: float = Field(description="most material left there, mm")
+    needed_radius: float | None = Field(
+        description="the part's smallest concave radius there: a ball that finishes it must "
+        "be no larger, mm (null: nothing left)")
 
 
 class ScanlineChecksOut(BaseModel):
@@ -151,6 +196,8 @@ class ScanlinePlanResult(BaseModel):
     checks: ScanlineChecksOut
     notes: list[str]
     toolpaths: ToolpathsOut | None = None
+    # --- tool choice by reach (issue 11, parts 2-3) ---
+    reach: ScanlineReachOut | None = None
 
 
 class ContourPlanRequest(ToolpathOptions):

@@ -56,6 +56,7 @@ class PassSpec:
     concave_radius: float
     clipped: int
     raised: int
+    #: Where the pass's ball machines, on ``model``'s nodes (None: everywhere).
     region: NDArray[np.bool_] | None = None
     sim: SimulatedPass | None = None
     left_next: tuple[float, float] = (0.0, 0.0)
@@ -174,7 +175,7 @@ def _stage(p: PassSpec, index: tuple[int, int], cut_max: float, volume: float, a
         pick_feed_max=sp.pick_feed_max, reduced_strips=sp.reduced_strips,
         clipped_nodes=p.clipped, raised_nodes=p.raised, path_length=sp.path_length,
         path_length_whole_strips=sp.path_length_whole_strips, extra_segments=sp.extra_segments,
-        lines=sp.lines, model=p.model, **_sim_fields(p))
+        lines=sp.lines, model=p.model, region=p.region, **_sim_fields(p))
 
 
 def _sim_fields(p: PassSpec) -> dict[str, Any]:

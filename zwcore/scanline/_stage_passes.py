@@ -96,9 +96,12 @@ def _reaches(on: F64, target: F64, shift: float) -> bool:
     return True
 
 
-def _region(stage: Stage) -> NDArray[np.bool_] | None:
-    """The stage's region on its model nodes (``None``: the whole part)."""
-    return stage[4] if len(stage) > 4 else None
+def _region(stage: Stage, stock: F64) -> NDArray[np.bool_] | None:
+    """The stage's region on its model nodes (``None``: the whole part); a rule (a
+    callable, :class:`zwcore.scanline._rest.RestRegion`) decides it from the simulated
+    stock the stages before left."""
+    region = stage[4] if len(stage) > 4 else None
+    return region(stock) if callable(region) else region
 
 
 @dataclass
@@ -269,7 +272,8 @@ def _bounds(plan: _Plan) -> None:
 
 
 def passes(zmap: ZMap, chosen: list[Stage], stock_top: float, tolerance: float, g: float,
-           notes: list[str] | None = None) -> list[PassSpec]:
+           notes: list[str] | None = None, final_stock: list[F64] | None = None,
+           ) -> list[PassSpec]:
     """All passes of the chosen stages (coarse to fine), simulated in turn.
 
     Parameters
@@ -277,28 +281,40 @@ def passes(zmap: ZMap, chosen: list[Stage], stock_top: float, tolerance: float, 
     zmap : ZMap
         The part.
     chosen : list of Stage
-        ``(level, tool, merged levels, rest[, region])`` per stage.
+        ``(level, tool, merged levels, rest[, region])`` per stage; a region given as a
+        rule is decided when the stage begins, and a stage whose region is empty is
+        dropped.
     stock_top, tolerance : float
     g : float
         Rounding guard (a few ulps of the heights in play).
     notes : list of str, optional
         Appended to where a stage cannot meet the flute rule by lifting.
+    final_stock : list, optional
+        Receives the simulated stock after the last pass, ``(ny, nx)`` float64.
     """
     plan = _Plan(zmap, stock_top, tolerance, g, notes, StockSim(zmap, stock_top))
     prev: F64 | None = None
     prev_level = 0
     for n, stage in enumerate(chosen):
         lev, tool, merged, rest = stage[:4]
+        region = _region(stage, plan.sim.stock)
+        if region is not None and not region.any():
+            continue  # a rest ball with nothing left to do
         if prev is None:
             on = np.full(lev.model.shape, stock_top)
         else:
             on = upsampled(prev, 1 << (lev.index - prev_level), lev.model.shape)
-        next_flute = chosen[n + 1][1].flute_length if n + 1 < len(chosen) else None
-        st = _Stage(lev, tool, tuple(merged), rest, _region(stage), on, prev is None,
+        # every stage on the part's level finishes (rest balls only add to it): its
+        # pick-feed holds the tolerance
+        finishing = lev.index == chosen[-1][0].index
+        next_flute = None if finishing else chosen[n + 1][1].flute_length
+        st = _Stage(lev, tool, tuple(merged), rest, region, on, prev is None,
                     next_flute)
         prev = _stage_passes(plan, st)
         prev_level = lev.index
     if plan.out:
         plan.out[-1].left_next = plan.out[-1].left_part
+    if final_stock is not None:
+        final_stock.append(plan.sim.stock)
     return plan.out
 

@@ -1,15 +1,20 @@
 """Tool choice of the scan-line plan: which level becomes a stage, with which ball.
 
-Levels are taken from the finest (the part, which fixes the finishing tool)
-towards the coarsest; a coarser level becomes a stage only when it admits a
-strictly larger ball than the stage after it, so radii never grow in
-machining order; a level that admits the same ball merges into the finer
-stage. A level admits the largest library ball whose radius is at most its
-target's smallest concave radius (:mod:`zwcore.grid.curvature`), or a larger
-roughing ball when the material that ball cannot reach there (a grey closing
-of the target by the ball, on the level's nodes) is at most a quarter of the
-next stage's flute length: steep walls make every coarse model sharp at its
-own grid scale.
+Finishing (issue 11): the estimate of reach on the part's nodes
+(:mod:`zwcore.scanline._regions`) ranks the main ball, which machines the whole part;
+every smaller ball after it is a candidate whose region is decided from the simulated
+stock when its stage begins (:mod:`zwcore.scanline._rest`). Every finishing stage
+targets the part: the flute rule on the simulated stock sees the rest as depth of cut.
+
+Roughing: levels are taken from the finest towards the coarsest; a coarser level
+becomes a stage only when it admits a strictly larger ball than the stage after it,
+so radii never grow in machining order; a level that admits the same ball merges
+into the finer stage. A level admits the largest library ball whose radius is at
+most its target's smallest concave radius (:mod:`zwcore.grid.curvature`, the fast
+first guess), or a larger ball when its simulated rest on the level's nodes (the
+nodal closing of :mod:`zwcore.sim._nodal`) is at most a quarter of the next stage's
+flute length ("what the next tool can take"): steep walls make every coarse model
+sharp at its own grid scale.
 
 :func:`choose` is the one place that decides tools; it sees only the level
 models and the library, so another rule (a simulated choice, say) can
@@ -18,21 +23,23 @@ replace it without touching the passes or the figures.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import ndimage
 
 from zwcore.grid.curvature import min_concave_radius
 from zwcore.grid.tools import Tool
 from zwcore.grid.zmap import ZMap
 from zwcore.scanline._models import Target
+from zwcore.scanline._reach import ball_reach
+from zwcore.scanline._regions import Chain
+from zwcore.scanline._rest import RestRegion, RestShared
 
-__all__ = ["REST_FLUTE_SHARE", "REST_MAX_CELLS", "Level", "Stage", "ball_rest", "choose",
-           "levels"]
+__all__ = ["REST_FLUTE_SHARE", "REST_MAX_CELLS", "Level", "Stage", "StageReach", "ball_rest",
+           "choose", "finishing_stages", "levels"]
 
 F64 = NDArray[np.float64]
 
@@ -40,9 +47,13 @@ F64 = NDArray[np.float64]
 #: share of the next stage's flute length.
 REST_FLUTE_SHARE = 0.25
 
-#: The rest of an oversized ball is computed only where it spans at most this
-#: many nodes of its level each way (beyond, the concave-radius rule decides).
-REST_MAX_CELLS = 4
+#: The rest of an oversized roughing ball is simulated only where it spans at most
+#: this many nodes of its level each way (beyond, the concave-radius rule decides).
+REST_MAX_CELLS = 8
+
+#: Roughing rest is simulated to this resolution, mm (it is compared with a quarter of a
+#: flute length).
+REST_RESOLUTION = 1e-3
 
 
 @dataclass
@@ -61,9 +72,47 @@ class Level:
     raised: int
 
 
-#: A chosen stage: its level, its ball, the coarser levels merged into it, and
-#: the rest the ball leaves (0 when it fits the level's concave radius).
-Stage = tuple[Level, Tool, list[int], float]
+@dataclass(frozen=True)
+class StageReach:
+    """What the reach simulation says about one stage (reported per stage).
+
+    Attributes
+    ----------
+    area_fraction : float
+        Share of the part's nodes in the stage's region (1: everywhere).
+    boxes : tuple of (x_min, y_min, x_max, y_max, area)
+        Bounding boxes of the region's connected parts, mm from the grid's first
+        node, largest first (empty for a stage over the whole part).
+    region_count : int
+    cut_length : float or None
+        Estimated cut length (region area / pick-feed holding the tolerance on a
+        flat), mm; None for roughing stages (their ``path_length`` is the real one).
+    rest_max : float
+        Most material the ball leaves over its target (finishing: over the part), mm.
+    reason : str
+    """
+
+    area_fraction: float
+    boxes: tuple[tuple[float, float, float, float, float], ...]
+    region_count: int
+    cut_length: float | None
+    rest_max: float
+    reason: str
+
+
+class Stage(NamedTuple):
+    """A chosen stage: its level (whose ``model`` is the stage's target), its ball, the
+    coarser levels merged into it, the rest the ball leaves that the next pass's
+    flutes also take (in the model for finishing stages: 0), where it machines (on
+    the level's nodes; None: everywhere; a :class:`RestRegion`: decided from the
+    simulated stock when the stage begins) and the reach figures."""
+
+    level: Level
+    tool: Tool
+    merged: list[int]
+    rest: float
+    region: NDArray[np.bool_] | RestRegion | None = None
+    reach: StageReach | None = None
 
 
 def _largest_fitting(library: Sequence[Tool], radius: float) -> Tool | None:
@@ -96,62 +145,72 @@ def levels(zmap: ZMap, depth: int, targets: list[Target], smoothing: float,
 def ball_rest(lev: Level, radius: float) -> float:
     """Largest height of material a ball of ``radius`` leaves in the level model's valleys.
 
-    Drop-cutter on the level's own nodes: the tool tip rests at
-    ``max_y (A(x+y) - b(y))`` over the ball's footprint ``y``, with ``b`` the
-    ball's lower hemisphere above its tip, and cuts down to
-    ``min_y (tip(x-y) + b(y))``: a grey closing of ``A`` by ``-b``. The rest
-    is that minus ``A``, over the nodes inside the input.
+    The ball's simulated reach on the level's own nodes
+    (:func:`zwcore.scanline._reach.ball_reach`: the nodal closing, exact where the
+    model bends more sharply than the ball and within ``2R`` of it, with a ball between
+    nodes where node positions leave cusps), over the nodes inside the input.
     """
-    mx = math.floor(radius / lev.sx)
-    my = math.floor(radius / lev.sy)
-    oy, ox = np.mgrid[-my:my + 1, -mx:mx + 1]
-    r2 = (ox * lev.sx) ** 2 + (oy * lev.sy) ** 2
-    inside = r2 <= radius * radius
-    hemi = radius - np.sqrt(np.where(inside, radius * radius - r2, 0.0))
-    closed = ndimage.grey_closing(lev.model, footprint=inside, structure=-hemi, mode="nearest")
-    rest = (closed - lev.model)[: lev.extent[0], : lev.extent[1]]
-    return max(float(rest.max()), 0.0)
+    model = lev.model[: lev.extent[0], : lev.extent[1]]
+    return float(ball_reach(model, lev.sx, lev.sy, radius, REST_RESOLUTION).rest.max())
 
 
-def choose(levels: list[Level], library: Sequence[Tool],
-            notes: list[str]) -> list[Stage]:
-    """Stages (level, tool, merged levels, rest) from coarse to fine; radii non-increasing."""
+def finishing_stages(levels: list[Level], chain: Chain, tolerance: float,
+                     library: Sequence[Tool], part: ZMap) -> list[Stage]:
+    """The finishing stages (main ball first), all on the part itself.
+
+    The main ball (the estimate's choice) machines the whole part; every later ball is
+    a candidate whose region is decided from the simulated stock when its stage begins
+    (:class:`zwcore.scanline._rest.RestRegion`): the estimate's chain, then every smaller
+    library ball (a ball the estimate thought needless may be needed where the passes
+    really leave material; an empty region drops the stage). Every stage's target is
+    the part: the flute rule on the simulated stock sees the rest as depth of cut.
+    """
     finest = levels[-1]
-    finish = finest.fit
-    if finish is None:
-        finish = library[-1]
-        notes.append(
-            f"no tool fits the smallest concave radius of the part "
-            f"({finest.concave_radius:.4g} mm); finishing with the smallest ball "
-            f"{finish.id} (R {finish.radius:g} mm) leaves material in the sharpest corners")
-    chosen: list[Stage] = [(finest, finish, [], 0.0)]
-    current = finish
+    balls = [cs.tool for cs in chain.stages]
+    balls += [t for t in library if t.radius < balls[-1].radius]
+    out: list[Stage] = []
+    main = chain.stages[0]
+    out.append(Stage(finest, main.tool, [], 0.0, None,
+                     StageReach(1.0, (), 1, main.cut_length, main.rest_max, main.reason)))
+    shared = RestShared([main.tool])
+    for tool in balls[1:]:
+        rule = RestRegion(part, tool, tolerance, shared, last=tool is balls[-1])
+        out.append(Stage(finest, tool, [], 0.0, rule, None))
+    return out
+
+
+def choose(levels: list[Level], library: Sequence[Tool], notes: list[str],
+           chain: Chain, tolerance: float, part: ZMap) -> list[Stage]:
+    """Stages from coarse to fine; radii non-increasing; the finishing chain last."""
+    finishing = finishing_stages(levels, chain, tolerance, library, part)
+    chosen: list[Stage] = list(reversed(finishing))
+    current = finishing[0].tool
     for lev in reversed(levels[:-1]):
         spacing = min(lev.sx, lev.sy)
-        # An intermediate stage may use a ball larger than its model's concave
-        # radius when what the ball cannot reach (its rest, grey closing on the
-        # level's nodes) fits in a quarter of the next stage's flute length;
-        # that rest counts against it like scallops do. Only tried where the
-        # ball spans a few nodes (cheap, and the node sampling is fair).
-        pick: tuple[Tool, float] | None = None
+        pick: tuple[Tool, float, str] | None = None
         for tool in library:
             if tool.radius <= current.radius:
                 break
             allowance = REST_FLUTE_SHARE * min(current.flute_length, tool.flute_length)
             if spacing >= tool.diameter:
                 continue  # the ball cannot follow this level's scan lines
-            if tool.radius <= lev.concave_radius:
-                pick = (tool, 0.0)
-                break
             if tool.radius <= REST_MAX_CELLS * spacing:
                 rest = ball_rest(lev, tool.radius)
                 if rest <= allowance:
-                    pick = (tool, rest)
+                    pick = (tool, rest, f"simulated reach on the level's nodes: leaves at most "
+                            f"{rest:.4g} mm, within {allowance:g} mm (a quarter of the next "
+                            f"flute length)")
                     break
+            elif tool.radius <= lev.concave_radius:
+                pick = (tool, 0.0, f"fits the level's concave radius "
+                        f"({lev.concave_radius:.4g} mm; too large a footprint to simulate)")
+                break
         if pick is not None:
-            chosen.append((lev, pick[0], [], pick[1]))
-            current = pick[0]
+            tool, rest, why = pick
+            info = StageReach(1.0, (), 1, None, rest, why)
+            chosen.append(Stage(lev, tool, [], rest, None, info))
+            current = tool
         elif lev.fit is not None and lev.fit.id == current.id:
-            chosen[-1][2].append(lev.index)
+            chosen[-1].merged.append(lev.index)
     chosen.reverse()
     return chosen

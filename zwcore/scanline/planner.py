@@ -17,17 +17,20 @@ Everything comes off one lifted single-knot MRR of the part:
    wherever that was already below the level before. Without the clip every
    coarse level of a walled part rose above the stock and was skipped, and
    the whole part was machined with the finishing ball.
-3. Tool choice per level from its target (:mod:`zwcore.scanline._tool_choice`,
-   with :mod:`zwcore.grid.curvature`): the largest library ball whose radius
-   is at most the target's smallest concave radius. Levels are taken from the
-   finest (the part, which fixes the finishing tool) towards the coarsest; a
-   coarser level becomes a stage only when it admits a strictly larger ball
-   than the stage after it, so radii never grow in machining order; a level
-   that admits the same ball merges into the finer stage. A roughing level may
-   also take a ball larger than its concave radius when the material that ball
-   cannot reach there (a grey closing of the target by the ball, on the
-   level's nodes) is at most a quarter of the next stage's flute length: steep
-   walls make every coarse model sharp at its own grid scale.
+3. Tool choice (:mod:`zwcore.scanline._tool_choice`). Finishing: the estimate of
+   reach on the part's nodes (:mod:`zwcore.scanline._regions`,
+   :mod:`zwcore.scanline._reach`) ranks the main ball (least estimated finishing cut
+   length), which machines the whole part; each smaller ball after it machines the
+   region the simulated stock calls for when its stage begins
+   (:mod:`zwcore.scanline._rest`); every finishing stage targets the part. The reach
+   figures come from the final simulated stock (:mod:`zwcore.scanline._reach_figures`).
+   Roughing: levels are taken from the
+   finest towards the coarsest; a coarser level becomes a stage only when it admits a
+   strictly larger ball than the stage after it, so radii never grow in machining
+   order; a level that admits the same ball merges into the finer stage. A level
+   admits a ball whose simulated rest on its nodes is at most a quarter of the next
+   stage's flute length (balls spanning up to ``REST_MAX_CELLS`` level cells), or,
+   beyond, one that fits its smallest concave radius (:mod:`zwcore.grid.curvature`).
 4. The flute-length rule on the simulated stock
    (:mod:`zwcore.scanline._stage_passes`, :mod:`zwcore.scanline._stock`): every pass
    is simulated over the stock the earlier passes left (its real tool positions on its
@@ -67,9 +70,11 @@ from zwcore.mrr.wavelets import Multiresolution, analyse
 from zwcore.scanline._checks import figures
 from zwcore.scanline._models import nested_targets
 from zwcore.scanline._passes import scallop_height
+from zwcore.scanline._reach_figures import with_reach
+from zwcore.scanline._regions import Chain, finishing_chain
 from zwcore.scanline._stage_passes import MAX_MODEL_NODES, MAX_STAGES
 from zwcore.scanline._stage_passes import passes as stage_passes
-from zwcore.scanline._tool_choice import Stage, ball_rest, choose, levels
+from zwcore.scanline._tool_choice import Stage, ball_rest, choose, finishing_stages, levels
 from zwcore.scanline.results import ScanlineChecks, ScanlinePlan, ScanlineStage
 
 __all__ = [
@@ -149,19 +154,24 @@ def plan_scanline(zmap: ZMap, tools: Sequence[Tool] | None = None, *, tolerance:
 
     first, ceiling, g = _first_level_and_guard(zmap, mrr, library, requested)
     notes: list[str] = []
+    chain = finishing_chain(part, zmap.dx, zmap.dy, list(library), tol)
+    laps("reach")
     st, chosen = _stages(zmap, mrr, first, ceiling, g, requested, library,
-                         float(curvature_smoothing), notes, laps)
-    passes = stage_passes(zmap, chosen, st, tol, g, notes)
+                         float(curvature_smoothing), notes, laps, chain, tol)
+    final: list[F64] = []
+    passes = stage_passes(zmap, chosen, st, tol, g, notes, final)
     laps("passes_simulated")
 
     stages, checks = figures(part, mrr.depth, zmap.dx, zmap.dy, passes, st, tol, g)
+    stages, checks, reach = with_reach(zmap, stages, checks, chosen, chain, final[0], tol,
+                                       notes)
     laps("figures_and_checks")
 
     return ScanlinePlan(
         stock_top=st, stock_top_source="request" if requested is not None else "default",
         tolerance=tol, depth=mrr.depth, stages=tuple(stages),
         tool_sequence=_tool_sequence(stages), checks=checks, notes=tuple(notes),
-        timings=tuple(laps.timings))
+        timings=tuple(laps.timings), reach=reach)
 
 
 class _Laps:
@@ -211,7 +221,8 @@ def _first_level_and_guard(zmap: ZMap, mrr: Multiresolution, library: Sequence[T
 
 def _stages(zmap: ZMap, mrr: Multiresolution, first: int, ceiling: float, g: float,
             requested: float | None, library: Sequence[Tool], smoothing: float,
-            notes: list[str], laps: _Laps) -> tuple[float, list[Stage]]:
+            notes: list[str], laps: _Laps, chain: Chain, tol: float
+            ) -> tuple[float, list[Stage]]:
     """The stock top and the chosen stages (coarse to fine), with ``notes`` filled.
 
     With a default stock the top follows the first stage's ball (its flute
@@ -233,11 +244,11 @@ def _stages(zmap: ZMap, mrr: Multiresolution, first: int, ceiling: float, g: flo
         levs = levels(zmap, depth, targets, smoothing, library, cache)
         laps("curvature")
         notes.clear()
-        chosen = choose(levs, library, notes)
+        chosen = choose(levs, library, notes, chain, tol, zmap)
         laps("select")
         if requested is not None:
             break
-        st = _default_stock(top, chosen[0][1])
+        st = _default_stock(top, chosen[0].tool)
         if st == built:
             break
     if st != built:
@@ -246,9 +257,14 @@ def _stages(zmap: ZMap, mrr: Multiresolution, first: int, ceiling: float, g: flo
         targets = nested_targets(approx, part, first, st, g)
         levs = levels(zmap, depth, targets, smoothing, library, cache)
         by_index = {lev.index: lev for lev in levs}
-        chosen = [(by_index[lev.index], tool, merged,
-                   ball_rest(by_index[lev.index], tool.radius) if rest > 0.0 else rest)
-                  for lev, tool, merged, rest in chosen]
+        # the finishing targets are capped by the finest roughing target: rebuilt too
+        finishing = {c.tool.id: c for c in finishing_stages(levs, chain, tol, library, zmap)}
+        chosen = [finishing[c.tool.id]._replace(merged=c.merged) if c.level.index == depth
+                  else c._replace(
+                      level=by_index[c.level.index],
+                      rest=ball_rest(by_index[c.level.index], c.tool.radius) if c.rest > 0.0
+                      else c.rest)
+                  for c in chosen]
         laps("targets")
     return st, chosen
 

@@ -10,7 +10,7 @@ from numpy.typing import NDArray
 
 from zwcore.grid.tools import Tool
 
-__all__ = ["ScanLines", "ScanlineChecks", "ScanlinePlan", "ScanlineStage"]
+__all__ = ["ReachSummary", "ScanLines", "ScanlineChecks", "ScanlinePlan", "ScanlineStage"]
 
 F64 = NDArray[np.float64]
 
@@ -157,6 +157,29 @@ class ScanlineStage:
         last pass) at the input nodes: largest and 95th percentile, mm.
     sim_left_over_part_max, sim_left_over_part_p95 : float
         Simulated stock after the pass minus the part, mm.
+
+    Tool choice by reach and rest regions (issue 11, parts 2 and 3; additive):
+
+    region : (my, mx) bool or None
+        Where this stage's ball machines, on the stage model's own nodes
+        (``model.shape``): tool positions only at ``True`` nodes. ``None``: the
+        whole part.
+    region_area_fraction : float
+        Share of the part's nodes in ``region`` (1 for the whole part).
+    region_boxes : tuple of (x_min, y_min, x_max, y_max, area)
+        Bounding boxes of the region's connected parts (8-connected), mm from the
+        grid's first node, area in mm², largest first (at most 64; empty when the
+        stage works over the whole part).
+    region_count : int
+        Connected parts of the region.
+    estimated_cut_length : float or None
+        Finishing stages: region area over the pick-feed that holds the tolerance
+        on a flat, mm (what the choice of balls minimises); None for roughing.
+    reach_rest_max : float
+        Most material the ball leaves over its target in the reach simulation
+        (finishing: over the part after this ball and the ones before), mm.
+    reach_reason : str or None
+        Why this ball, from the simulation.
     """
 
     tool: Tool
@@ -203,6 +226,14 @@ class ScanlineStage:
     sim_left_over_next_p95: float = 0.0
     sim_left_over_part_max: float = 0.0
     sim_left_over_part_p95: float = 0.0
+    # --- tool choice by reach and rest regions (issue 11, parts 2-3) ---
+    region: NDArray[np.bool_] | None = field(default=None, repr=False)
+    region_area_fraction: float = 1.0
+    region_boxes: tuple[tuple[float, float, float, float, float], ...] = ()
+    region_count: int = 1
+    estimated_cut_length: float | None = None
+    reach_rest_max: float = 0.0
+    reach_reason: str | None = None
 
     @property
     def passes(self) -> int:
@@ -277,6 +308,37 @@ class ScanlineChecks:
                 and self.sim_no_gouge)
 
 
+@dataclass(frozen=True)
+class ReachSummary:
+    """The finishing balls' reach over the part (issue 11, parts 2-3).
+
+    Attributes
+    ----------
+    finishing_tools : tuple of str
+        Main finishing ball first, then the rest balls in order.
+    finishing_cut_length : float
+        Estimated finishing cut length of those balls in their regions (area over
+        the flat pick-feed holding the tolerance, plus ``TOOL_CHANGE_MM`` per
+        change), mm.
+    smallest_ball_cut_length : float
+        The same estimate if the library's smallest ball finished the whole part, mm.
+    unreachable_area : float
+        Area where even the last ball leaves more than the tolerance, mm².
+    unreachable_max_height : float
+        Most material left there, mm.
+    needed_radius : float
+        Smallest concave radius of the part there (a ball that finishes it must be no
+        larger), mm; inf when nothing is left.
+    """
+
+    finishing_tools: tuple[str, ...]
+    finishing_cut_length: float
+    smallest_ball_cut_length: float
+    unreachable_area: float
+    unreachable_max_height: float
+    needed_radius: float
+
+
 @dataclass(frozen=True, eq=False)
 class ScanlinePlan:
     """A roughing-to-finishing sequence of ball end mill stages.
@@ -301,6 +363,8 @@ class ScanlinePlan:
         Warnings and decisions worth reading (no tool fits, levels skipped).
     timings : tuple of (str, float)
         Seconds spent per phase (for benchmarks; not part of the result).
+    reach : ReachSummary or None
+        The finishing balls' simulated reach.
     """
 
     stock_top: float
@@ -312,3 +376,5 @@ class ScanlinePlan:
     checks: ScanlineChecks
     notes: tuple[str, ...]
     timings: tuple[tuple[str, float], ...] = ()
+    # --- tool choice by reach (issue 11, parts 2-3) ---
+    reach: ReachSummary | None = None

@@ -6,9 +6,11 @@
 - :mod:`zwcore.sim.figures`: one pass simulated over a stock, and the figures a
   planner needs (gouge, rest material, rest regions, real depth of cut);
 - private: ``_profiles`` (structuring functions), ``_morph`` (the symmetric
-  dilation, linear in the grid).
+  dilation, linear in the grid), ``_nodal`` (reach against the nodes: drop cutter
+  and closing by branch and bound, balls between nodes; exported below).
 """
 
+from zwcore.sim._nodal import nodal_closing, nodal_drop_cutter, refine_rest
 from zwcore.sim.cutting import MAX_FOOTPRINT, closing, drop_cutter, envelope, simulation_work
 from zwcore.sim.figures import (
     MAX_BOXES,
@@ -37,6 +39,9 @@ __all__ = [
     "drop_cutter",
     "envelope",
     "gouge",
+    "nodal_closing",
+    "nodal_drop_cutter",
+    "refine_rest",
     "rest_material",
     "rest_regions",
     "simulate_pass",

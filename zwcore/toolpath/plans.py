@@ -168,14 +168,16 @@ def scanline_toolpaths(part: ZMap, plan: ScanlinePlan, cl_heights: CLHeights = s
     reach : (ny, nx) bool, optional
         Where the finishing tolerance applies.
     regions : sequence of (my, mx) bool or None, optional
-        Per stage, where it cuts on its model's nodes (e.g. its rest regions); ``None``
-        (or a ``None`` entry): everywhere.
+        Per stage, where it cuts on its model's nodes; ``None`` entry: everywhere.
+        Default: each stage's own ``region`` (the plan's rest regions, issue 11).
     """
     clear = _clearance(clearance, plan.stock_top)
     tools = list(dict.fromkeys(s.tool for s in plan.stages))
     data = tool_numbers(tools, cutting)
     settings = ProgramSettings(clearance=clear, rapid_feed=rapid_feed)
-    if regions is not None and len(regions) != len(plan.stages):
+    if regions is None:
+        regions = [getattr(st, "region", None) for st in plan.stages]
+    if len(regions) != len(plan.stages):
         raise InvalidInputError("regions", f"one per stage ({len(plan.stages)}), got "
                                 f"{len(regions)}")
     t = time.perf_counter()
@@ -183,15 +185,24 @@ def scanline_toolpaths(part: ZMap, plan: ScanlinePlan, cl_heights: CLHeights = s
                                   chord_tolerance=CHORD_FRACTION * plan.tolerance,
                                   stock_top=plan.stock_top,
                                   refine_tolerance=_refine_tolerance(plan, st),
-                                  region=None if regions is None else regions[i],
-                                  scallop_tolerance=(plan.tolerance if i == len(plan.stages) - 1
-                                                     else None))
+                                  region=regions[i],
+                                  # every stage on the part's level finishes (rest balls
+                                  # follow the main one in their regions)
+                                  scallop_tolerance=(plan.tolerance if st.level == plan.depth
+                                                     and _reaches_part(plan, i) else None))
               for i, st in enumerate(plan.stages)]
     timings = [("paths", time.perf_counter() - t)]
     models = [bilinear_at_fine_nodes(st.model, round(st.spacing[0] / part.dx), part.shape)
               for st in plan.stages]
     return _finish(part, stages, settings, plan.stock_top, plan.tolerance,
                    _merge_models(stages, models), verify, max_bytes, reach, timings)
+
+
+def _reaches_part(plan: ScanlinePlan, i: int) -> bool:
+    """Whether stage ``i`` is the last pass of its ball on the part's level (a lifted pass
+    before it does not reach the part)."""
+    st = plan.stages[i]
+    return st.pass_index == st.pass_count
 
 
 def _merge_models(stages: list[StagePath], models: list[F64]) -> list[F64 | None]:

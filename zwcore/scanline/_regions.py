@@ -1,0 +1,420 @@
+"""Finishing balls by simulated reach, and the rest region each smaller ball works in.
+
+The finishing sequence is a *chain* of library balls ``b_0 > b_1 > ... > b_n``:
+
+- ``b_0`` (the main finishing ball) machines the whole part;
+- each later ball ``b_i`` machines only its rest region: the nodes where the previous
+  ball ``b_{i-1}`` leaves more than ``tolerance`` above the part *and* ``b_i`` does
+  better there by more than ``tolerance`` (``rest_{i-1} - rest_i > tolerance``), grown
+  by ``b_i``'s radius so that every position reaching that material is in it. The
+  comparison discounts position cusps (see :mod:`._reach`): they are common to both
+  balls (larger for the smaller one), so they never send a small ball along a wall.
+- the chain ends where no smaller library ball does better anywhere.
+
+Rest comes from :func:`zwcore.scanline._reach.ball_reach` (nodal closing). A ball of
+radius ``R`` is evaluated on every ``k``-th node, ``k`` the largest power of two with
+``R / (k * spacing) >= LATTICE_CELLS`` (its footprint stays a few hundred nodes, and a
+ball that large does not see detail finer than ``R / 8`` anyway); nodes closer than
+``k`` cells to a point sharper than ``k`` cells (detail the lattice can miss) are added
+to its rest region, so nothing a coarse lattice skips is left unassigned. A pair of
+balls is compared on the coarser ball's lattice.
+
+Which chain: the one with the shortest estimated finishing cut length,
+``sum over balls of region area x passes / pick-feed`` (the pick-feed that holds
+``tolerance`` on a flat, ``2 sqrt(2 R tol - tol²)``; a rest ball takes the material
+the previous ball left in layers of its flute length, so a node under a deep rest
+counts once per layer) plus :data:`TOOL_CHANGE_MM` per tool change, by dynamic
+programming over (previous ball, next ball) pairs.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy import ndimage
+
+from zwcore.grid.tools import Tool
+from zwcore.scanline._reach import ball_reach, concave_radii, within_distance
+
+__all__ = ["TOOL_CHANGE_MM", "Chain", "ChainStage", "finishing_chain", "flat_pick_feed",
+           "region_boxes"]
+
+F64 = NDArray[np.float64]
+B8 = NDArray[np.bool_]
+
+#: A ball is evaluated on a lattice where it spans at least this many cells.
+LATTICE_CELLS = 6.0
+
+#: Detail sharper than this share of a ball's lattice spacing (concave radius at the
+#: input nodes) may fall between its lattice nodes: it goes to the next ball.
+SHARP_SHARE = 0.25
+
+#: A tool change (stop, change, measure, approach) costs as much finishing time as
+#: cutting this length, mm (about 7 s at a 2,000 mm/min finishing feed).
+TOOL_CHANGE_MM = 250.0
+
+#: Most region boxes listed per stage (largest first).
+MAX_BOXES = 64
+
+
+def flat_pick_feed(radius: float, tolerance: float) -> float:
+    """Pick-feed whose scallop on a flat is ``tolerance``: ``2 sqrt(2 R t - t²)`` (at most 2R)."""
+    if tolerance >= radius:
+        return 2.0 * radius
+    return 2.0 * math.sqrt(2.0 * radius * tolerance - tolerance * tolerance)
+
+
+@dataclass(frozen=True)
+class Box:
+    """Bounding box of one connected region (node positions, mm) and its area, mm²."""
+
+    x_min: float
+    y_min: float
+    x_max: float
+    y_max: float
+    area: float
+
+
+@dataclass(eq=False)
+class ChainStage:
+    """One finishing ball of the chain.
+
+    Attributes
+    ----------
+    tool : Tool
+    region : (ny, nx) bool or None
+        Where it machines (None: the whole part).
+    surface : (ny, nx) float64
+        Estimated surface after this ball (the part where within ``tolerance``).
+    area_fraction : float
+    boxes : tuple of Box
+    region_count : int
+    cut_length : float
+        Region area / flat pick-feed at ``tolerance``, mm.
+    rest_max : float
+        Most material left over the part after this ball, mm.
+    reason : str
+    """
+
+    tool: Tool
+    region: B8 | None
+    surface: F64 = field(repr=False)
+    area_fraction: float
+    boxes: tuple[Box, ...]
+    region_count: int
+    cut_length: float
+    rest_max: float
+    reason: str
+
+
+@dataclass(eq=False)
+class Chain:
+    """The finishing chain and the figures of its choice.
+
+    Attributes
+    ----------
+    stages : list of ChainStage
+        Main ball first.
+    cut_length : float
+        Estimated finishing cut length of the chain, mm.
+    smallest_everywhere : float
+        Cut length if the smallest library ball finished the whole part, mm.
+    unreachable_area : float
+        Area where even the chain leaves more than ``tolerance``, mm².
+    unreachable_max : float
+        Most material left there, mm.
+    needed_radius : float
+        Smallest concave radius of the part there (a ball would need to be no
+        larger), mm; inf when nothing is left.
+    by_main : dict of str to float
+        The least estimated cut length with each ball as the main one, mm.
+    """
+
+    stages: list[ChainStage]
+    cut_length: float
+    smallest_everywhere: float
+    unreachable_area: float
+    unreachable_max: float
+    needed_radius: float
+    by_main: dict[str, float] = field(default_factory=dict)
+
+
+def lattice(radius: float, dx: float, dy: float) -> int:
+    """Largest power of two ``k`` with ``radius / (k * max(dx, dy)) >= LATTICE_CELLS``."""
+    k = 1
+    while radius / (2 * k * max(dx, dy)) >= LATTICE_CELLS:
+        k *= 2
+    return k
+
+
+class _Reach:
+    """Rest maps per (ball, lattice), computed once; lattice surfaces upsampled."""
+
+    def __init__(self, z: F64, dx: float, dy: float, tolerance: float) -> None:
+        self.z, self.dx, self.dy, self.tol = z, dx, dy, tolerance
+        self.rho = concave_radii(z, dx, dy)
+        self._rest: dict[tuple[float, int], F64] = {}
+        self._rho: dict[int, F64] = {1: self.rho}
+        self._safety: dict[int, B8] = {}
+        self._upsampled: dict[tuple[float, int], F64] = {}
+        self._last_prev = math.nan
+        self._upsampled_prev: dict[int, F64] = {}
+
+    def rest(self, radius: float, k: int) -> F64:
+        key = (radius, k)
+        if key not in self._rest:
+            zk = self.z[::k, ::k]
+            if k not in self._rho:
+                self._rho[k] = concave_radii(zk, k * self.dx, k * self.dy)
+            self._rest[key] = ball_reach(zk, k * self.dx, k * self.dy, radius, self.tol,
+                                         self._rho[k]).rest
+        return self._rest[key]
+
+    def safety(self, k: int) -> B8:
+        """Fine nodes near detail sharper than ``k`` cells (none for ``k = 1``)."""
+        if k not in self._safety:
+            if k == 1:
+                self._safety[k] = np.zeros(self.z.shape, dtype=bool)
+            else:
+                sharp = self.rho < SHARP_SHARE * k * max(self.dx, self.dy)
+                self._safety[k] = within_distance(sharp, k * math.hypot(self.dx, self.dy),
+                                          self.dx, self.dy)
+        return self._safety[k]
+
+    def fine_mask(self, coarse: B8, k: int) -> B8:
+        """Fine nodes with a flagged lattice node among their cell's corners."""
+        if k == 1:
+            return coarse
+        ny, nx = self.z.shape
+        grown = coarse.copy()
+        grown[1:] |= coarse[:-1]
+        grown[:, 1:] |= grown[:, :-1].copy()
+        rows = np.minimum(-(-np.arange(ny) // k), coarse.shape[0] - 1)
+        cols = np.minimum(-(-np.arange(nx) // k), coarse.shape[1] - 1)
+        return grown[np.ix_(rows, cols)]
+
+    def surface(self, radius: float, k: int) -> F64:
+        """Estimated fine surface the ball leaves: lattice closing, bilinear between
+        lattice nodes, never below the part."""
+        rest = self.rest(radius, k)
+        if k == 1:
+            return self.z + rest
+        ny, nx = self.z.shape
+        closed = self.z[::k, ::k] + rest
+        yi = np.minimum(np.arange(ny) / k, closed.shape[0] - 1)
+        xi = np.minimum(np.arange(nx) / k, closed.shape[1] - 1)
+        up = ndimage.map_coordinates(closed, np.meshgrid(yi, xi, indexing="ij"), order=1,
+                                     mode="nearest")
+        return np.maximum(self.z, up)
+
+    def _compare(self, prev: float, nxt: float) -> tuple[B8, F64, int]:
+        """On the smaller ball's (finer) lattice ``kn``: where ``nxt`` does better than
+        ``prev`` by more than the tolerance, and ``prev``'s rest there.
+
+        The larger ball's rest is interpolated bilinearly between its lattice nodes
+        (rest, not surface: a chord of the surface over a concave wall is no rest)."""
+        kp = lattice(prev, self.dx, self.dy)
+        kn = lattice(nxt, self.dx, self.dy)
+        theirs = self.rest(prev, kp)
+        mine = self.rest(nxt, kn)
+        if kp != kn:  # cached for the latest larger ball only (full-size arrays)
+            if self._last_prev != prev:
+                self._last_prev, self._upsampled_prev = prev, {}
+            if kn not in self._upsampled_prev:
+                self._upsampled_prev[kn] = _upsample_where(theirs, kp // kn, mine.shape,
+                                                           self.tol)
+            theirs = self._upsampled_prev[kn]
+        return (theirs - mine) > self.tol, theirs, kn
+
+    def seed(self, prev: float, nxt: float) -> B8:
+        """Fine nodes where ball ``prev`` leaves material ``nxt`` does better on by > tol
+        (and detail too sharp for ``prev``'s lattice)."""
+        better, _, kn = self._compare(prev, nxt)
+        return self.fine_mask(better, kn) | self.safety(lattice(prev, self.dx, self.dy))
+
+    def cost(self, prev: float, nxt: Tool) -> float | None:
+        """Estimated node passes (times the cell area: mm²) of ball ``nxt`` over its rest
+        region after ``prev``, on ``nxt``'s lattice (None: no region): one pass per node,
+        or as many as its flutes need for the rest ``prev`` leaves there."""
+        better, theirs, kn = self._compare(prev, nxt.radius)
+        kp = lattice(prev, self.dx, self.dy)
+        if kp > 1:
+            key = (-float(kp), kn)
+            if key not in self._upsampled:  # the fine safety nodes, on the lattice
+                fine = self.safety(kp)
+                pooled = fine[::kn, ::kn].copy() if kn > 1 else fine
+                if kn > 1:
+                    pooled |= ndimage.maximum_filter(fine, size=kn)[::kn, ::kn]
+                self._upsampled[key] = pooled.astype(np.float64)
+            better = better | (self._upsampled[key] > 0.0)
+        if not better.any():
+            return None
+        region = within_distance(better, nxt.radius, kn * self.dx, kn * self.dy)
+        passes = np.maximum(np.ceil(theirs[region] / nxt.flute_length), 1.0)
+        return float(passes.sum()) * kn * kn * self.dx * self.dy
+
+
+def _weights(f: int, n: int, m: int) -> tuple[NDArray[np.intp], NDArray[np.intp], F64]:
+    idx = np.arange(n)
+    lo = idx // f
+    return lo, np.minimum(lo + 1, m - 1), (idx % f) / f
+
+
+def _upsample_where(coarse: F64, f: int, shape: tuple[int, int], tol: float) -> F64:
+    """``bilinear_at_fine_nodes(coarse, f, shape)`` where a cell corner exceeds ``tol``,
+    0 elsewhere (there the interpolant is at most ``tol`` anyway): a large ball's rest
+    usually covers a small part of the grid."""
+    big = coarse > tol
+    if not big.any():
+        return np.zeros(shape)
+    cells = big.copy()  # cells (by their lower corner) with a corner above tol
+    cells[:-1] |= big[1:]
+    cells[:, :-1] |= cells[:, 1:].copy()
+    rows = np.minimum(np.arange(shape[0]) // f, coarse.shape[0] - 1)
+    cols = np.minimum(np.arange(shape[1]) // f, coarse.shape[1] - 1)
+    ii, kk = np.nonzero(cells[np.ix_(rows, cols)])
+    out = np.zeros(shape)
+    if ii.size == 0:
+        return out
+    (lo_y, hi_y, ty), (lo_x, hi_x, tx) = (_weights(f, shape[0], coarse.shape[0]),
+                                          _weights(f, shape[1], coarse.shape[1]))
+    a0, a1, wa = lo_y[ii], hi_y[ii], ty[ii]
+    b0, b1, wb = lo_x[kk], hi_x[kk], tx[kk]
+    top = coarse[a0, b0] * (1.0 - wb) + coarse[a0, b1] * wb
+    low = coarse[a1, b0] * (1.0 - wb) + coarse[a1, b1] * wb
+    out[ii, kk] = top * (1.0 - wa) + low * wa
+    return out
+
+
+def region_boxes(region: B8, dx: float, dy: float) -> tuple[int, tuple[Box, ...]]:
+    labels, count = ndimage.label(region, structure=np.ones((3, 3), dtype=bool))
+    if count == 0:
+        return 0, ()
+    sizes = np.bincount(labels.ravel())[1:]
+    order = np.argsort(-sizes, kind="stable")[:MAX_BOXES]
+    slices = ndimage.find_objects(labels)
+    out = []
+    for n in order:
+        sy, sx = slices[n]
+        out.append(Box(sx.start * dx, sy.start * dy, (sx.stop - 1) * dx, (sy.stop - 1) * dy,
+                       float(sizes[n]) * dx * dy))
+    return int(count), tuple(out)
+
+
+def _plan(balls: list[Tool], reach: _Reach, area: float, cell: float
+          ) -> tuple[list[int], list[float], dict[tuple[int, int], B8]]:
+    """The chain (indices into ``balls``, largest first) of least estimated cut length,
+    and the least total with each ball as the main one."""
+    tol = reach.tol
+    n = len(balls)
+    pf = [flat_pick_feed(b.radius, tol) for b in balls]
+    regions: dict[tuple[int, int], B8] = {}
+    best: list[float] = [math.inf] * n
+    after: list[int | None] = [None] * n
+    for j in range(n - 1, -1, -1):
+        options: list[tuple[float, int | None]] = []
+        # cheapest continuations first: once a tool change plus the rest of the chain
+        # alone costs more than the best option, no later ball can win
+        for i in sorted(range(j + 1, n), key=lambda m: (best[m], m)):
+            least = min((o[0] for o in options), default=math.inf)
+            if TOOL_CHANGE_MM + best[i] >= least:
+                break
+            passes = reach.cost(balls[j].radius, balls[i])
+            if passes is not None:
+                options.append((passes / pf[i] + TOOL_CHANGE_MM + best[i], i))
+        if not options:
+            options.append((0.0, None))
+        best[j], after[j] = min(options, key=lambda o: (o[0], -1 if o[1] is None else o[1]))
+    totals = [area / pf[j] + best[j] for j in range(n)]
+    main = min(range(n), key=lambda j: (totals[j], j))
+    chain = [main]
+    while after[chain[-1]] is not None:
+        chain.append(after[chain[-1]])  # type: ignore[arg-type]
+    for j, i in itertools.pairwise(chain):  # the chain's regions on the input nodes
+        regions[(j, i)] = within_distance(reach.seed(balls[j].radius, balls[i].radius),
+                                          balls[i].radius, reach.dx, reach.dy)
+    return chain, totals, regions
+
+
+def finishing_chain(z: F64, dx: float, dy: float, balls: list[Tool], tolerance: float
+                    ) -> Chain:
+    """The finishing balls and their regions on the part's nodes.
+
+    Parameters
+    ----------
+    z : (ny, nx) float64
+        The part.
+    dx, dy : float
+    balls : list of Tool
+        Ball end mills, largest first.
+    tolerance : float
+
+    Returns
+    -------
+    Chain
+    """
+    ny, nx = z.shape
+    cell = dx * dy
+    area = float(ny * nx) * cell
+    reach = _Reach(z, dx, dy, tolerance)
+    chain, totals, regions = _plan(balls, reach, area, cell)
+    total = totals[chain[0]]
+    pf = [flat_pick_feed(balls[j].radius, tolerance) for j in chain]
+    stages = []
+    surface = z
+    left = np.zeros(z.shape, dtype=bool)
+    boxes: tuple[Box, ...]
+    for n, j in enumerate(chain):
+        tool = balls[j]
+        k = lattice(tool.radius, dx, dy)
+        rest = reach.rest(tool.radius, k)
+        mine = reach.fine_mask(rest > tolerance, k)
+        if n == 0:
+            region, length, frac = None, area / pf[0], 1.0
+            count, boxes = 1, ()
+            surface = reach.surface(tool.radius, k)
+            left = mine
+            rest_max = float(rest.max())
+        else:
+            region = regions[(chain[n - 1], j)]
+            seed = reach.seed(balls[chain[n - 1]].radius, tool.radius)
+            surface = np.where(seed, np.minimum(surface, reach.surface(tool.radius, k)),
+                               surface)
+            left = np.where(seed, mine, left)
+            length = float(region.sum()) * cell / pf[n]
+            frac = float(region.mean())
+            count, boxes = region_boxes(region, dx, dy)
+            rest_max = float(np.max(np.where(seed & left, surface - z, 0.0), initial=0.0))
+        # the estimated surface only where the lattice says the ball leaves material
+        # (between lattice nodes the bilinear estimate cuts chords over concave walls)
+        shown = np.where(left, surface, z)
+        stages.append(ChainStage(tool, region, shown, frac, boxes, count, length, rest_max,
+                                 _reason(n, tool, balls, chain, left, frac, tolerance)))
+    last = chain[-1]
+    k = lattice(balls[last].radius, dx, dy)
+    rest = reach.rest(balls[last].radius, k)
+    out = left
+    smallest = area / flat_pick_feed(balls[-1].radius, tolerance)
+    return Chain(stages, total, smallest, float(out.sum()) * cell,
+                 float(rest[rest > tolerance].max()) if out.any() and (rest > tolerance).any()
+                 else 0.0,
+                 float(reach.rho[out].min()) if out.any() else math.inf,
+                 {b.id: t for b, t in zip(balls, totals, strict=True)})
+
+
+def _reason(n: int, tool: Tool, balls: list[Tool], chain: list[int], above: B8, frac: float,
+            tolerance: float) -> str:
+    left = float(above.mean())
+    if n == 0:
+        return (f"simulated reach: {tool.id} finishes the whole part and leaves more than "
+                f"{tolerance:g} mm on {100 * left:.3g} % of it (to the smaller balls); "
+                f"shortest estimated finishing cut of the library's chains")
+    prev = balls[chain[n - 1]]
+    return (f"simulated reach: rest of {prev.id} (more than {tolerance:g} mm, and {tool.id} "
+            f"leaves at least {tolerance:g} mm less there) grown by its radius: "
+            f"{100 * frac:.3g} % of the part; {100 * left:.3g} % still above the tolerance "
+            f"after it")

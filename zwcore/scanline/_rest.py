@@ -1,0 +1,200 @@
+"""Rest regions from the simulated stock: where a smaller finishing ball machines.
+
+A rest ball's region is decided when its stage begins, from the stock the passes before
+it really left (:mod:`zwcore.scanline._stock`), not from an estimate:
+
+- *seed*: the input nodes where that stock lies more than ``tolerance`` above the part
+  and where this ball can do better than the ball before it: its closing of the part
+  (:func:`zwcore.sim.closing`, ``bilinear``, the surface meaning the passes drop the
+  ball on, so a ball the wall chords hold up is held up here too) lies more than
+  ``tolerance`` below the previous ball's closing. Material a pass leaves for other
+  reasons (its scallops, the grid's border where its lines end) is left out of the
+  seed: a smaller ball would leave it too, only less; it is reported with the final
+  stock. Both closings see the part continued beyond the grid's edge with its slope
+  there (odd reflection), as if the positions overran the part.
+- *region*: the seed grown by the ball's radius (every position whose ball reaches a seed
+  node is in it), on the part's nodes, which are the finishing stages' model nodes.
+
+The closings are computed on the seed's bounding box grown by ``2R`` and two cells (a
+node's closing depends on the part within ``2R`` of it), so a few corners cost a few
+windows, not the grid.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from zwcore.grid.tools import Tool
+from zwcore.grid.zmap import ZMap
+from zwcore.scanline._reach import concave_radii, within_distance
+from zwcore.scanline._regions import TOOL_CHANGE_MM, flat_pick_feed
+from zwcore.sim import closing, simulation_work
+
+__all__ = ["RestRegion", "RestShared"]
+
+F64 = NDArray[np.float64]
+B8 = NDArray[np.bool_]
+
+#: Most node-offset pairs (:func:`zwcore.sim.simulation_work`) the closing of the ball
+#: before may take (a few seconds: the 45° fillet part needs 2.8e9); beyond, this
+#: ball's closing is compared with the simulated stock itself, which sends it to more
+#: nodes (scallops and borders too).
+REST_CLOSING_WORK = 1 << 32
+
+#: The ball before is compared only within ``2R`` of nodes whose concave radius is below
+#: this many times its radius.
+TIGHT_SHARE = 2.0
+
+
+@dataclass(eq=False)
+class RestShared:
+    """What a plan's rest rules share.
+
+    Attributes
+    ----------
+    ran : list of Tool
+        The finishing balls that machined so far, main first (a rule whose region is
+        not empty appends its ball).
+    rho : (ny, nx) float64 or None
+        The part's concave radii (:func:`zwcore.scanline._reach.concave_radii`), once.
+    closings : dict
+        Closings minus the part by (tool, window) while the stock stays the same (the
+        ball before is compared with every smaller candidate on it).
+    """
+
+    ran: list[Tool]
+    closings: dict[tuple[object, ...], F64] = field(default_factory=dict)
+    rho: F64 | None = field(default=None, repr=False)
+
+
+@dataclass(eq=False)
+class RestRegion:
+    """The rule for one rest ball's region; called with the stock when its stage begins.
+
+    Attributes
+    ----------
+    part : ZMap
+        The part (the finishing stages' model grid).
+    tool : Tool
+        The rest ball.
+    tolerance : float
+    shared : RestShared
+    last : bool
+        The smallest candidate (never dropped while it does better anywhere).
+    seed_nodes : int
+        After the call: the seed's node count.
+    left_before : float
+        After the call: most stock over the part when the stage began, mm.
+    previous : Tool or None
+        After the call: the ball compared with.
+    against_stock : bool
+        After the call: the ball before's closing was too large a computation and this
+        ball's closing was compared with the stock instead.
+    """
+
+    part: ZMap
+    tool: Tool
+    tolerance: float
+    shared: RestShared
+    last: bool = False
+    seed_nodes: int = 0
+    left_before: float = 0.0
+    previous: Tool | None = None
+    against_stock: bool = False
+    region: B8 | None = field(default=None, repr=False)
+
+    def __call__(self, stock: F64) -> B8:
+        """The region on the part's nodes, ``(ny, nx)`` bool, from the stock ``(ny, nx)``."""
+        z = self.part.z
+        rest = stock - z
+        self.left_before = float(rest.max(initial=0.0))
+        self.previous = self.shared.ran[-1]
+        seed = rest > self.tolerance
+        if seed.any():
+            seed = self._better(seed, rest)
+        self.seed_nodes = int(seed.sum())
+        worth = self.seed_nodes * self.part.dx * self.part.dy / flat_pick_feed(
+            self.tool.radius, self.tolerance)
+        if not self.last and worth < TOOL_CHANGE_MM:
+            seed = np.zeros(seed.shape, dtype=bool)
+        self.region = within_distance(seed, self.tool.radius, self.part.dx, self.part.dy)
+        if self.region.any():
+            self.shared.ran.append(self.tool)
+            self.shared.closings.clear()  # the stock changes: closings of a new ball before
+        return self.region
+
+    def _better(self, seed: B8, rest: F64) -> B8:
+        """Seed nodes where this ball's closing lies more than the tolerance below the
+        previous ball's: first where the previous ball's closing leaves more than the
+        tolerance at all (one closing per previous ball and stock, shared by the
+        candidates), then this ball's closing on that smaller seed's window."""
+        prev = self.previous
+        assert prev is not None
+        # A ball leaves material beyond its scallops only within 2R of where the part
+        # bends about as sharply as the ball or more (the nodal bound of
+        # :mod:`zwcore.scanline._reach`; twice the radius for the bilinear chords that
+        # hold a nearly fitting ball up): elsewhere no closing is needed.
+        seed = seed & self._near_tight(prev)
+        if not seed.any():
+            return seed
+        if self._work(seed, prev) <= REST_CLOSING_WORK:
+            theirs, _ = self._on_window(seed, prev)
+            seed = seed & (theirs > self.tolerance)
+            if not seed.any():
+                return seed
+        else:  # too large a closing: compared with what the stock shows (more nodes)
+            self.against_stock = True
+            theirs = rest
+        mine, inside = self._on_window(seed, self.tool)
+        return seed & inside & (mine < theirs - self.tolerance)
+
+    def _work(self, seed: B8, tool: Tool) -> int:
+        """Node-offset pairs of the ball's closing on the seed's window."""
+        ga = math.ceil(2.0 * tool.radius / self.part.dy) + 2
+        gb = math.ceil(2.0 * tool.radius / self.part.dx) + 2
+        rows = np.flatnonzero(seed.any(axis=1))
+        cols = np.flatnonzero(seed.any(axis=0))
+        shape = (int(rows[-1] - rows[0]) + 1 + 4 * ga, int(cols[-1] - cols[0]) + 1 + 4 * gb)
+        return simulation_work(shape, tool, self.part.dx, self.part.dy)
+
+    def _near_tight(self, tool: Tool) -> B8:
+        sh = self.shared
+        if sh.rho is None:
+            sh.rho = concave_radii(self.part.z, self.part.dx, self.part.dy)
+        cell = math.hypot(self.part.dx, self.part.dy)
+        return within_distance(sh.rho < TIGHT_SHARE * tool.radius,
+                               2.0 * tool.radius + cell, self.part.dx, self.part.dy)
+
+    def _on_window(self, seed: B8, tool: Tool) -> tuple[F64, B8]:
+        """The ball's closing minus the part (``(ny, nx)``, 0 outside the window) on the
+        seed's bounding box grown by ``2R`` and two cells, and the window's mask.
+
+        Where the window meets the grid's edge the part continues outwards with its slope
+        there (odd reflection: no kink at the edge that would hold a ball up).
+        """
+        dx, dy = self.part.dx, self.part.dy
+        ga, gb = math.ceil(2.0 * tool.radius / dy) + 2, math.ceil(2.0 * tool.radius / dx) + 2
+        rows = np.flatnonzero(seed.any(axis=1))
+        cols = np.flatnonzero(seed.any(axis=0))
+        ny, nx = seed.shape
+        r0, r1 = max(0, rows[0] - ga), min(ny, rows[-1] + ga + 1)
+        c0, c1 = max(0, cols[0] - gb), min(nx, cols[-1] + gb + 1)
+        pads = ((ga if r0 == 0 else 0, ga if r1 == ny else 0),
+                (gb if c0 == 0 else 0, gb if c1 == nx else 0))
+        key = (tool.id, tool.radius, r0, r1, c0, c1)
+        cache = self.shared.closings
+        if key not in cache:
+            z = self.part.z[r0:r1, c0:c1]
+            win = np.pad(z, pads, mode="reflect", reflect_type="odd")
+            closed = closing(ZMap(np.ascontiguousarray(win), dx=dx, dy=dy), tool, "bilinear")
+            cache[key] = closed[pads[0][0]:pads[0][0] + r1 - r0,
+                                pads[1][0]:pads[1][0] + c1 - c0] - z
+        out = np.zeros(seed.shape)
+        inside = np.zeros(seed.shape, dtype=bool)
+        out[r0:r1, c0:c1] = cache[key]
+        inside[r0:r1, c0:c1] = True
+        return out, inside
