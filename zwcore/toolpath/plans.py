@@ -184,6 +184,7 @@ def scanline_toolpaths(part: ZMap, plan: ScanlinePlan, cl_heights: CLHeights = s
                                   stock_top=plan.stock_top,
                                   refine_tolerance=_refine_tolerance(plan, st),
                                   region=None if regions is None else regions[i],
+                                  rapid_feed=rapid_feed,
                                   scallop_tolerance=(plan.tolerance if i == len(plan.stages) - 1
                                                      else None))
               for i, st in enumerate(plan.stages)]
