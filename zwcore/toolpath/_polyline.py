@@ -17,6 +17,7 @@ from numpy.typing import NDArray
 
 from zwcore.grid.tools import Tool
 from zwcore.grid.zmap import ZMap
+from zwcore.toolpath._repeats import MoveMemo, move_keys
 from zwcore.toolpath.sweep import GridFrame, sweep_moves
 
 F64 = NDArray[np.float64]
@@ -89,10 +90,14 @@ class PartGouge:
     any node; only the others are swept over the part's own nodes. The values that decide a
     lift or a split (``> 0``) are always the exact ones, so the path is the same as with
     ``block = 1``, at a cost that scales with the coarse grid for moves clear of the part.
+
+    With a ``memo`` (one per tool and part) a move measured before, bit for bit (another
+    pass of the tool over the part), takes its stored exact gouge instead of a sweep.
     """
 
-    def __init__(self, part: ZMap, tool: Tool, block: int = 1):
+    def __init__(self, part: ZMap, tool: Tool, block: int = 1, memo: MoveMemo | None = None):
         self.part, self.tool, self.block = part, tool, max(1, int(block))
+        self.memo = memo
         self.ball = tool.kind == "ball"
         self.frame = GridFrame(part.x0, part.y0, part.dx, part.dy, part.shape)
         if self.block > 1:
@@ -124,8 +129,21 @@ class PartGouge:
         return out
 
     def _fine(self, p0: F64, p1: F64) -> F64:
-        _, gouge = sweep_moves(self.frame, p0, p1, self.tool.radius, self.ball, self.part.z,
-                               ref=self.part.z, apply=False)
+        if self.memo is None or not len(p0):
+            _, gouge = sweep_moves(self.frame, p0, p1, self.tool.radius, self.ball,
+                                   self.part.z, ref=self.part.z, apply=False)
+            return gouge
+        # a move measured before (another pass of the tool over the same part) is not swept
+        keys = move_keys(p0, p1, 0.0)[:, :6]
+        row = self.memo.lookup(keys)
+        gouge = np.empty(len(p0))
+        held = row >= 0
+        gouge[held] = self.memo.values[row[held]]
+        new = np.flatnonzero(~held)
+        if len(new):
+            _, gouge[new] = sweep_moves(self.frame, p0[new], p1[new], self.tool.radius,
+                                        self.ball, self.part.z, ref=self.part.z, apply=False)
+            self.memo.store(keys[new], gouge[new])
         return gouge
 
 

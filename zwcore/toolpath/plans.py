@@ -22,6 +22,7 @@ from zwcore.grid.sampling import bilinear_at_fine_nodes, cells_at_fine_nodes
 from zwcore.grid.tools import Tool
 from zwcore.grid.zmap import ZMap, finite_number
 from zwcore.scanline.results import ScanlinePlan, ScanlineStage
+from zwcore.toolpath._repeats import MoveMemo
 from zwcore.toolpath.contour_paths import contour_stage_path
 from zwcore.toolpath.parse import parse_program
 from zwcore.toolpath.program import CuttingData, ProgramSettings, StagePath
@@ -179,12 +180,13 @@ def scanline_toolpaths(part: ZMap, plan: ScanlinePlan, cl_heights: CLHeights = s
         raise InvalidInputError("regions", f"one per stage ({len(plan.stages)}), got "
                                 f"{len(regions)}")
     t = time.perf_counter()
+    memos = {tool.id: MoveMemo() for tool in tools}  # each tool's gouges against the part
     stages = [scanline_stage_path(part, st, i, data[st.tool.id], cl_heights, clearance=clear,
                                   chord_tolerance=CHORD_FRACTION * plan.tolerance,
                                   stock_top=plan.stock_top,
                                   refine_tolerance=_refine_tolerance(plan, st),
                                   region=None if regions is None else regions[i],
-                                  rapid_feed=rapid_feed,
+                                  rapid_feed=rapid_feed, gouge_memo=memos[st.tool.id],
                                   scallop_tolerance=(plan.tolerance if i == len(plan.stages) - 1
                                                      else None))
               for i, st in enumerate(plan.stages)]
