@@ -283,3 +283,23 @@ def test_merged_stretches_cover_the_same_union_disjointly(seed):
     for r in np.unique(ranks):
         starts = ma[ranks == r]
         assert np.all(np.diff(starts) > 0) if r % 2 == 0 else np.all(np.diff(starts) < 0)
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.integers(0, 2**31 - 1))
+def test_line_heights_at_the_nodes_are_numpy_interp(seed):
+    from zwcore.toolpath._scan_links import _along
+
+    rng = np.random.default_rng(seed)
+    m = int(rng.integers(1, 30))
+    u = np.sort(rng.uniform(-1, 11, m))
+    u[rng.random(m) < 0.1] = 5.0  # some repeated u (a vertical step)
+    u.sort()
+    z = rng.normal(size=m)
+    out = np.empty(101)
+    _along(u, z, 0.1, out)
+    want = np.interp(np.arange(101) * 0.1, u, z)
+    steps = np.isin(np.round(np.arange(101) * 0.1, 9), u[np.r_[np.diff(u) == 0, False]])
+    np.testing.assert_allclose(out[~steps], want[~steps], atol=1e-12)
+    # at a vertical step any of its heights is a height the tip passes there
+    assert all(np.isclose(z[u == 5.0], o).any() for o in out[steps])

@@ -134,7 +134,7 @@ class PartGouge:
                                    self.part.z, ref=self.part.z, apply=False)
             return gouge
         # a move measured before (another pass of the tool over the same part) is not swept
-        keys = move_keys(p0, p1, 0.0)[:, :6]
+        keys = move_keys(p0, p1)
         row = self.memo.lookup(keys)
         gouge = np.empty(len(p0))
         held = row >= 0

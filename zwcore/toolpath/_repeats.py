@@ -20,14 +20,19 @@ F64 = NDArray[np.float64]
 __all__ = ["MoveMemo", "move_keys", "repeat_of"]
 
 
-def move_keys(p0: F64, p1: F64, radius: F64 | float) -> NDArray[np.int64]:
-    """``(n, 7)`` int64 keys: the bits of the start, the end and the radius (``-0.0`` made
-    ``0.0``). Direction counts: the same volume swept backwards can differ in the last bit
-    of a node's envelope, and skipping a repeat is to change no bit."""
-    p0 = np.asarray(p0, np.float64) + 0.0
-    p1 = np.asarray(p1, np.float64) + 0.0
-    r = np.broadcast_to(np.asarray(radius, np.float64), (len(p0),)) + 0.0
-    return np.ascontiguousarray(np.column_stack([p0, p1, r])).view(np.int64)
+def move_keys(p0: F64, p1: F64, radius: F64 | float | None = None) -> NDArray[np.int64]:
+    """``(n, 7)`` int64 keys (``(n, 6)`` without a radius): the bits of the start, the end
+    and the radius (``-0.0`` made ``0.0``). Direction counts: the same volume swept
+    backwards can differ in the last bit of a node's envelope, and skipping a repeat is to
+    change no bit."""
+    n = len(p0)
+    out = np.empty((n, 6 if radius is None else 7))
+    out[:, :3] = p0
+    out[:, 3:6] = p1
+    if radius is not None:
+        out[:, 6] = radius
+    out += 0.0  # -0.0 + 0.0 is 0.0
+    return out.view(np.int64)
 
 
 def repeat_of(keys: NDArray[np.int64], insert: NDArray[np.bool_]) -> NDArray[np.int64]:

@@ -127,21 +127,31 @@ class StockBound:
     def __init__(self, line_v: F64, line_paths: list[F64], du: float, dv: float,
                  shape_uv: tuple[int, int], radius: float, stock_top: float):
         n_u, n_v = shape_uv
-        u_nodes = np.arange(n_u) * du
-        z_line = (np.array([np.interp(u_nodes, p[:, 0], p[:, 1]) for p in line_paths])
-                  if len(line_paths) else np.zeros((0, n_u)))
+        z_line = np.empty((len(line_paths), n_u))
+        for j, path in enumerate(line_paths):
+            _along(np.ascontiguousarray(path[:, 0]), np.ascontiguousarray(path[:, 1]), du,
+                   z_line[j])
         #: ``(n_v, n_u)``: the bound on the nodes
         self.grid = np.empty((n_v, n_u))
-        _bound_grid(np.ascontiguousarray(line_v, np.float64), np.ascontiguousarray(z_line),
-                    float(dv), float(radius), float(stock_top), self.grid)
+        _bound_grid(np.ascontiguousarray(line_v, np.float64), z_line, float(dv),
+                    float(radius), float(stock_top), self.grid)
         self.block = max(1, int(radius / max(du, dv)))
-        b = self.block
-        pad = np.full((-(-n_v // b) * b, -(-n_u // b) * b), -np.inf)
-        pad[:n_v, :n_u] = self.grid
-        self.coarse = np.ascontiguousarray(
-            pad.reshape(pad.shape[0] // b, b, pad.shape[1] // b, b).max(axis=(1, 3)))
+        self._coarse: F64 | None = None
         self.du, self.dv, self.radius = float(du), float(dv), float(radius)
         self.exact_length = max(2.0, EXACT_RADII * radius)
+
+    @property
+    def coarse(self) -> F64:
+        """Maxima of the bound over blocks of :attr:`block` nodes a side (built on first
+        use: only long links need it)."""
+        if self._coarse is None:
+            b = self.block
+            n_v, n_u = self.grid.shape
+            pad = np.full((-(-n_v // b) * b, -(-n_u // b) * b), -np.inf)
+            pad[:n_v, :n_u] = self.grid
+            self._coarse = np.ascontiguousarray(
+                pad.reshape(pad.shape[0] // b, b, pad.shape[1] // b, b).max(axis=(1, 3)))
+        return self._coarse
 
     def heights(self, a: F64, b: F64) -> F64:
         """Lowest tip height along each straight link at which the ball meets no stock.
@@ -164,8 +174,9 @@ class StockBound:
         b = np.ascontiguousarray(b, np.float64).reshape(-1, 2)
         out = np.empty(len(a))
         short = np.hypot(*(b - a).T) <= self.exact_length
-        for sel, grid, blk in ((short, self.grid, 1), (~short, self.coarse, self.block)):
+        for sel, blk in ((short, 1), (~short, self.block)):
             if sel.any():
+                grid = self.grid if blk == 1 else self.coarse
                 res = np.empty(int(sel.sum()))
                 _capsule_max(np.ascontiguousarray(a[sel]), np.ascontiguousarray(b[sel]), grid,
                              blk, self.du, self.dv, self.radius, self.grid.shape[0],
@@ -178,6 +189,25 @@ def link_heights(a: F64, b: F64, line_v: F64, line_paths: list[F64], du: float, 
                  shape_uv: tuple[int, int], radius: float, stock_top: float) -> F64:
     """:meth:`StockBound.heights` of a :class:`StockBound` built from the other arguments."""
     return StockBound(line_v, line_paths, du, dv, shape_uv, radius, stock_top).heights(a, b)
+
+
+@njit(cache=True, nogil=True)
+def _along(u: F64, z: F64, du: float, out: F64) -> None:
+    """``np.interp`` of the polyline ``(u, z)`` (``u`` increasing) at the nodes ``k du``,
+    clamped at its ends, in one merge pass."""
+    j = 0
+    m = len(u)
+    for k in range(len(out)):
+        x = k * du
+        if m == 1 or x <= u[0]:
+            out[k] = z[0]
+        elif x >= u[m - 1]:
+            out[k] = z[m - 1]
+        else:
+            while u[j + 1] < x:
+                j += 1
+            t = (x - u[j]) / (u[j + 1] - u[j]) if u[j + 1] > u[j] else 0.0
+            out[k] = z[j] + t * (z[j + 1] - z[j])
 
 
 @njit(cache=True, nogil=True)
