@@ -20,7 +20,7 @@ from zwcore.toolpath import (
     program_text,
     simulate_program,
 )
-from zwcore.toolpath._repeats import MoveMemo, move_keys, repeat_of
+from zwcore.toolpath._repeats import MoveMemo, repeat_of
 from zwcore.toolpath.program import ARC_CCW, ARC_CW, LINE, RAPID
 
 
@@ -34,7 +34,7 @@ def test_repeats_are_the_brute_force_first_earlier_equal_move(seed):
     p1 = pool[rng.integers(0, 6, n)]
     r = rng.choice([0.5, 0.5, 0.75], n)
     insert = rng.random(n) < 0.6
-    src = repeat_of(move_keys(p0, p1, r), insert)
+    src = repeat_of(p0, p1, r, insert)
     for i in range(n):
         want = -1
         for j in range(i):
@@ -100,7 +100,8 @@ def test_skipping_repeats_changes_no_figure(seed):
     assert a.gouge > 0 and a.rapid_in_material > 0
     # and many moves are repeats (same direction) of moves that cut
     known = np.isfinite(prog.start).all(1)
-    src = repeat_of(move_keys(prog.start[known], prog.end[known], 0.0), prog.motion[known] > 0)
+    src = repeat_of(prog.start[known], prog.end[known], np.zeros(known.sum()),
+                    prog.motion[known] > 0)
     assert (src >= 0).sum() >= 15
 
 
@@ -111,23 +112,24 @@ def test_move_memo_holds_what_was_stored(seed):
     rng = np.random.default_rng(seed)
     memo, ref = MoveMemo(), {}
     pool = np.round(rng.uniform(-2, 2, (40, 6)), 1)
+    pool[:5, :3] = -0.0  # -0.0 and 0.0 are one key
     for _ in range(int(rng.integers(1, 8))):
         pick = pool[rng.integers(0, 40, int(rng.integers(1, 400)))]
-        keys = move_keys(pick[:, :3], pick[:, 3:])
-        row = memo.lookup(keys)
+        pick[rng.random(len(pick)) < 0.2] *= -1.0  # some signs flipped (0.0 -> -0.0)
+        keys = [(pick[i] + 0.0).tobytes() for i in range(len(pick))]
+        row = memo.lookup(pick[:, :3], pick[:, 3:])
         for k, r in zip(keys, row, strict=True):
-            assert (r >= 0) == (k.tobytes() in ref)
+            assert (r >= 0) == (k in ref)
             if r >= 0:
-                assert memo.values[r] == ref[k.tobytes()]
+                assert memo.values[r] == ref[k]
         new = row < 0
         vals = rng.normal(size=int(new.sum()))
-        memo.store(keys[new], vals)
-        for k, v in zip(keys[new], vals, strict=True):
-            ref.setdefault(k.tobytes(), v)
-    keys = move_keys(pool[:, :3], pool[:, 3:])
-    row = memo.lookup(keys)
-    for k, r in zip(keys, row, strict=True):
-        assert (r >= 0) == (k.tobytes() in ref)
+        memo.store(pick[new, :3], pick[new, 3:], vals)
+        for k, v in zip([k for k, n in zip(keys, new, strict=True) if n], vals, strict=True):
+            ref.setdefault(k, v)
+    row = memo.lookup(pool[:, :3], pool[:, 3:])
+    for i, r in enumerate(row):
+        assert (r >= 0) == ((pool[i] + 0.0).tobytes() in ref)
 
 
 def test_a_shared_gouge_memo_changes_no_path():

@@ -17,7 +17,7 @@ from numpy.typing import NDArray
 
 from zwcore.grid.tools import Tool
 from zwcore.grid.zmap import ZMap
-from zwcore.toolpath._repeats import MoveMemo, move_keys
+from zwcore.toolpath._repeats import MoveMemo
 from zwcore.toolpath.sweep import GridFrame, sweep_moves
 
 F64 = NDArray[np.float64]
@@ -134,8 +134,7 @@ class PartGouge:
                                    self.part.z, ref=self.part.z, apply=False)
             return gouge
         # a move measured before (another pass of the tool over the same part) is not swept
-        keys = move_keys(p0, p1)
-        row = self.memo.lookup(keys)
+        row = self.memo.lookup(p0, p1)
         gouge = np.empty(len(p0))
         held = row >= 0
         gouge[held] = self.memo.values[row[held]]
@@ -143,7 +142,7 @@ class PartGouge:
         if len(new):
             _, gouge[new] = sweep_moves(self.frame, p0[new], p1[new], self.tool.radius,
                                         self.ball, self.part.z, ref=self.part.z, apply=False)
-            self.memo.store(keys[new], gouge[new])
+            self.memo.store(p0[new], p1[new], gouge[new])
         return gouge
 
 

@@ -17,124 +17,95 @@ from numpy.typing import NDArray
 
 F64 = NDArray[np.float64]
 
-__all__ = ["MoveMemo", "move_keys", "repeat_of"]
+__all__ = ["MoveMemo", "repeat_of"]
 
 
-def move_keys(p0: F64, p1: F64, radius: F64 | float | None = None) -> NDArray[np.int64]:
-    """``(n, 7)`` int64 keys (``(n, 6)`` without a radius): the bits of the start, the end
-    and the radius (``-0.0`` made ``0.0``). Direction counts: the same volume swept
-    backwards can differ in the last bit of a node's envelope, and skipping a repeat is to
-    change no bit."""
-    n = len(p0)
-    out = np.empty((n, 6 if radius is None else 7))
-    out[:, :3] = p0
-    out[:, 3:6] = p1
-    if radius is not None:
-        out[:, 6] = radius
-    out += 0.0  # -0.0 + 0.0 is 0.0
-    return out.view(np.int64)
-
-
-def repeat_of(keys: NDArray[np.int64], insert: NDArray[np.bool_]) -> NDArray[np.int64]:
-    """For each row, the first earlier row with ``insert`` and the same key, else -1.
+def repeat_of(p0: F64, p1: F64, radius: F64, insert: NDArray[np.bool_]) -> NDArray[np.int64]:
+    """For each move, the first earlier move with ``insert`` and the same start, end and
+    radius (compared as floats: ``-0.0 == 0.0``), else -1.
 
     Parameters
     ----------
-    keys : (n, k) int64
+    p0, p1 : (n, 3) float64
+        Start and end of each move. Direction counts: the same volume swept backwards can
+        differ in the last bit of a node's envelope, and skipping a repeat is to change no
+        bit.
+    radius : (n,) float64
     insert : (n,) bool
-        Rows that later rows may repeat (e.g. moves that cut).
+        Moves that later moves may repeat (e.g. moves that cut).
 
     Returns
     -------
     (n,) int64
         In program order: ``src[i] < i`` with ``insert[src[i]]`` and equal keys, or -1.
     """
-    src = np.empty(len(keys), np.int64)
-    _repeat_kernel(np.ascontiguousarray(keys, np.int64), np.ascontiguousarray(insert, np.bool_),
-                   src)
-    return src
-
-
-@njit(cache=True, nogil=True)
-def _repeat_kernel(keys: NDArray[np.int64], insert: NDArray[np.bool_],
-                   src: NDArray[np.int64]) -> None:
-    """Open addressing (linear probing, load <= 1/2) over the rows with ``insert``; keys are
-    compared exactly, the hash only picks the slot."""
-    n, m = keys.shape
+    n = len(p0)
+    src = np.empty(n, np.int64)
     cap = 16
     while cap < 2 * n + 2:
         cap *= 2
-    mask = np.uint64(cap - 1)
-    table = np.full(cap, -1, np.int64)
-    for i in range(n):
-        h = np.uint64(1469598103934665603)
-        for c in range(m):
-            h = (h ^ np.uint64(keys[i, c])) * np.uint64(1099511628211)
-        h ^= h >> np.uint64(33)
-        h *= np.uint64(0xFF51AFD7ED558CCD)
-        h ^= h >> np.uint64(33)
-        slot = h & mask
-        src[i] = -1
-        while True:
-            j = table[slot]
-            if j < 0:
-                if insert[i]:
-                    table[slot] = i
-                break
-            same = True
-            for c in range(m):
-                if keys[j, c] != keys[i, c]:
-                    same = False
-                    break
-            if same:
-                src[i] = j
-                break
-            slot = (slot + np.uint64(1)) & mask
+    _repeat_kernel(_c(p0), _c(p1), np.ascontiguousarray(radius, np.float64),
+                   np.ascontiguousarray(insert, np.bool_), np.full(cap, -1, np.int64), src)
+    return src
+
+
+def _c(a: F64) -> F64:
+    return np.ascontiguousarray(a, np.float64).reshape(-1, 3)
 
 
 class MoveMemo:
     """Values of moves measured before (e.g. their gouge against a fixed part), kept across
-    calls: a growing hash table over the moves' keys (:func:`move_keys` without the
-    radius: one memo per tool and surface)."""
+    calls: a growing hash table over the moves' start and end points (one memo per tool
+    and surface)."""
 
     def __init__(self) -> None:
         self.table = np.full(1024, -1, np.int64)
-        self.keys = np.empty((512, 6), np.int64)
-        self.values = np.empty(512)
+        self.p0: F64 = np.empty((512, 3))
+        self.p1: F64 = np.empty((512, 3))
+        self.values: F64 = np.empty(512)
         self.size = 0
 
-    def lookup(self, keys: NDArray[np.int64]) -> NDArray[np.int64]:
-        """Row of each key in :attr:`values`, or -1."""
-        out = np.empty(len(keys), np.int64)
-        _lookup_kernel(self.table, self.keys, np.ascontiguousarray(keys, np.int64), out)
+    def lookup(self, p0: F64, p1: F64) -> NDArray[np.int64]:
+        """Row of each move in :attr:`values`, or -1."""
+        out = np.empty(len(p0), np.int64)
+        _lookup_kernel(self.table, self.p0, self.p1, _c(p0), _c(p1), out)
         return out
 
-    def store(self, keys: NDArray[np.int64], values: NDArray[np.float64]) -> None:
-        """Remember ``values`` of moves ``keys`` (rows not already held)."""
-        n = len(keys)
-        if self.size + n > len(self.keys):
-            cap = max(2 * len(self.keys), self.size + n)
-            k, v = np.empty((cap, 6), np.int64), np.empty(cap)
-            k[:self.size], v[:self.size] = self.keys[:self.size], self.values[:self.size]
-            self.keys, self.values = k, v
-        self.keys[self.size:self.size + n] = keys
-        self.values[self.size:self.size + n] = values
-        if 2 * (self.size + n) + 2 > len(self.table):  # rehash everything at load <= 1/2
+    def store(self, p0: F64, p1: F64, values: F64) -> None:
+        """Remember ``values`` of moves ``p0 -> p1`` (a move already held keeps its row)."""
+        n, m = len(p0), self.size
+        if m + n > len(self.values):
+            cap = max(2 * len(self.values), m + n)
+            grown = [np.empty((cap, 3)), np.empty((cap, 3)), np.empty(cap)]
+            for new, old in zip(grown, (self.p0, self.p1, self.values), strict=True):
+                new[:m] = old[:m]
+            self.p0, self.p1, self.values = grown
+        self.p0[m:m + n], self.p1[m:m + n], self.values[m:m + n] = p0, p1, values
+        if 2 * (m + n) + 2 > len(self.table):  # rehash everything at load <= 1/2
             cap = len(self.table)
-            while cap < 2 * (self.size + n) + 2:
+            while cap < 2 * (m + n) + 2:
                 cap *= 2
             self.table = np.full(2 * cap, -1, np.int64)
-            _insert_kernel(self.table, self.keys, 0, self.size + n)
+            _insert_kernel(self.table, self.p0, self.p1, 0, m + n)
         else:
-            _insert_kernel(self.table, self.keys, self.size, self.size + n)
-        self.size += n
+            _insert_kernel(self.table, self.p0, self.p1, m, m + n)
+        self.size = m + n
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _mix(h: np.uint64, v: float) -> np.uint64:
+    bits = np.array([v + 0.0]).view(np.uint64)[0]  # -0.0 + 0.0 is 0.0: one hash
+    return (h ^ bits) * np.uint64(1099511628211)
 
 
 @njit(cache=True, nogil=True)
-def _slot(keys: NDArray[np.int64], i: int, mask: np.uint64) -> np.uint64:
+def _slot(p0: F64, p1: F64, r: F64, i: int, mask: np.uint64) -> np.uint64:
     h = np.uint64(1469598103934665603)
-    for c in range(keys.shape[1]):
-        h = (h ^ np.uint64(keys[i, c])) * np.uint64(1099511628211)
+    for c in range(3):
+        h = _mix(h, p0[i, c])
+        h = _mix(h, p1[i, c])
+    if len(r):
+        h = _mix(h, r[i])
     h ^= h >> np.uint64(33)
     h *= np.uint64(0xFF51AFD7ED558CCD)
     h ^= h >> np.uint64(33)
@@ -142,37 +113,59 @@ def _slot(keys: NDArray[np.int64], i: int, mask: np.uint64) -> np.uint64:
 
 
 @njit(cache=True, nogil=True)
-def _find(table: NDArray[np.int64], stored: NDArray[np.int64], keys: NDArray[np.int64],
-          i: int) -> tuple[int, np.uint64]:
-    """(row holding key ``i`` or -1, the slot where the search ended)."""
+def _same(a0: F64, a1: F64, ar: F64, j: int, b0: F64, b1: F64, br: F64, i: int) -> bool:
+    for c in range(3):
+        if a0[j, c] != b0[i, c] or a1[j, c] != b1[i, c]:
+            return False
+    return not len(ar) or ar[j] == br[i]
+
+
+@njit(cache=True, nogil=True)
+def _repeat_kernel(p0: F64, p1: F64, r: F64, insert: NDArray[np.bool_],
+                   table: NDArray[np.int64], src: NDArray[np.int64]) -> None:
+    """Open addressing (linear probing, load <= 1/2) over the moves with ``insert``; keys
+    are compared exactly, the hash only picks the slot."""
     mask = np.uint64(len(table) - 1)
-    slot = _slot(keys, i, mask)
+    for i in range(len(p0)):
+        slot = _slot(p0, p1, r, i, mask)
+        src[i] = -1
+        while True:
+            j = table[slot]
+            if j < 0:
+                if insert[i]:
+                    table[slot] = i
+                break
+            if _same(p0, p1, r, j, p0, p1, r, i):
+                src[i] = j
+                break
+            slot = (slot + np.uint64(1)) & mask
+
+
+@njit(cache=True, nogil=True)
+def _find(table: NDArray[np.int64], s0: F64, s1: F64, q0: F64, q1: F64, i: int
+          ) -> tuple[int, np.uint64]:
+    """(stored row equal to query ``i`` or -1, the slot where the search ended)."""
+    none = np.empty(0)
+    mask = np.uint64(len(table) - 1)
+    slot = _slot(q0, q1, none, i, mask)
     while True:
         j = table[slot]
-        if j < 0:
-            return -1, slot
-        same = True
-        for c in range(keys.shape[1]):
-            if stored[j, c] != keys[i, c]:
-                same = False
-                break
-        if same:
+        if j < 0 or _same(s0, s1, none, j, q0, q1, none, i):
             return j, slot
         slot = (slot + np.uint64(1)) & mask
 
 
 @njit(cache=True, nogil=True)
-def _lookup_kernel(table: NDArray[np.int64], stored: NDArray[np.int64],
-                   keys: NDArray[np.int64], out: NDArray[np.int64]) -> None:
-    for i in range(len(keys)):
-        out[i] = _find(table, stored, keys, i)[0]
+def _lookup_kernel(table: NDArray[np.int64], s0: F64, s1: F64, q0: F64, q1: F64,
+                   out: NDArray[np.int64]) -> None:
+    for i in range(len(q0)):
+        out[i] = _find(table, s0, s1, q0, q1, i)[0]
 
 
 @njit(cache=True, nogil=True)
-def _insert_kernel(table: NDArray[np.int64], stored: NDArray[np.int64], a: int, b: int
-                   ) -> None:
-    """Enter rows ``a..b-1`` of ``stored`` (a row equal to one held already is skipped)."""
+def _insert_kernel(table: NDArray[np.int64], s0: F64, s1: F64, a: int, b: int) -> None:
+    """Enter stored rows ``a..b-1`` (a row equal to one held already is skipped)."""
     for i in range(a, b):
-        j, slot = _find(table, stored, stored, i)
+        j, slot = _find(table, s0, s1, s0, s1, i)
         if j < 0:
             table[slot] = i

@@ -21,7 +21,7 @@ from numpy.typing import NDArray
 from zwcore.errors import InvalidInputError
 from zwcore.grid.tools import Tool
 from zwcore.grid.zmap import ZMap
-from zwcore.toolpath._repeats import move_keys, repeat_of
+from zwcore.toolpath._repeats import repeat_of
 from zwcore.toolpath.parse import ParsedProgram
 from zwcore.toolpath.sweep import GridFrame, arc_chords, sweep_moves
 
@@ -148,7 +148,7 @@ def _stage(stock: F64, part: ZMap, prog: ParsedProgram, a: int, b: int, tool: To
     radius = tool.radius + grow
     over_stock, over_part = np.zeros(len(p0)), np.full(len(p0), -np.inf)
     # a move that repeats one that already cut removes nothing and gouges as that one did
-    src = (repeat_of(move_keys(p0, p1, radius), ~rapid) if SKIP_REPEATS
+    src = (repeat_of(p0, p1, radius, ~rapid) if SKIP_REPEATS
            else np.full(len(p0), -1, np.int64))
     new = np.flatnonzero(src < 0)
     over_stock[new], over_part[new] = sweep_moves(frame, p0[new], p1[new], radius[new],
