@@ -16,6 +16,9 @@ from numba import njit
 from numpy.typing import NDArray
 
 F64 = NDArray[np.float64]
+I64 = NDArray[np.int64]
+#: The bits of -0.0 (compared and hashed as 0.0).
+_NEG_ZERO = np.int64(-(2**63))
 
 __all__ = ["MoveMemo", "repeat_of"]
 
@@ -44,13 +47,14 @@ def repeat_of(p0: F64, p1: F64, radius: F64, insert: NDArray[np.bool_]) -> NDArr
     cap = 16
     while cap < 2 * n + 2:
         cap *= 2
-    _repeat_kernel(_c(p0), _c(p1), np.ascontiguousarray(radius, np.float64),
+    _repeat_kernel(_bits(p0), _bits(p1), np.ascontiguousarray(radius, np.float64).view(np.int64),
                    np.ascontiguousarray(insert, np.bool_), np.full(cap, -1, np.int64), src)
     return src
 
 
-def _c(a: F64) -> F64:
-    return np.ascontiguousarray(a, np.float64).reshape(-1, 3)
+def _bits(a: F64) -> I64:
+    """The float64 bits of ``(n, 3)`` points as int64 (a view when contiguous)."""
+    return np.ascontiguousarray(a, np.float64).reshape(-1, 3).view(np.int64)
 
 
 class MoveMemo:
@@ -68,7 +72,7 @@ class MoveMemo:
     def lookup(self, p0: F64, p1: F64) -> NDArray[np.int64]:
         """Row of each move in :attr:`values`, or -1."""
         out = np.empty(len(p0), np.int64)
-        _lookup_kernel(self.table, self.p0, self.p1, _c(p0), _c(p1), out)
+        _lookup_kernel(self.table, _bits(self.p0), _bits(self.p1), _bits(p0), _bits(p1), out)
         return out
 
     def store(self, p0: F64, p1: F64, values: F64) -> None:
@@ -86,20 +90,25 @@ class MoveMemo:
             while cap < 2 * (m + n) + 2:
                 cap *= 2
             self.table = np.full(2 * cap, -1, np.int64)
-            _insert_kernel(self.table, self.p0, self.p1, 0, m + n)
+            _insert_kernel(self.table, _bits(self.p0), _bits(self.p1), 0, m + n)
         else:
-            _insert_kernel(self.table, self.p0, self.p1, m, m + n)
+            _insert_kernel(self.table, _bits(self.p0), _bits(self.p1), m, m + n)
         self.size = m + n
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _mix(h: np.uint64, v: float) -> np.uint64:
-    bits = np.array([v + 0.0]).view(np.uint64)[0]  # -0.0 + 0.0 is 0.0: one hash
-    return (h ^ bits) * np.uint64(1099511628211)
+def _word(v: np.int64) -> np.int64:
+    """A float's bits with -0.0 read as 0.0."""
+    return np.int64(0) if v == _NEG_ZERO else v
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _mix(h: np.uint64, v: np.int64) -> np.uint64:
+    return (h ^ np.uint64(_word(v))) * np.uint64(1099511628211)
 
 
 @njit(cache=True, nogil=True)
-def _slot(p0: F64, p1: F64, r: F64, i: int, mask: np.uint64) -> np.uint64:
+def _slot(p0: I64, p1: I64, r: I64, i: int, mask: np.uint64) -> np.uint64:
     h = np.uint64(1469598103934665603)
     for c in range(3):
         h = _mix(h, p0[i, c])
@@ -113,18 +122,18 @@ def _slot(p0: F64, p1: F64, r: F64, i: int, mask: np.uint64) -> np.uint64:
 
 
 @njit(cache=True, nogil=True)
-def _same(a0: F64, a1: F64, ar: F64, j: int, b0: F64, b1: F64, br: F64, i: int) -> bool:
+def _same(a0: I64, a1: I64, ar: I64, j: int, b0: I64, b1: I64, br: I64, i: int) -> bool:
     for c in range(3):
-        if a0[j, c] != b0[i, c] or a1[j, c] != b1[i, c]:
+        if _word(a0[j, c]) != _word(b0[i, c]) or _word(a1[j, c]) != _word(b1[i, c]):
             return False
-    return not len(ar) or ar[j] == br[i]
+    return not len(ar) or _word(ar[j]) == _word(br[i])
 
 
 @njit(cache=True, nogil=True)
-def _repeat_kernel(p0: F64, p1: F64, r: F64, insert: NDArray[np.bool_],
-                   table: NDArray[np.int64], src: NDArray[np.int64]) -> None:
+def _repeat_kernel(p0: I64, p1: I64, r: I64, insert: NDArray[np.bool_],
+                   table: I64, src: I64) -> None:
     """Open addressing (linear probing, load <= 1/2) over the moves with ``insert``; keys
-    are compared exactly, the hash only picks the slot."""
+    (the floats' bits) are compared exactly, the hash only picks the slot."""
     mask = np.uint64(len(table) - 1)
     for i in range(len(p0)):
         slot = _slot(p0, p1, r, i, mask)
@@ -142,10 +151,10 @@ def _repeat_kernel(p0: F64, p1: F64, r: F64, insert: NDArray[np.bool_],
 
 
 @njit(cache=True, nogil=True)
-def _find(table: NDArray[np.int64], s0: F64, s1: F64, q0: F64, q1: F64, i: int
+def _find(table: I64, s0: I64, s1: I64, q0: I64, q1: I64, i: int, none: I64
           ) -> tuple[int, np.uint64]:
-    """(stored row equal to query ``i`` or -1, the slot where the search ended)."""
-    none = np.empty(0)
+    """(stored row equal to query ``i`` or -1, the slot where the search ended); ``none``
+    an empty array (no radius)."""
     mask = np.uint64(len(table) - 1)
     slot = _slot(q0, q1, none, i, mask)
     while True:
@@ -156,16 +165,17 @@ def _find(table: NDArray[np.int64], s0: F64, s1: F64, q0: F64, q1: F64, i: int
 
 
 @njit(cache=True, nogil=True)
-def _lookup_kernel(table: NDArray[np.int64], s0: F64, s1: F64, q0: F64, q1: F64,
-                   out: NDArray[np.int64]) -> None:
+def _lookup_kernel(table: I64, s0: I64, s1: I64, q0: I64, q1: I64, out: I64) -> None:
+    none = np.empty(0, np.int64)
     for i in range(len(q0)):
-        out[i] = _find(table, s0, s1, q0, q1, i)[0]
+        out[i] = _find(table, s0, s1, q0, q1, i, none)[0]
 
 
 @njit(cache=True, nogil=True)
-def _insert_kernel(table: NDArray[np.int64], s0: F64, s1: F64, a: int, b: int) -> None:
+def _insert_kernel(table: I64, s0: I64, s1: I64, a: int, b: int) -> None:
     """Enter stored rows ``a..b-1`` (a row equal to one held already is skipped)."""
+    none = np.empty(0, np.int64)
     for i in range(a, b):
-        j, slot = _find(table, s0, s1, s0, s1, i)
+        j, slot = _find(table, s0, s1, s0, s1, i, none)
         if j < 0:
             table[slot] = i
