@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -191,20 +191,25 @@ def scanline_toolpaths(part: ZMap, plan: ScanlinePlan, cl_heights: CLHeights = s
                                                      else None))
               for i, st in enumerate(plan.stages)]
     timings = [("paths", time.perf_counter() - t)]
-    models = [bilinear_at_fine_nodes(st.model, round(st.spacing[0] / part.dx), part.shape)
-              for st in plan.stages]
+
+    def model(i: int) -> F64:
+        st = plan.stages[i]
+        return bilinear_at_fine_nodes(st.model, round(st.spacing[0] / part.dx), part.shape)
+
     return _finish(part, stages, settings, plan.stock_top, plan.tolerance,
-                   _merge_models(stages, models), verify, max_bytes, reach, timings)
+                   _merge_models(stages, model) if verify else [], verify, max_bytes, reach,
+                   timings)
 
 
-def _merge_models(stages: list[StagePath], models: list[F64]) -> list[F64 | None]:
+def _merge_models(stages: list[StagePath], model: Callable[[int], F64]) -> list[F64 | None]:
     """The model after each tool stretch (consecutive stages with the same tool number form
-    one stretch in the parsed program: its last model)."""
+    one stretch in the parsed program: its last model), ``model(i)`` the model of stage
+    ``i`` at the part's nodes (built for the stretches' last stages only)."""
     out: list[F64 | None] = []
-    for i, (p, m) in enumerate(zip(stages, models, strict=True)):
+    for i, p in enumerate(stages):
         if i + 1 < len(stages) and stages[i + 1].cutting.tool_number == p.cutting.tool_number:
             continue
-        out.append(m)
+        out.append(model(i))
     return out
 
 
@@ -236,6 +241,10 @@ def contour_toolpaths(part: ZMap, plan: ContourPlan, *,
                                  stepover=stepover_fraction * st.tool.diameter)
               for i, st in enumerate(plan.stages)]
     timings = [("paths", time.perf_counter() - t)]
-    models = [cells_at_fine_nodes(st.model, st.scale, part.shape) for st in plan.stages]
+
+    def model(i: int) -> F64:
+        st = plan.stages[i]
+        return cells_at_fine_nodes(st.model, st.scale, part.shape)
+
     return _finish(part, stages, settings, plan.stock_top, tolerance,
-                   _merge_models(stages, models), verify, max_bytes, None, timings)
+                   _merge_models(stages, model) if verify else [], verify, max_bytes, None, timings)

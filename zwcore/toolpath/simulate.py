@@ -159,8 +159,9 @@ def _stage(stock: F64, part: ZMap, prog: ParsedProgram, a: int, b: int, tool: To
     met = np.zeros(b - a, bool)
     met[owner[over_stock > CUT_EPS] - a] = True
     below = np.unique(owner[over_part > CUT_EPS])
-    lengths = np.linalg.norm(prog.end[a:b] - prog.start[a:b], axis=1)
-    lengths = np.where(np.isfinite(lengths), lengths, 0.0)
+    d = prog.end[a:b] - prog.start[a:b]
+    lengths = np.sqrt(np.einsum("ij,ij->i", d, d))
+    lengths[~np.isfinite(lengths)] = 0.0
     feed = prog.motion[a:b] != 0
     rapid_pen = over_stock[rapid]
     over = None if model is None else stock - model
