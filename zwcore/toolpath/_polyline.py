@@ -11,6 +11,8 @@ the tool's width plus a disc at its end, and the discs dominate short moves.
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 from numba import njit
 from numpy.typing import NDArray
@@ -129,20 +131,25 @@ class PartGouge:
         return out
 
     def _fine(self, p0: F64, p1: F64) -> F64:
-        if self.memo is None or not len(p0):
+        if self.memo is None or not self.memo.active or not len(p0):
             _, gouge = sweep_moves(self.frame, p0, p1, self.tool.radius, self.ball,
                                    self.part.z, ref=self.part.z, apply=False)
             return gouge
         # a move measured before (another pass of the tool over the same part) is not swept
+        t0 = time.perf_counter()
         row = self.memo.lookup(p0, p1)
         gouge = np.empty(len(p0))
         held = row >= 0
         gouge[held] = self.memo.values[row[held]]
         new = np.flatnonzero(~held)
+        t1 = t2 = time.perf_counter()
         if len(new):
             _, gouge[new] = sweep_moves(self.frame, p0[new], p1[new], self.tool.radius,
                                         self.ball, self.part.z, ref=self.part.z, apply=False)
+            t2 = time.perf_counter()
             self.memo.store(p0[new], p1[new], gouge[new])
+        self.memo.account(t1 - t0 + time.perf_counter() - t2, t2 - t1, int(held.sum()),
+                          len(new))
         return gouge
 
 

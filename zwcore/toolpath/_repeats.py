@@ -57,12 +57,22 @@ def _bits(a: F64) -> I64:
     return np.ascontiguousarray(a, np.float64).reshape(-1, 3).view(np.int64)
 
 
+#: Moves looked up before a memo's cost is weighed (:attr:`MoveMemo.active`).
+MEMO_TRIAL = 200_000
+
+
 class MoveMemo:
     """Values of moves measured before (e.g. their gouge against a fixed part), kept across
     calls: a growing hash table over the moves' start and end points (one memo per tool
-    and surface)."""
+    and surface). Its users report the seconds its lookups and their sweeps took
+    (:meth:`account`) and stop asking (:attr:`active`) once, after :data:`MEMO_TRIAL`
+    lookups, the sweeps it saved (its hits at the measured seconds per swept move) cost
+    less than it did: short moves on a small part sweep faster than a lookup in a large
+    table. The values are the measured ones either way: only the time changes."""
 
     def __init__(self) -> None:
+        self.looked = self.found = 0
+        self.cost = self.saved = 0.0
         self.table = np.full(1024, -1, np.int64)
         self.p0: F64 = np.empty((512, 3))
         self.p1: F64 = np.empty((512, 3))
@@ -73,7 +83,21 @@ class MoveMemo:
         """Row of each move in :attr:`values`, or -1."""
         out = np.empty(len(p0), np.int64)
         _lookup_kernel(self.table, _bits(self.p0), _bits(self.p1), _bits(p0), _bits(p1), out)
+        self.looked += len(out)
+        self.found += int((out >= 0).sum())
         return out
+
+    def account(self, memo_seconds: float, sweep_seconds: float, found: int, swept: int
+                ) -> None:
+        """Seconds spent on lookups and stores, and on sweeping ``swept`` moves while
+        ``found`` were answered."""
+        self.cost += memo_seconds
+        self.saved += found * sweep_seconds / max(swept, 1)
+
+    @property
+    def active(self) -> bool:
+        """Whether the lookups have paid so far (or too few were made to tell)."""
+        return self.looked < MEMO_TRIAL or self.saved > self.cost
 
     def store(self, p0: F64, p1: F64, values: F64) -> None:
         """Remember ``values`` of moves ``p0 -> p1`` (a move already held keeps its row)."""

@@ -19,6 +19,7 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
+from numba import njit
 from numpy.typing import NDArray
 
 from zwcore.errors import InvalidInputError
@@ -171,8 +172,8 @@ def _segments(raw: tuple[F64, F64, F64, NDArray[np.int64]], poly: _Polyline
     return pts, kept, lift, len(u)
 
 
-def _segment_moves(segs: list[F64], entry_z: F64, lift: F64, stay: NDArray[np.bool_],
-                   clearance: float) -> Moves:
+def _segment_moves(pts: F64, sizes: NDArray[np.int64], entry_z: F64, lift: F64,
+                   stay: NDArray[np.bool_], clearance: float) -> Moves:
     """Segments in turn, each reached from the end of the one before: staying down
     (``stay``: a feed move straight to its start), or by a rapid up to ``lift``, across,
     and down to ``entry_z`` above its start, then a plunge-feed move; the first from the
@@ -180,14 +181,15 @@ def _segment_moves(segs: list[F64], entry_z: F64, lift: F64, stay: NDArray[np.bo
 
     Parameters
     ----------
-    segs : list of (k_i, 3) float64
+    pts : (m, 3) float64
+        The segments' points, one after the other.
+    sizes : (n,) int64
+        Points per segment.
     entry_z, lift : (n,) float64
         Per segment; ``lift[0]`` is not used (the first comes from the clearance).
     stay : (n,) bool
         ``stay[0]`` must be False.
     """
-    sizes = np.array([len(q) for q in segs], np.int64)
-    pts = np.vstack(segs)
     head = np.where(stay, 0, 3).astype(np.int64)
     head[0] = 2
     per = head + sizes
@@ -217,26 +219,42 @@ def _segment_moves(segs: list[F64], entry_z: F64, lift: F64, stay: NDArray[np.bo
     return Moves(kind, end, np.full((n, 2), np.nan), plunge)
 
 
-def _orient(segs: list[F64]) -> list[F64]:
-    """Each segment run from the end nearer where the one before ended (a straight move
-    sweeps the same volume both ways)."""
-    out: list[F64] = []
-    for q in segs:
-        if out:
-            e = out[-1][-1]
-            if ((q[-1, 0] - e[0]) ** 2 + (q[-1, 1] - e[1]) ** 2
-                    < (q[0, 0] - e[0]) ** 2 + (q[0, 1] - e[1]) ** 2):
-                q = q[::-1]
-        out.append(q)
-    return out
+def _orient(pts: F64, sizes: NDArray[np.int64]) -> F64:
+    """The segments (``sizes`` points of ``pts`` in turn), each run from the end nearer where
+    the one before ended (a straight move sweeps the same volume both ways)."""
+    first = np.cumsum(sizes) - sizes
+    flip = np.zeros(len(sizes), np.bool_)
+    _flips(pts, first, sizes, flip)
+    owner = np.repeat(np.arange(len(sizes)), sizes)
+    j = np.arange(len(pts)) - first[owner]
+    j = np.where(flip[owner], sizes[owner] - 1 - j, j)
+    return pts[first[owner] + j]
 
 
-def _feed_pairs(pts: F64, segs: list[F64]) -> tuple[F64, F64]:
-    """Start and end points of the feed moves of a polyline and of segments."""
-    chains = [c for c in [pts, *segs] if len(c) > 1]
-    if not chains:
-        return np.zeros((0, 3)), np.zeros((0, 3))
-    return (np.vstack([c[:-1] for c in chains]), np.vstack([c[1:] for c in chains]))
+@njit(cache=True, nogil=True)
+def _flips(pts: F64, first: NDArray[np.int64], sizes: NDArray[np.int64],
+           flip: NDArray[np.bool_]) -> None:
+    """Greedy: segment ``i`` runs backwards when its last point is nearer the end of
+    segment ``i - 1`` (as run) than its first point."""
+    for i in range(1, len(sizes)):
+        a, b = first[i - 1], first[i - 1] + sizes[i - 1] - 1
+        e = a if flip[i - 1] else b
+        s0, s1 = first[i], first[i] + sizes[i] - 1
+        d0 = (pts[s0, 0] - pts[e, 0]) ** 2 + (pts[s0, 1] - pts[e, 1]) ** 2
+        d1 = (pts[s1, 0] - pts[e, 0]) ** 2 + (pts[s1, 1] - pts[e, 1]) ** 2
+        flip[i] = d1 < d0
+
+
+def _feed_pairs(pts: F64, groups: list[tuple[F64, NDArray[np.int64]]]) -> tuple[F64, F64]:
+    """Start and end points of the feed moves of a polyline and of groups of segments
+    (``(points, sizes)``: moves within each segment only)."""
+    p0, p1 = [pts[:-1]], [pts[1:]]
+    for g, sizes in groups:
+        inside = np.ones(max(len(g) - 1, 0), bool)
+        inside[(np.cumsum(sizes) - 1)[:-1]] = False  # from one segment's end to the next
+        p0.append(g[:-1][inside])
+        p1.append(g[1:][inside])
+    return np.vstack(p0), np.vstack(p1)
 
 
 class _Entered:
@@ -260,7 +278,7 @@ class _Entered:
         self.cutting, self.rapid_feed = cutting, rapid_feed
         du, dv, shape_uv = grid
         self.bound = StockBound(line_v, per_line, du, dv, shape_uv, tool.radius, stock_top)
-        self.points: list[F64] = []
+        self.points: list[tuple[F64, NDArray[np.int64]]] = []
         self.max_lift, self.n_raw = 0.0, 0
         self.stays = self.lifts = 0
 
@@ -282,10 +300,10 @@ class _Entered:
                if fine else _segment_points(self.cl, off, a, b, self.sx, self.sy))
         seg_pts, sizes, lift, n = _segments(raw, self.poly)
         self.max_lift, self.n_raw = max(self.max_lift, lift), self.n_raw + n
-        segs = _orient(np.split(seg_pts, np.cumsum(sizes)[:-1]))
-        self.points += segs
-        first = np.array([q[0] for q in segs])
-        last = np.array([q[-1] for q in segs])
+        seg_pts = _orient(seg_pts, sizes)
+        self.points.append((seg_pts, sizes))
+        first = seg_pts[np.cumsum(sizes) - sizes]
+        last = seg_pts[np.cumsum(sizes) - 1]
         uv = self._uv(first)
         entry = self._up(np.maximum(self.bound.heights(uv, uv), first[:, 2]))
         over = self.bound.heights(self._uv(last[:-1]), uv[1:])
@@ -304,7 +322,7 @@ class _Entered:
         stay[0] = False
         self.stays += int(stay.sum())
         self.lifts += int((~stay).sum()) - 1
-        return _segment_moves(segs, entry, up, stay, self.clearance)
+        return _segment_moves(seg_pts, sizes, entry, up, stay, self.clearance)
 
 
 def scanline_stage_path(part: ZMap, stage: ScanlineStage, index: int, cutting: CuttingData,
