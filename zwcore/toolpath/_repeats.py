@@ -48,7 +48,7 @@ def repeat_of(p0: F64, p1: F64, radius: F64, insert: NDArray[np.bool_]) -> NDArr
     while cap < 2 * n + 2:
         cap *= 2
     _repeat_kernel(_bits(p0), _bits(p1), np.ascontiguousarray(radius, np.float64).view(np.int64),
-                   np.ascontiguousarray(insert, np.bool_), np.full(cap, -1, np.int64), src)
+                   np.ascontiguousarray(insert, np.bool_), np.full(cap, -1, np.int32), src)
     return src
 
 
@@ -155,18 +155,19 @@ def _same(a0: I64, a1: I64, ar: I64, j: int, b0: I64, b1: I64, br: I64, i: int) 
 
 @njit(cache=True, nogil=True)
 def _repeat_kernel(p0: I64, p1: I64, r: I64, insert: NDArray[np.bool_],
-                   table: I64, src: I64) -> None:
-    """Open addressing (linear probing, load <= 1/2) over the moves with ``insert``; keys
-    (the floats' bits) are compared exactly, the hash only picks the slot."""
+                   table: NDArray[np.int32], src: I64) -> None:
+    """Open addressing (linear probing, load <= 1/2; int32 slots, half the memory to miss
+    in) over the moves with ``insert``; keys (the floats' bits) are compared exactly, the
+    hash only picks the slot."""
     mask = np.uint64(len(table) - 1)
     for i in range(len(p0)):
         slot = _slot(p0, p1, r, i, mask)
         src[i] = -1
         while True:
-            j = table[slot]
+            j = int(table[slot])
             if j < 0:
                 if insert[i]:
-                    table[slot] = i
+                    table[slot] = np.int32(i)
                 break
             if _same(p0, p1, r, j, p0, p1, r, i):
                 src[i] = j

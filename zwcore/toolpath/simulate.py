@@ -209,7 +209,8 @@ def simulate_program(prog: ParsedProgram, tools: Mapping[int, Tool], part: ZMap,
         raise InvalidInputError("stock", "must be a number or a grid of the part's shape")
     machined = np.ascontiguousarray(grid, dtype=np.float64).copy()
     stages: list[StageCheck] = []
-    changes = [*np.flatnonzero(np.diff(prog.tool, prepend=-1) != 0).tolist(), len(prog.tool)]
+    changes = ([0, *(np.flatnonzero(prog.tool[1:] != prog.tool[:-1]) + 1).tolist(),
+                len(prog.tool)] if len(prog.tool) else [])
     for s, (a, b) in enumerate(itertools.pairwise(changes)):
         number = int(prog.tool[a])
         if number not in tools:
