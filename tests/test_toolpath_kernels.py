@@ -18,7 +18,7 @@ from zwcore import ZMap, default_tools, plan_scanline
 from zwcore.grid.tools import Tool
 from zwcore.toolpath import parse_program, scanline_toolpaths, simulate_program
 from zwcore.toolpath._polyline import PartGouge, thin
-from zwcore.toolpath._scan_links import entry_heights, region_stretches
+from zwcore.toolpath._scan_links import link_heights, merge_stretches, region_stretches
 from zwcore.toolpath.sweep import GridFrame, sweep_moves
 
 
@@ -87,9 +87,10 @@ def test_threaded_sweep_is_the_single_thread_sweep(monkeypatch, apply):
 
 @settings(max_examples=15, deadline=None)
 @given(st.integers(0, 10_000), st.floats(0.3, 2.0))
-def test_entry_heights_bound_the_stock_the_whole_lines_leave(seed, radius):
-    # whole lines along u at a pick-feed under the radius, swept exactly over a stock; the
-    # bound from the lines' paths alone is never below the stock within reach of an entry
+def test_link_heights_keep_the_ball_off_the_stock_the_whole_lines_leave(seed, radius):
+    # whole lines along u at a pick-feed under the radius, swept exactly over a stock; a
+    # move along a random link (along the lines, across, over one point, off the stock)
+    # with its tip at the bound from the lines' paths alone removes nothing, swept exactly
     part = _wavy(51, 0.2, seed)
     rng = np.random.default_rng(seed)
     n = part.shape[1]
@@ -106,13 +107,23 @@ def test_entry_heights_bound_the_stock_the_whole_lines_leave(seed, radius):
         pts = np.column_stack([u, np.full(n, v), z])
         sweep_moves(frame, pts[:-1], pts[1:], radius, True, stock)
         paths.append(np.column_stack([u, z]))
-    entries = rng.uniform([0, 0], [(n - 1) * part.dx, (part.shape[0] - 1) * part.dy], (40, 2))
-    bound = entry_heights(entries, offsets, paths, part.dx, part.dy, (n, part.shape[0]),
-                          radius, top)
-    yy, xx = np.mgrid[0:part.shape[0], 0:n]
-    for (eu, ev), b in zip(entries, bound, strict=True):
-        near = np.hypot(xx * part.dx - eu, yy * part.dy - ev) < radius
-        assert stock[near].max() <= b + 1e-9
+    a = rng.uniform([-2, -2], [(n - 1) * part.dx + 2, (part.shape[0] - 1) * part.dy + 2],
+                    (60, 2))
+    b = a + rng.normal(0, 3, (60, 2))
+    b[:15, 1] = a[:15, 1]  # along the lines
+    b[15:30] = a[15:30]  # over one point (an entry)
+    low = link_heights(a, b, offsets, paths, part.dx, part.dy, (n, part.shape[0]), radius,
+                       top)
+    reached = np.isfinite(low)
+    z = np.where(reached, low, 0.0)[:, None]
+    over, _ = sweep_moves(frame, np.hstack([a, z]), np.hstack([b, z]), radius, True,
+                          stock.copy(), apply=False)
+    assert np.all(over[reached] <= 1e-9)
+    assert np.all(~np.isfinite(over[~reached]) | (over[~reached] <= 1e-9))
+    # and it is the bound, not a height far above it: the stock just below the lines' top
+    # reaches the links over the stock's middle
+    inside = reached & (np.abs(a - b).sum(1) < 1e-12) & (a[:, 0] > 1) & (a[:, 1] > 1)
+    assert np.all(low[inside] < top)
 
 
 def test_region_stretches_follow_the_mask():
@@ -249,3 +260,49 @@ def test_sweep_at_rows_exactly_a_radius_away(coords):
         oracle = sampled_envelope(frame, p0, p1, r, ball)
         hit = np.isfinite(oracle)
         assert np.all(stock[hit] <= oracle[hit] + 1e-9)
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.integers(0, 2**31 - 1))
+def test_merged_stretches_cover_the_same_union_disjointly(seed):
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(1, 60))
+    off = rng.integers(0, 6, n) * 0.25
+    a = np.round(rng.uniform(0, 10, n), 1)
+    b = a + np.round(rng.uniform(0.1, 4, n), 1)
+    dup = rng.random(n) < 0.3  # the same stretch given twice
+    off, a, b = np.r_[off, off[dup]], np.r_[a, a[dup]], np.r_[b, b[dup]]
+    mo, ma, mb = merge_stretches(off, a, b)
+    u = np.arange(0, 15, 0.05) + 0.025  # sample points between the 0.1 mm ends
+    for o in np.unique(off):
+        want = ((u[:, None] >= a[off == o]) & (u[:, None] <= b[off == o])).any(1)
+        got_ab = np.sort(np.column_stack([ma[mo == o], mb[mo == o]]), axis=0)
+        got = ((u[:, None] >= got_ab[:, 0]) & (u[:, None] <= got_ab[:, 1])).any(1)
+        np.testing.assert_array_equal(got, want)
+        assert np.all(got_ab[1:, 0] > got_ab[:-1, 1])  # disjoint, not touching
+    # offsets in order, every other offset's stretches backwards
+    assert np.all(np.diff(mo) >= 0)
+    ranks = np.searchsorted(np.unique(mo), mo)
+    for r in np.unique(ranks):
+        starts = ma[ranks == r]
+        assert np.all(np.diff(starts) > 0) if r % 2 == 0 else np.all(np.diff(starts) < 0)
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.integers(0, 2**31 - 1))
+def test_line_heights_at_the_nodes_are_numpy_interp(seed):
+    from zwcore.toolpath._scan_links import _along
+
+    rng = np.random.default_rng(seed)
+    m = int(rng.integers(1, 30))
+    u = np.sort(rng.uniform(-1, 11, m))
+    u[rng.random(m) < 0.1] = 5.0  # some repeated u (a vertical step)
+    u.sort()
+    z = rng.normal(size=m)
+    out = np.empty(101)
+    _along(u, z, 0.1, out)
+    want = np.interp(np.arange(101) * 0.1, u, z)
+    steps = np.isin(np.round(np.arange(101) * 0.1, 9), u[np.r_[np.diff(u) == 0, False]])
+    np.testing.assert_allclose(out[~steps], want[~steps], atol=1e-12)
+    # at a vertical step any of its heights is a height the tip passes there
+    assert all(np.isclose(z[u == 5.0], o).any() for o in out[steps])

@@ -109,10 +109,13 @@ def parse_program(text: str) -> ParsedProgram:
         raise InvalidInputError("program", f"line {lineno}: arc without start or I J")
     if rows == 0:
         raise InvalidInputError("program", "no motion blocks")
-    end = end[:rows].copy()
-    start = np.vstack([np.full((1, 3), np.nan), end[:-1]])
-    center = center[:rows].copy()
-    mot = motion[:rows].copy()
+    # views of the first rows (no copies: a program's arrays run to hundreds of MB)
+    end = end[:rows]
+    start = np.empty((rows, 3))
+    start[0] = np.nan
+    start[1:] = end[:-1]
+    center = center[:rows]
+    mot = motion[:rows]
     arcs = mot >= 2
     mismatch = 0.0
     if arcs.any():
@@ -120,5 +123,5 @@ def parse_program(text: str) -> ParsedProgram:
         r1 = np.hypot(end[arcs, 0] - center[arcs, 0], end[arcs, 1] - center[arcs, 1])
         mismatch = float(np.abs(r0 - r1).max())
     fl = flags[:rows]
-    return ParsedProgram(mot, start, end, center, feed[:rows].copy(), tool[:rows].copy(),
+    return ParsedProgram(mot, start, end, center, feed[:rows], tool[:rows],
                          (fl & 1) > 0, (fl & 2) > 0, mismatch, bool(err[4]))

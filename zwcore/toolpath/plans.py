@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -22,6 +22,7 @@ from zwcore.grid.sampling import bilinear_at_fine_nodes, cells_at_fine_nodes
 from zwcore.grid.tools import Tool
 from zwcore.grid.zmap import ZMap, finite_number
 from zwcore.scanline.results import ScanlinePlan, ScanlineStage
+from zwcore.toolpath._repeats import MoveMemo
 from zwcore.toolpath.contour_paths import contour_stage_path
 from zwcore.toolpath.parse import parse_program
 from zwcore.toolpath.program import CuttingData, ProgramSettings, StagePath
@@ -181,21 +182,27 @@ def scanline_toolpaths(part: ZMap, plan: ScanlinePlan, cl_heights: CLHeights = s
         raise InvalidInputError("regions", f"one per stage ({len(plan.stages)}), got "
                                 f"{len(regions)}")
     t = time.perf_counter()
+    memos = {tool.id: MoveMemo() for tool in tools}  # each tool's gouges against the part
     stages = [scanline_stage_path(part, st, i, data[st.tool.id], cl_heights, clearance=clear,
                                   chord_tolerance=CHORD_FRACTION * plan.tolerance,
                                   stock_top=plan.stock_top,
                                   refine_tolerance=_refine_tolerance(plan, st),
                                   region=regions[i],
+                                  rapid_feed=rapid_feed, gouge_memo=memos[st.tool.id],
                                   # every stage on the part's level finishes (rest balls
                                   # follow the main one in their regions)
                                   scallop_tolerance=(plan.tolerance if st.level == plan.depth
                                                      and _reaches_part(plan, i) else None))
               for i, st in enumerate(plan.stages)]
     timings = [("paths", time.perf_counter() - t)]
-    models = [bilinear_at_fine_nodes(st.model, round(st.spacing[0] / part.dx), part.shape)
-              for st in plan.stages]
+
+    def model(i: int) -> F64:
+        st = plan.stages[i]
+        return bilinear_at_fine_nodes(st.model, round(st.spacing[0] / part.dx), part.shape)
+
     return _finish(part, stages, settings, plan.stock_top, plan.tolerance,
-                   _merge_models(stages, models), verify, max_bytes, reach, timings)
+                   _merge_models(stages, model) if verify else [], verify, max_bytes, reach,
+                   timings)
 
 
 def _reaches_part(plan: ScanlinePlan, i: int) -> bool:
@@ -205,14 +212,15 @@ def _reaches_part(plan: ScanlinePlan, i: int) -> bool:
     return st.pass_index == st.pass_count
 
 
-def _merge_models(stages: list[StagePath], models: list[F64]) -> list[F64 | None]:
+def _merge_models(stages: list[StagePath], model: Callable[[int], F64]) -> list[F64 | None]:
     """The model after each tool stretch (consecutive stages with the same tool number form
-    one stretch in the parsed program: its last model)."""
+    one stretch in the parsed program: its last model), ``model(i)`` the model of stage
+    ``i`` at the part's nodes (built for the stretches' last stages only)."""
     out: list[F64 | None] = []
-    for i, (p, m) in enumerate(zip(stages, models, strict=True)):
+    for i, p in enumerate(stages):
         if i + 1 < len(stages) and stages[i + 1].cutting.tool_number == p.cutting.tool_number:
             continue
-        out.append(m)
+        out.append(model(i))
     return out
 
 
@@ -244,6 +252,10 @@ def contour_toolpaths(part: ZMap, plan: ContourPlan, *,
                                  stepover=stepover_fraction * st.tool.diameter)
               for i, st in enumerate(plan.stages)]
     timings = [("paths", time.perf_counter() - t)]
-    models = [cells_at_fine_nodes(st.model, st.scale, part.shape) for st in plan.stages]
+
+    def model(i: int) -> F64:
+        st = plan.stages[i]
+        return cells_at_fine_nodes(st.model, st.scale, part.shape)
+
     return _finish(part, stages, settings, plan.stock_top, tolerance,
-                   _merge_models(stages, models), verify, max_bytes, None, timings)
+                   _merge_models(stages, model) if verify else [], verify, max_bytes, None, timings)

@@ -19,6 +19,7 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
+from numba import njit
 from numpy.typing import NDArray
 
 from zwcore.errors import InvalidInputError
@@ -27,14 +28,17 @@ from zwcore.grid.zmap import ZMap
 from zwcore.scanline.results import ScanlineStage
 from zwcore.sim import drop_cutter
 from zwcore.toolpath._polyline import PartGouge, follow_part
+from zwcore.toolpath._repeats import MoveMemo
 from zwcore.toolpath._scallop import fine_points, finishing_closing, scallop_segments
-from zwcore.toolpath._scan_links import entry_heights, region_stretches
+from zwcore.toolpath._scan_links import StockBound, merge_stretches, region_stretches
 from zwcore.toolpath.program import LINE, RAPID, CuttingData, Moves, StagePath
 
 __all__ = ["CLHeights", "scanline_stage_path", "sim_cl_heights"]
 
 #: Smallest block (input nodes a side) of the gouge measure's coarse first look.
 BLOCK_MIN = 1
+#: Height above the stock bound where a rapid down or across ends, mm.
+ENTRY_GAP = 0.5
 #: Rounds of scallop lines on a finishing pass (each halves the spacing where it is added).
 SCALLOP_ROUNDS = 2
 
@@ -98,9 +102,9 @@ class _Polyline:
     """Builds a path (xy rounded to the output) through the refine, thin and lift steps."""
 
     def __init__(self, part: ZMap, tool: Tool, along_x: bool, chord: float, decimals: int,
-                 refine: float, min_len: float, block: int = 1):
+                 refine: float, min_len: float, block: int = 1, memo: MoveMemo | None = None):
         self.part, self.tool, self.along_x = part, tool, along_x
-        self.measure = PartGouge(part, tool, block)
+        self.measure = PartGouge(part, tool, block, memo)
         self.chord, self.decimals = chord, decimals
         self.refine, self.min_len = refine, min_len
 
@@ -168,72 +172,157 @@ def _segments(raw: tuple[F64, F64, F64, NDArray[np.int64]], poly: _Polyline
     return pts, kept, lift, len(u)
 
 
-def _segment_moves(pts: F64, sizes: NDArray[np.int64], entry_z: F64, clearance: float
-                   ) -> Moves:
-    """Each segment (``sizes`` points of ``pts`` in turn): a rapid at the clearance over its
-    start, a rapid down to ``entry_z``, its moves (the first at the plunge feed), a rapid up
-    to the clearance."""
-    last = np.cumsum(sizes) - 1
-    above = pts[last - sizes + 1].copy()
-    down = above.copy()
-    up = pts[last].copy()
-    above[:, 2], down[:, 2], up[:, 2] = clearance, entry_z, clearance
-    # rows per segment: 2 entry rapids, the segment, 1 retract
-    per = sizes + 3
-    first = np.cumsum(per) - per
+def _segment_moves(pts: F64, sizes: NDArray[np.int64], entry_z: F64, lift: F64,
+                   stay: NDArray[np.bool_], clearance: float) -> Moves:
+    """Segments in turn, each reached from the end of the one before: staying down
+    (``stay``: a feed move straight to its start), or by a rapid up to ``lift``, across,
+    and down to ``entry_z`` above its start, then a plunge-feed move; the first from the
+    clearance, and a rapid up to the clearance after the last.
+
+    Parameters
+    ----------
+    pts : (m, 3) float64
+        The segments' points, one after the other.
+    sizes : (n,) int64
+        Points per segment.
+    entry_z, lift : (n,) float64
+        Per segment; ``lift[0]`` is not used (the first comes from the clearance).
+    stay : (n,) bool
+        ``stay[0]`` must be False.
+    """
+    head = np.where(stay, 0, 3).astype(np.int64)
+    head[0] = 2
+    per = head + sizes
+    per[-1] += 1
+    first = np.cumsum(per) - per  # first row of each segment's entry
     n = int(per.sum())
     end = np.empty((n, 3))
-    kind = np.full(n, LINE, np.int8)
+    kind = np.full(n, RAPID, np.int8)
     plunge = np.zeros(n, bool)
-    end[first], end[first + 1], end[first + 2 + sizes] = above, down, up
-    kind[first] = kind[first + 1] = kind[first + 2 + sizes] = RAPID
-    plunge[first + 2] = True
-    body = np.repeat(first + 2, sizes) + (np.arange(int(sizes.sum()))
-                                          - np.repeat(np.cumsum(sizes) - sizes, sizes))
+    body0 = first + head
+    body = np.repeat(body0, sizes) + (np.arange(int(sizes.sum()))
+                                      - np.repeat(np.cumsum(sizes) - sizes, sizes))
     end[body] = pts
+    kind[body] = LINE
+    plunge[body0[~stay]] = True
+    start = pts[np.cumsum(sizes) - sizes]
+    last = pts[np.cumsum(sizes) - 1]
+    lifted = np.flatnonzero(~stay)
+    lifted = lifted[lifted > 0]
+    # lift: up over the previous end, across at the lift height, down above the start
+    end[first[lifted]] = np.column_stack([last[lifted - 1, :2], lift[lifted]])
+    end[first[lifted] + 1] = np.column_stack([start[lifted, :2], lift[lifted]])
+    end[first[lifted] + 2] = np.column_stack([start[lifted, :2], entry_z[lifted]])
+    end[0] = [start[0, 0], start[0, 1], clearance]
+    end[1] = [start[0, 0], start[0, 1], entry_z[0]]
+    end[-1] = [last[-1, 0], last[-1, 1], clearance]
     return Moves(kind, end, np.full((n, 2), np.nan), plunge)
 
 
-def _feed_pairs(pts: F64, segs: list[F64]) -> tuple[F64, F64]:
-    """Start and end points of the feed moves of a polyline and of segments."""
-    chains = [c for c in [pts, *segs] if len(c) > 1]
-    if not chains:
-        return np.zeros((0, 3)), np.zeros((0, 3))
-    return (np.vstack([c[:-1] for c in chains]), np.vstack([c[1:] for c in chains]))
+def _orient(pts: F64, sizes: NDArray[np.int64]) -> F64:
+    """The segments (``sizes`` points of ``pts`` in turn), each run from the end nearer where
+    the one before ended (a straight move sweeps the same volume both ways)."""
+    first = np.cumsum(sizes) - sizes
+    flip = np.zeros(len(sizes), np.bool_)
+    _flips(pts, first, sizes, flip)
+    owner = np.repeat(np.arange(len(sizes)), sizes)
+    j = np.arange(len(pts)) - first[owner]
+    j = np.where(flip[owner], sizes[owner] - 1 - j, j)
+    return pts[first[owner] + j]
+
+
+@njit(cache=True, nogil=True)
+def _flips(pts: F64, first: NDArray[np.int64], sizes: NDArray[np.int64],
+           flip: NDArray[np.bool_]) -> None:
+    """Greedy: segment ``i`` runs backwards when its last point is nearer the end of
+    segment ``i - 1`` (as run) than its first point."""
+    for i in range(1, len(sizes)):
+        a, b = first[i - 1], first[i - 1] + sizes[i - 1] - 1
+        e = a if flip[i - 1] else b
+        s0, s1 = first[i], first[i] + sizes[i] - 1
+        d0 = (pts[s0, 0] - pts[e, 0]) ** 2 + (pts[s0, 1] - pts[e, 1]) ** 2
+        d1 = (pts[s1, 0] - pts[e, 0]) ** 2 + (pts[s1, 1] - pts[e, 1]) ** 2
+        flip[i] = d1 < d0
+
+
+def _feed_pairs(pts: F64, groups: list[tuple[F64, NDArray[np.int64]]]) -> tuple[F64, F64]:
+    """Start and end points of the feed moves of a polyline and of groups of segments
+    (``(points, sizes)``: moves within each segment only)."""
+    p0, p1 = [pts[:-1]], [pts[1:]]
+    for g, sizes in groups:
+        inside = np.ones(max(len(g) - 1, 0), bool)
+        inside[(np.cumsum(sizes) - 1)[:-1]] = False  # from one segment's end to the next
+        p0.append(g[:-1][inside])
+        p1.append(g[1:][inside])
+    return np.vstack(p0), np.vstack(p1)
 
 
 class _Entered:
     """Builds segments entered from above (extra lines, region stretches, scallop lines):
-    their points through the thin and lift steps, the entry rapids to above the stock
-    bounded from the stage's whole lines, and the retracts; keeps every segment's points."""
+    their points through the thin and lift steps, each run from the end nearer the previous
+    segment's end, and the links between them; keeps every segment's points.
+
+    A link stays down (a feed move) where the stock bound over its reach (from the stage's
+    whole lines, :func:`~zwcore.toolpath._scan_links.link_heights`) lies under both of its
+    ends, else lifts to :data:`ENTRY_GAP` above that bound, crosses and comes down to the
+    same gap above the stock bound around the next start, then plunges at the plunge feed;
+    of the two the one with the smaller time estimate (feeds and ``rapid_feed``)."""
 
     def __init__(self, part: ZMap, tool: Tool, cl: F64, sx: float, sy: float, poly: _Polyline,
                  along_x: bool, line_v: F64, per_line: list[F64],
                  grid: tuple[float, float, tuple[int, int]], stock_top: float,
-                 clearance: float, decimals: int):
+                 clearance: float, decimals: int, cutting: CuttingData, rapid_feed: float):
         self.part, self.tool, self.cl, self.sx, self.sy, self.poly = part, tool, cl, sx, sy, poly
         self.along_x, self.line_v, self.per_line, self.grid = along_x, line_v, per_line, grid
         self.stock_top, self.clearance, self.decimals = stock_top, clearance, decimals
-        self.points: list[F64] = []
+        self.cutting, self.rapid_feed = cutting, rapid_feed
+        du, dv, shape_uv = grid
+        self.bound = StockBound(line_v, per_line, du, dv, shape_uv, tool.radius, stock_top)
+        self.points: list[tuple[F64, NDArray[np.int64]]] = []
         self.max_lift, self.n_raw = 0.0, 0
+        self.stays = self.lifts = 0
+
+    def _uv(self, xy: F64) -> F64:
+        part = self.part
+        return (xy[:, :2] - [part.x0, part.y0]) if self.along_x else (
+            xy[:, 1::-1] - [part.y0, part.x0])
+
+    def _up(self, z: F64) -> F64:
+        """``z + ENTRY_GAP`` rounded up to the output, at most the clearance."""
+        scale = 10.0 ** self.decimals
+        return np.minimum(self.clearance, np.ceil((z + ENTRY_GAP) * scale) / scale)
 
     def __call__(self, off: F64, a: F64, b: F64, fine: bool = False) -> Moves:
         """Segments ``off, a, b``: CL from the stage's grid, or (``fine``) from the node
         drop-cutter every quarter of an input step."""
-        part, (du, dv, shape_uv) = self.part, self.grid
-        raw = (fine_points(part, self.tool, off, a, b, self.along_x, 0.25 * min(du, dv))
+        part, (du, dv, _), tool = self.part, self.grid, self.tool
+        raw = (fine_points(part, tool, off, a, b, self.along_x, 0.25 * min(du, dv))
                if fine else _segment_points(self.cl, off, a, b, self.sx, self.sy))
         seg_pts, sizes, lift, n = _segments(raw, self.poly)
         self.max_lift, self.n_raw = max(self.max_lift, lift), self.n_raw + n
-        self.points += np.split(seg_pts, np.cumsum(sizes)[:-1])
+        seg_pts = _orient(seg_pts, sizes)
+        self.points.append((seg_pts, sizes))
         first = seg_pts[np.cumsum(sizes) - sizes]
-        uv = (first[:, :2] - [part.x0, part.y0]) if self.along_x else (
-            first[:, 1::-1] - [part.y0, part.x0])
-        top = np.maximum(entry_heights(uv, self.line_v, self.per_line, du, dv, shape_uv,
-                                       self.tool.radius, self.stock_top), first[:, 2])
-        scale = 10.0 ** self.decimals
-        air = np.minimum(self.clearance, np.ceil((top + 0.5) * scale) / scale)
-        return _segment_moves(seg_pts, sizes, air, self.clearance)
+        last = seg_pts[np.cumsum(sizes) - 1]
+        uv = self._uv(first)
+        entry = self._up(np.maximum(self.bound.heights(uv, uv), first[:, 2]))
+        over = self.bound.heights(self._uv(last[:-1]), uv[1:])
+        over = np.concatenate([[np.inf], over])
+        prev = np.concatenate([first[:1], last[:-1]])
+        high = np.maximum(np.maximum(over, prev[:, 2]), first[:, 2])
+        up = np.maximum(self._up(high), entry)
+        stay = over <= np.minimum(prev[:, 2], first[:, 2])
+        # time of each way (min): a feed across against up, across, down and plunge
+        cd = self.cutting
+        d = first - prev
+        t_stay = np.sqrt((d**2).sum(1)) / cd.feed
+        t_lift = ((up - prev[:, 2]) + np.hypot(d[:, 0], d[:, 1]) + (up - entry)
+                  ) / self.rapid_feed + (entry - first[:, 2]) / cd.plunge_feed
+        stay &= t_stay <= t_lift
+        stay[0] = False
+        self.stays += int(stay.sum())
+        self.lifts += int((~stay).sum()) - 1
+        return _segment_moves(seg_pts, sizes, entry, up, stay, self.clearance)
 
 
 def scanline_stage_path(part: ZMap, stage: ScanlineStage, index: int, cutting: CuttingData,
@@ -241,7 +330,9 @@ def scanline_stage_path(part: ZMap, stage: ScanlineStage, index: int, cutting: C
                         stock_top: float, refine_tolerance: float | None = None,
                         model: F64 | None = None, spacing: tuple[float, float] | None = None,
                         region: NDArray[np.bool_] | None = None,
-                        scallop_tolerance: float | None = None, decimals: int = 4) -> StagePath:
+                        scallop_tolerance: float | None = None, decimals: int = 4,
+                        rapid_feed: float = 15_000.0,
+                        gouge_memo: MoveMemo | None = None) -> StagePath:
     """Tool path of one scan-line stage.
 
     Parameters
@@ -261,7 +352,7 @@ def scanline_stage_path(part: ZMap, stage: ScanlineStage, index: int, cutting: C
         Thinning tolerance, mm (> 0).
     stock_top : float
         The stock before the program: segments are entered from above the stock, bounded
-        by it and by the stage's whole lines (:func:`~zwcore.toolpath._scan_links.entry_heights`).
+        by it and by the stage's whole lines (:func:`~zwcore.toolpath._scan_links.link_heights`).
     refine_tolerance : float, optional
         Segments whose gouge against the part exceeds this are split (down to a sixteenth
         of the part's spacing) before the lift; default ``chord_tolerance``. A roughing
@@ -273,6 +364,12 @@ def scanline_stage_path(part: ZMap, stage: ScanlineStage, index: int, cutting: C
         Where the stage cuts, on the nodes of the model the path is computed on (e.g. its
         rest regions): only the stretches of lines over it are cut
         (:func:`~zwcore.toolpath._scan_links.region_stretches`); default everywhere.
+    gouge_memo : MoveMemo, optional
+        Gouges against ``part`` of this tool's moves measured before (shared by the stages
+        of one tool: a move another pass made is not swept again).
+    rapid_feed : float
+        Rapid rate, mm/min: a link between segments stays down or lifts, whichever the
+        time estimate favours.
     scallop_tolerance : float, optional
         For a finishing pass on the input's nodes, without a region: the pass's moves are
         swept over the part's nodes and segments added where they leave more than this
@@ -285,7 +382,8 @@ def scanline_stage_path(part: ZMap, stage: ScanlineStage, index: int, cutting: C
         ``figures``: ``lines`` (cut whole), ``extra_segments`` (the plan's), ``segments``
         (entered from above: extra segments and region stretches), ``scallop_segments``
         (added from the simulated scallop), ``points_before_thinning``, ``points``,
-        ``max_lift``.
+        ``max_lift``, ``links_down`` and ``links_lifted`` (links between segments that
+        stay down, or lift to above the stock they pass instead of the clearance).
     """
     tool = stage.tool
     mdl = stage.model if model is None else model
@@ -319,13 +417,16 @@ def scanline_stage_path(part: ZMap, stage: ScanlineStage, index: int, cutting: C
     min_len = min(part.dx, part.dy) / 16.0 if refine_tolerance is None else 0.25 * min(sx, sy)
     # the gouge measure's coarse look: blocks of a quarter of the model's spacing
     block = max(BLOCK_MIN, round(0.25 * min(sx / du, sy / dv)))
-    poly = _Polyline(part, tool, along_x, chord_tolerance, decimals, refine, min_len, block)
+    poly = _Polyline(part, tool, along_x, chord_tolerance, decimals, refine, min_len, block,
+                     gouge_memo)
     ext = tool.radius + max(part.dx, part.dy)
     pts, max_lift, n_raw, per_line = _full_lines(cl, lines.offset[full] / sy, sx, sy, extent,
                                                  ext, poly)
     parts = [Moves.lines(pts[:1], kind=RAPID), Moves.lines(pts[1:])] if len(pts) else []
     entered = _Entered(part, tool, cl, sx, sy, poly, along_x, lines.offset[full], per_line,
-                       (du, dv, shape_uv), stock_top, clearance, decimals)
+                       (du, dv, shape_uv), stock_top, clearance, decimals, cutting,
+                       rapid_feed)
+    seg_off, seg_a, seg_b = merge_stretches(seg_off, seg_a, seg_b)
     if len(seg_off):
         if len(pts):  # up from the last whole line's exit
             parts.append(Moves.lines(np.array([[pts[-1, 0], pts[-1, 1], clearance]]),
@@ -356,5 +457,6 @@ def scanline_stage_path(part: ZMap, stage: ScanlineStage, index: int, cutting: C
     figures = {"lines": float(full.sum()), "extra_segments": float(stage.extra_segments),
                "segments": float(len(seg_off)), "scallop_segments": float(n_scallop),
                "points_before_thinning": float(n_raw),
-               "points": float(len(moves)), "max_lift": max_lift}
+               "points": float(len(moves)), "max_lift": max_lift,
+               "links_down": float(entered.stays), "links_lifted": float(entered.lifts)}
     return StagePath(index, "scanline", tool, cutting, start, moves, figures)

@@ -4,7 +4,9 @@ Every move of :class:`~zwcore.toolpath.parse.ParsedProgram` is swept with the ac
 (ball or flat, looked up by tool number) on the stock grid at the part's resolution, in
 program order: lines exactly on the nodes (:func:`~zwcore.toolpath.sweep.sweep_moves`),
 arcs as chords with the radius grown by their sagitta (conservative). Each rapid is checked
-against the stock as the earlier moves left it.
+against the stock as the earlier moves left it. A move that repeats, exactly, one the same
+tool made and cut with before is not swept again: the stock is already at or under its
+envelope (it removes nothing, ``<= 0`` over the stock) and its gouge is that move's.
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ from numpy.typing import NDArray
 from zwcore.errors import InvalidInputError
 from zwcore.grid.tools import Tool
 from zwcore.grid.zmap import ZMap
+from zwcore.toolpath._repeats import repeat_of
 from zwcore.toolpath.parse import ParsedProgram
 from zwcore.toolpath.sweep import GridFrame, arc_chords, sweep_moves
 
@@ -30,6 +33,10 @@ F64 = NDArray[np.float64]
 ARC_SAGITTA_FRACTION = 1e-3
 #: Removal below this (mm) is float rounding, not cutting.
 CUT_EPS = 1e-9
+#: Skip sweeping moves that repeat, end points and radius alike, a move of the same tool
+#: stretch that cut before (:mod:`~zwcore.toolpath._repeats`): they remove nothing, their
+#: gouge is that move's (a test checks every figure is the same without the skip).
+SKIP_REPEATS = True
 #: A rapid touching the stock by less than this (mm) is a tie (a retract from the position
 #: that just cut there), not a rapid through material.
 TIE_EPS = 1e-6
@@ -138,13 +145,23 @@ def _stage(stock: F64, part: ZMap, prog: ParsedProgram, a: int, b: int, tool: To
     frame = GridFrame(part.x0, part.y0, part.dx, part.dy, part.shape)
     p0, p1, grow, owner = _as_segments(prog, a, b, ARC_SAGITTA_FRACTION * min(part.dx, part.dy))
     rapid = prog.motion[owner] == 0
-    over_stock, over_part = sweep_moves(frame, p0, p1, tool.radius + grow, tool.kind == "ball",
-                                        stock, ref=part.z, apply=~rapid)
+    radius = tool.radius + grow
+    over_stock, over_part = np.zeros(len(p0)), np.full(len(p0), -np.inf)
+    # a move that repeats one that already cut removes nothing and gouges as that one did
+    src = (repeat_of(p0, p1, radius, ~rapid) if SKIP_REPEATS
+           else np.full(len(p0), -1, np.int64))
+    new = np.flatnonzero(src < 0)
+    over_stock[new], over_part[new] = sweep_moves(frame, p0[new], p1[new], radius[new],
+                                                  tool.kind == "ball", stock, ref=part.z,
+                                                  apply=~rapid[new])
+    rep = np.flatnonzero(src >= 0)
+    over_part[rep] = over_part[src[rep]]
     met = np.zeros(b - a, bool)
     met[owner[over_stock > CUT_EPS] - a] = True
     below = np.unique(owner[over_part > CUT_EPS])
-    lengths = np.linalg.norm(prog.end[a:b] - prog.start[a:b], axis=1)
-    lengths = np.where(np.isfinite(lengths), lengths, 0.0)
+    d = prog.end[a:b] - prog.start[a:b]
+    lengths = np.sqrt(np.einsum("ij,ij->i", d, d))
+    lengths[~np.isfinite(lengths)] = 0.0
     feed = prog.motion[a:b] != 0
     rapid_pen = over_stock[rapid]
     over = None if model is None else stock - model
@@ -192,7 +209,8 @@ def simulate_program(prog: ParsedProgram, tools: Mapping[int, Tool], part: ZMap,
         raise InvalidInputError("stock", "must be a number or a grid of the part's shape")
     machined = np.ascontiguousarray(grid, dtype=np.float64).copy()
     stages: list[StageCheck] = []
-    changes = [*np.flatnonzero(np.diff(prog.tool, prepend=-1) != 0).tolist(), len(prog.tool)]
+    changes = ([0, *(np.flatnonzero(prog.tool[1:] != prog.tool[:-1]) + 1).tolist(),
+                len(prog.tool)] if len(prog.tool) else [])
     for s, (a, b) in enumerate(itertools.pairwise(changes)):
         number = int(prog.tool[a])
         if number not in tools:
