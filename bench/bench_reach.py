@@ -2,12 +2,13 @@
 
 Prints, in one run: the whole scan-line plan's time (best of ``--repeat``) with its
 phases on the synthetic part of ``bench_scanline_core.py`` at 513² and 1025², for the
-code of another tree (``--before``, default ``/work/main``: the plan without reach) and
-of this one, each in its own process, and the ratios after/before and 1025²/513²; then
+code of another checkout (``--before PATH``, e.g. a ``git worktree`` of the commit before
+reach; without it only this tree is timed) and of this one, each in its own process,
+and the ratios after/before and 1025²/513²; then
 Mount Rushmore (../shared/data) with this tree: the tool sequence, each finishing
 ball's region area, and the finishing cut length against finishing the whole part with
 the smallest ball (both region area over the flat pick-feed that holds the tolerance).
-Usage: ``python bench/bench_reach.py [--before /work/main] [--sizes 513 1025]``.
+Usage: ``python bench/bench_reach.py [--before ../zwplan-old] [--sizes 513 1025]``.
 """
 
 from __future__ import annotations
@@ -58,8 +59,10 @@ def _run(tree: str, sizes: list[int], repeat: int) -> dict[str, dict]:
     return json.loads(done.stdout.strip().splitlines()[-1])
 
 
-def _sizes(before: str, sizes: list[int], repeat: int) -> None:
-    runs = {"before": _run(before, sizes, repeat), "after": _run(str(ROOT), sizes, repeat)}
+def _sizes(before: str | None, sizes: list[int], repeat: int) -> None:
+    runs = {"after": _run(str(ROOT), sizes, repeat)}
+    if before is not None:
+        runs = {"before": _run(before, sizes, repeat), **runs}
     print("| code | cells | plan s | passes | tools | phases (s) |")
     print("| --- | --- | --- | --- | --- | --- |")
     for name, run in runs.items():
@@ -68,7 +71,7 @@ def _sizes(before: str, sizes: list[int], repeat: int) -> None:
             ph = ", ".join(f"{k} {v:.2f}" for k, v in r["phases"].items() if v >= 0.01)
             print(f"| {name} | {n}² | {r['seconds']:.2f} | {r['passes']} | "
                   f"{' > '.join(r['tools'])} | {ph} |")
-    for n in sizes:
+    for n in sizes if "before" in runs else []:
         b, a = runs["before"][str(n)]["seconds"], runs["after"][str(n)]["seconds"]
         print(f"after / before at {n}²: {a / b:.2f}")
     if len(sizes) > 1:
@@ -111,7 +114,7 @@ def _rushmore() -> None:
 
 def main() -> None:
     ap = argparse.ArgumentParser()
-    ap.add_argument("--before", default="/work/main")
+    ap.add_argument("--before", default=None)
     ap.add_argument("--sizes", type=int, nargs="*", default=[513, 1025])
     ap.add_argument("--repeat", type=int, default=1)
     ap.add_argument("--child", action="store_true")
