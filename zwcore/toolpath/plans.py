@@ -189,10 +189,14 @@ def scanline_toolpaths(part: ZMap, plan: ScanlinePlan, cl_heights: CLHeights = s
                                   refine_tolerance=_refine_tolerance(plan, st),
                                   region=regions[i],
                                   rapid_feed=rapid_feed, gouge_memo=memos[st.tool.id],
-                                  # every stage on the part's level finishes (rest balls
-                                  # follow the main one in their regions)
-                                  scallop_tolerance=(plan.tolerance if st.level == plan.depth
-                                                     and _reaches_part(plan, i) else None))
+                                  # only the plan's last pass is re-cut from its own
+                                  # simulation: an earlier ball's scallops are in the plan's
+                                  # simulated stock, so the rest regions of the balls after
+                                  # it already cover them (and a large ball's closing at the
+                                  # input resolution costs minutes: Ø20 at 1025², 114 s)
+                                  scallop_tolerance=(plan.tolerance
+                                                     if i == len(plan.stages) - 1
+                                                     and st.level == plan.depth else None))
               for i, st in enumerate(plan.stages)]
     timings = [("paths", time.perf_counter() - t)]
 
@@ -203,13 +207,6 @@ def scanline_toolpaths(part: ZMap, plan: ScanlinePlan, cl_heights: CLHeights = s
     return _finish(part, stages, settings, plan.stock_top, plan.tolerance,
                    _merge_models(stages, model) if verify else [], verify, max_bytes, reach,
                    timings)
-
-
-def _reaches_part(plan: ScanlinePlan, i: int) -> bool:
-    """Whether stage ``i`` is the last pass of its ball on the part's level (a lifted pass
-    before it does not reach the part)."""
-    st = plan.stages[i]
-    return st.pass_index == st.pass_count
 
 
 def _merge_models(stages: list[StagePath], model: Callable[[int], F64]) -> list[F64 | None]:
