@@ -80,6 +80,15 @@ def sampled_envelope(frame: GridFrame, p0, p1, r: float, ball: bool, samples: in
     return out
 
 
+def wavy_part(n: int, dx: float, seed: int, amplitude: float = 3.0) -> ZMap:
+    """A random smooth surface: three products of waves, ``n x n`` nodes ``dx`` apart."""
+    rng = np.random.default_rng(seed)
+    y, x = np.mgrid[0:n, 0:n] * dx
+    z = sum(rng.uniform(-amplitude, amplitude) * np.sin(x / rng.uniform(1, 6) + rng.uniform(0, 6))
+            * np.cos(y / rng.uniform(1, 6)) for _ in range(3))
+    return ZMap(z, rng.uniform(-5, 5), rng.uniform(-5, 5), dx, dx)
+
+
 def hemisphere_pocket(n: int = 97, dx: float = 0.25, radius: float = 8.0) -> ZMap:
     y, x = np.mgrid[0:n, 0:n] * dx
     c = (n - 1) * dx / 2
@@ -310,12 +319,7 @@ def test_scanline_program_on_the_r8_pocket_meets_the_tolerance_everywhere_it_rea
 @settings(max_examples=6, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(st.integers(0, 2**31 - 1))
 def test_scanline_program_on_random_surfaces_never_gouges(seed):
-    rng = np.random.default_rng(seed)
-    n = 33
-    y, x = np.mgrid[0:n, 0:n] * 0.5
-    z = sum(rng.uniform(-3, 3) * np.sin(x / rng.uniform(1, 6) + rng.uniform(0, 6))
-            * np.cos(y / rng.uniform(1, 6)) for _ in range(3))
-    part = ZMap(z, rng.uniform(-5, 5), rng.uniform(-5, 5), 0.5, 0.5)
+    part = wavy_part(33, 0.5, seed)
     plan, _tp, left, reach = _verify_scanline(part, 0.02)
     assert left.min() >= -1e-9
     if reach.any():

@@ -14,20 +14,13 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import zwcore.toolpath.sweep as sweep_mod
+from tests.test_toolpath import wavy_part
 from zwcore import ZMap, default_tools, plan_scanline
 from zwcore.grid.tools import Tool
 from zwcore.toolpath import parse_program, scanline_toolpaths, simulate_program
 from zwcore.toolpath._polyline import PartGouge, thin
 from zwcore.toolpath._scan_links import link_heights, merge_stretches, region_stretches
 from zwcore.toolpath.sweep import GridFrame, sweep_moves
-
-
-def _wavy(n: int, dx: float, seed: int) -> ZMap:
-    rng = np.random.default_rng(seed)
-    y, x = np.mgrid[0:n, 0:n] * dx
-    z = sum(rng.uniform(-3, 3) * np.sin(x / rng.uniform(1, 6) + rng.uniform(0, 6))
-            * np.cos(y / rng.uniform(1, 6)) for _ in range(3))
-    return ZMap(z, rng.uniform(-5, 5), rng.uniform(-5, 5), dx, dx)
 
 
 @settings(max_examples=40, deadline=None)
@@ -49,7 +42,7 @@ def test_thinning_keeps_every_dropped_point_in_the_band(zs, above, below):
 @settings(max_examples=15, deadline=None)
 @given(st.integers(0, 10_000), st.sampled_from([2, 3, 5]), st.booleans())
 def test_the_coarse_gouge_look_changes_no_value_that_matters(seed, block, ball):
-    part = _wavy(61, 0.25, seed)
+    part = wavy_part(61, 0.25, seed)
     rng = np.random.default_rng(seed)
     tool = Tool("T", "ball" if ball else "flat", rng.uniform(0.5, 4.0), 20.0)
     lo = np.array([part.x0, part.y0, part.z.min() - 1])
@@ -66,7 +59,7 @@ def test_the_coarse_gouge_look_changes_no_value_that_matters(seed, block, ball):
 
 @pytest.mark.parametrize("apply", [True, False])
 def test_threaded_sweep_is_the_single_thread_sweep(monkeypatch, apply):
-    part = _wavy(81, 0.2, 3)
+    part = wavy_part(81, 0.2, 3)
     frame = GridFrame(part.x0, part.y0, part.dx, part.dy, part.shape)
     rng = np.random.default_rng(7)
     lo = np.array([part.x0, part.y0, part.z.min()])
@@ -91,7 +84,7 @@ def test_link_heights_keep_the_ball_off_the_stock_the_whole_lines_leave(seed, ra
     # whole lines along u at a pick-feed under the radius, swept exactly over a stock; a
     # move along a random link (along the lines, across, over one point, off the stock)
     # with its tip at the bound from the lines' paths alone removes nothing, swept exactly
-    part = _wavy(51, 0.2, seed)
+    part = wavy_part(51, 0.2, seed)
     rng = np.random.default_rng(seed)
     n = part.shape[1]
     u = np.arange(n) * part.dx
@@ -138,7 +131,7 @@ def test_region_stretches_follow_the_mask():
 
 
 def test_a_region_mask_restricts_the_cut_and_keeps_every_guarantee():
-    part = _wavy(65, 0.25, 11)
+    part = wavy_part(65, 0.25, 11)
     plan = plan_scanline(part, default_tools("ball"), tolerance=0.05)
     # a hand-made mask: a disc in the middle of each stage's model
     regions = []
@@ -207,7 +200,7 @@ def test_segment_points_are_the_cl_rows_interpolated(seed):
 def test_finishing_closing_and_its_argmin_against_the_brute_envelope():
     from tests.test_toolpath import brute_cl, brute_envelope
     from zwcore.toolpath._scallop import _best_positions, finishing_closing
-    part = _wavy(41, 0.25, 5)
+    part = wavy_part(41, 0.25, 5)
     tool = Tool("B", "ball", 2.0, 10.0)
     cl = brute_cl(part, tool)
     best = finishing_closing(part, tool, cl)

@@ -10,7 +10,7 @@ import numpy as np
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from tests.test_toolpath import brute_cl, hemisphere_pocket
+from tests.test_toolpath import brute_cl, hemisphere_pocket, wavy_part
 from zwcore import ZMap, default_tools, plan_scanline
 from zwcore.toolpath import parse_program, scanline_toolpaths
 from zwcore.toolpath.sweep import GridFrame, sweep_moves
@@ -74,9 +74,4 @@ def test_segments_on_the_r8_pocket_are_linked_without_the_clearance():
 @settings(max_examples=5, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(st.integers(0, 2**31 - 1))
 def test_segment_links_never_cut_on_random_surfaces(seed):
-    rng = np.random.default_rng(seed)
-    n = 41
-    y, x = np.mgrid[0:n, 0:n] * 0.5
-    z = sum(rng.uniform(-4, 4) * np.sin(x / rng.uniform(1, 6) + rng.uniform(0, 6))
-            * np.cos(y / rng.uniform(1, 6)) for _ in range(3))
-    _check(ZMap(z, rng.uniform(-5, 5), rng.uniform(-5, 5), 0.5, 0.5), 0.02)
+    _check(wavy_part(41, 0.5, seed, amplitude=4.0), 0.02)

@@ -153,19 +153,6 @@ class PartGouge:
         return gouge
 
 
-def _pair_gouge(p0: F64, p1: F64, part: ZMap, tool: Tool) -> F64:
-    """Deepest gouge of each move ``p0[i] -> p1[i]`` against the part's nodes (``-inf``:
-    reaches no node), mm."""
-    return PartGouge(part, tool)(p0, p1)
-
-
-def segment_gouge(points: F64, part: ZMap, tool: Tool) -> F64:
-    """Deepest part node above the sweep of each segment of a polyline, mm."""
-    if len(points) < 2:
-        return np.zeros(0)
-    return _pair_gouge(points[:-1], points[1:], part, tool)
-
-
 def _split(points: F64, u: F64, gouge: F64, breaks: BOOL, measure: PartGouge, tol: float,
            min_len: float, decimals: int, rounds: int) -> tuple[F64, F64, F64]:
     """Halve segments that gouge by more than ``tol`` (midpoint xy at the output precision,

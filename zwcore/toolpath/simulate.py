@@ -25,7 +25,8 @@ from zwcore.toolpath._repeats import repeat_of
 from zwcore.toolpath.parse import ParsedProgram
 from zwcore.toolpath.sweep import GridFrame, arc_chords, sweep_moves
 
-__all__ = ["ProgramCheck", "StageCheck", "simulate_program"]
+__all__ = ["ProgramCheck", "StageCheck", "simulate_program", "simulate_stretch", "stock_grid",
+           "tool_spans"]
 
 F64 = NDArray[np.float64]
 
@@ -138,8 +139,23 @@ def _as_segments(prog: ParsedProgram, a: int, b: int, sagitta: float
     return p0[order], p1[order], grow[order], owner[order]
 
 
-def _stage(stock: F64, part: ZMap, prog: ParsedProgram, a: int, b: int, tool: Tool,
-           model: F64 | None) -> StageCheck:
+def tool_spans(prog: ParsedProgram) -> list[tuple[int, int]]:
+    """The program's tool stretches: ``(a, b)`` for moves ``a..b-1`` between tool changes."""
+    changes = ([0, *(np.flatnonzero(prog.tool[1:] != prog.tool[:-1]) + 1).tolist(),
+                len(prog.tool)] if len(prog.tool) else [])
+    return list(itertools.pairwise(changes))
+
+
+def stock_grid(stock: F64 | float, part: ZMap) -> F64:
+    """A fresh (writable) stock grid on the part's nodes from a flat top or a grid."""
+    grid = np.broadcast_to(np.asarray(stock, np.float64), part.shape)
+    if grid.shape != part.shape:
+        raise InvalidInputError("stock", "must be a number or a grid of the part's shape")
+    return np.ascontiguousarray(grid, dtype=np.float64).copy()
+
+
+def simulate_stretch(stock: F64, part: ZMap, prog: ParsedProgram, a: int, b: int, tool: Tool,
+                     model: F64 | None) -> StageCheck:
     """Run moves ``a..b-1`` of one tool on ``stock`` (in place) and measure them."""
     before = stock.copy()
     frame = GridFrame(part.x0, part.y0, part.dx, part.dy, part.shape)
@@ -204,19 +220,14 @@ def simulate_program(prog: ParsedProgram, tools: Mapping[int, Tool], part: ZMap,
     -------
     ProgramCheck
     """
-    grid = np.broadcast_to(np.asarray(stock, np.float64), part.shape)
-    if grid.shape != part.shape:
-        raise InvalidInputError("stock", "must be a number or a grid of the part's shape")
-    machined = np.ascontiguousarray(grid, dtype=np.float64).copy()
+    machined = stock_grid(stock, part)
     stages: list[StageCheck] = []
-    changes = ([0, *(np.flatnonzero(prog.tool[1:] != prog.tool[:-1]) + 1).tolist(),
-                len(prog.tool)] if len(prog.tool) else [])
-    for s, (a, b) in enumerate(itertools.pairwise(changes)):
+    for s, (a, b) in enumerate(tool_spans(prog)):
         number = int(prog.tool[a])
         if number not in tools:
             raise InvalidInputError("tools", f"the program uses T{number}, not in the tool table")
         model = stage_models[s] if stage_models is not None and s < len(stage_models) else None
-        stages.append(_stage(machined, part, prog, a, b, tools[number], model))
+        stages.append(simulate_stretch(machined, part, prog, a, b, tools[number], model))
     left = machined - part.z
     region = left if reach is None else left[reach]
     fmax = float(region.max()) if region.size else 0.0

@@ -3,7 +3,7 @@ tool stretch (issue 11 part 5: the independent check of a plan with tool paths).
 
 The program is read with :func:`~zwcore.toolpath.parse.parse_program` (what a control
 executes, independent of the path generator) and every move is swept with the active ball
-on the stock at the part's input nodes (:func:`~zwcore.toolpath.simulate.simulate_program`),
+on the stock at the part's input nodes (:func:`~zwcore.toolpath.simulate.simulate_stretch`),
 one tool stretch (the moves between two tool changes) at a time, so that each stretch's
 result can be measured against the plan: the stretch's own stage model, the next stretch's
 first model (what the next tool meets) and the part.
@@ -11,7 +11,6 @@ first model (what the next tool meets) and the part.
 
 from __future__ import annotations
 
-import itertools
 from collections.abc import Mapping
 from dataclasses import dataclass
 
@@ -23,8 +22,8 @@ from zwcore.grid.sampling import bilinear_at_fine_nodes
 from zwcore.grid.tools import Tool
 from zwcore.grid.zmap import ZMap
 from zwcore.scanline.results import ScanlinePlan, ScanlineStage
-from zwcore.toolpath.parse import ParsedProgram, parse_program
-from zwcore.toolpath.simulate import simulate_program
+from zwcore.toolpath.parse import parse_program
+from zwcore.toolpath.simulate import simulate_stretch, stock_grid, tool_spans
 
 __all__ = ["ProgramReplay", "StretchReplay", "replay_program"]
 
@@ -102,12 +101,6 @@ class ProgramReplay:
     ended: bool
 
 
-def _slice(prog: ParsedProgram, a: int, b: int) -> ParsedProgram:
-    return ParsedProgram(prog.motion[a:b], prog.start[a:b], prog.end[a:b], prog.center[a:b],
-                         prog.feed[a:b], prog.tool[a:b], prog.length_offset[a:b],
-                         prog.spindle_on[a:b], prog.arc_radius_mismatch, prog.ended)
-
-
 def _plan_stretches(plan: ScanlinePlan, numbers: Mapping[int, Tool]) -> list[tuple[int, list[int]]]:
     """The plan's passes grouped by tool change: ``(tool number, pass indices)``."""
     by_id = {tool.id: n for n, tool in numbers.items()}
@@ -159,23 +152,22 @@ def replay_program(part: ZMap, plan: ScanlinePlan, program: str, numbers: Mappin
     """
     prog = parse_program(program)
     groups = _plan_stretches(plan, numbers)
-    changes = [*np.flatnonzero(np.diff(prog.tool, prepend=-1) != 0).tolist(), len(prog.tool)]
-    spans = list(itertools.pairwise(changes))
+    spans = tool_spans(prog)
     used = [int(prog.tool[a]) for a, _ in spans]
     if used != [n for n, _ in groups]:
         raise InvalidInputError("program", f"its tool changes {used} do not follow the "
                                 f"plan's {[n for n, _ in groups]}")
-    current: F64 | float = plan.stock_top if stock is None else stock
+    # one stock grid, each stretch simulated on it in place (its figures against its model
+    # come with it; the stock after it is measured against the next model and the part)
+    current = stock_grid(plan.stock_top if stock is None else stock, part)
     stretches = []
     for k, ((a, b), (number, idx)) in enumerate(zip(spans, groups, strict=True)):
         model = _at_nodes(plan.stages[idx[-1]], part)
-        check = simulate_program(_slice(prog, a, b), numbers, part, current,
-                                 tolerance=plan.tolerance, stage_models=[model])
-        current = check.machined
+        st = simulate_stretch(current, part, prog, a, b, numbers[number], model)
+        assert st.over_model_max is not None and st.over_model_p95 is not None
+        over_model = (st.over_model_max, st.over_model_p95)
         nxt = part.z if k + 1 == len(groups) else _at_nodes(plan.stages[groups[k + 1][1][0]],
                                                            part)
-        (st,) = check.stages
-        over_model = _pair(current - model)
         on_next, on_part = _pair(current - nxt), _pair(current - part.z)
         stretches.append(StretchReplay(
             tool_number=number, tool=numbers[number], stages=tuple(idx), moves=b - a,
@@ -185,6 +177,5 @@ def replay_program(part: ZMap, plan: ScanlinePlan, program: str, numbers: Mappin
             over_model_p95=over_model[1], left_over_next_max=on_next[0],
             left_over_next_p95=on_next[1], left_over_part_max=on_part[0],
             left_over_part_p95=on_part[1]))
-    machined = np.asarray(current, dtype=np.float64)
-    return ProgramReplay(machined, tuple(stretches), len(prog.motion),
+    return ProgramReplay(current, tuple(stretches), len(prog.motion),
                          prog.arc_radius_mismatch, prog.ended)
