@@ -30,7 +30,6 @@ import zwcore.toolpath.simulate as sim_mod  # noqa: E402
 from bench.bench_scanline_core import synthetic  # noqa: E402
 from zwcore import ZMap, plan_scanline  # noqa: E402
 from zwcore.toolpath import parse_program, scanline_toolpaths, simulate_program  # noqa: E402
-from zwcore.toolpath._repeats import MoveMemo  # noqa: E402
 from zwcore.toolpath.plans import _refine_tolerance, tool_numbers  # noqa: E402
 from zwcore.toolpath.scanline_paths import scanline_stage_path, sim_cl_heights  # noqa: E402
 
@@ -129,33 +128,20 @@ def end_to_end_1025() -> None:
 
 
 def repeats_off(part: ZMap, plan, tp) -> None:
-    """Same run: the paths without the gouge memo shared by a tool's stages, and the
-    simulation sweeping every move again (repeats included): the former method."""
-    data = tool_numbers(list(dict.fromkeys(s.tool for s in plan.stages)), None)
-    memos = {t.id: MoveMemo() for t in dict.fromkeys(s.tool for s in plan.stages)}
-    times = []
-    for memo in (False, True):
-        t, c = time.perf_counter(), time.process_time()
-        for i, st in enumerate(plan.stages):
-            scanline_stage_path(part, st, i, data[st.tool.id], CL, clearance=plan.stock_top + 5,
-                                chord_tolerance=0.25 * plan.tolerance, stock_top=plan.stock_top,
-                                refine_tolerance=_refine_tolerance(plan, st),
-                                scallop_tolerance=(plan.tolerance
-                                                   if i == len(plan.stages) - 1 else None),
-                                gouge_memo=memos[st.tool.id] if memo else None)
-        times.append((time.perf_counter() - t, time.process_time() - c))
+    """Same run: the simulation sweeping every move again (repeats included), the former
+    method, against skipping repeats."""
     prog = parse_program(tp.program)
     table = {p.cutting.tool_number: p.tool for p in tp.stages}
+    times = []
     for skip in (False, True):
         sim_mod.SKIP_REPEATS = skip
         t, c = time.perf_counter(), time.process_time()
         simulate_program(prog, table, part, plan.stock_top, tolerance=plan.tolerance)
         times.append((time.perf_counter() - t, time.process_time() - c))
     sim_mod.SKIP_REPEATS = True
-    (a, ac), (b, bc), (c_, cc), (d, dc) = times
-    print(f"  same run, repeats measured again / skipped: paths {a:.2f} s ({ac:.2f} s CPU) / "
-          f"{b:.2f} s ({bc:.2f} s CPU); simulation {c_:.2f} s ({cc:.2f} s CPU) / {d:.2f} s "
-          f"({dc:.2f} s CPU)")
+    (a, ac), (b, bc) = times
+    print(f"  same run, repeats swept again / skipped: simulation {a:.2f} s ({ac:.2f} s CPU)"
+          f" / {b:.2f} s ({bc:.2f} s CPU)")
 
 
 def main() -> None:

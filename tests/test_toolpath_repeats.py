@@ -20,7 +20,7 @@ from zwcore.toolpath import (
     program_text,
     simulate_program,
 )
-from zwcore.toolpath._repeats import MoveMemo, repeat_of
+from zwcore.toolpath._repeats import repeat_of
 from zwcore.toolpath.program import ARC_CCW, ARC_CW, LINE, RAPID
 
 
@@ -103,58 +103,3 @@ def test_skipping_repeats_changes_no_figure(seed):
     src = repeat_of(prog.start[known], prog.end[known], np.zeros(known.sum()),
                     prog.motion[known] > 0)
     assert (src >= 0).sum() >= 15
-
-
-@settings(max_examples=30, deadline=None)
-@given(st.integers(0, 2**31 - 1))
-def test_move_memo_holds_what_was_stored(seed):
-    # stored in batches (with repeats inside a batch and across), looked up against a dict
-    rng = np.random.default_rng(seed)
-    memo, ref = MoveMemo(), {}
-    pool = np.round(rng.uniform(-2, 2, (40, 6)), 1)
-    pool[:5, :3] = -0.0  # -0.0 and 0.0 are one key
-    for _ in range(int(rng.integers(1, 8))):
-        pick = pool[rng.integers(0, 40, int(rng.integers(1, 400)))]
-        pick[rng.random(len(pick)) < 0.2] *= -1.0  # some signs flipped (0.0 -> -0.0)
-        keys = [(pick[i] + 0.0).tobytes() for i in range(len(pick))]
-        row = memo.lookup(pick[:, :3], pick[:, 3:])
-        for k, r in zip(keys, row, strict=True):
-            assert (r >= 0) == (k in ref)
-            if r >= 0:
-                assert memo.values[r] == ref[k]
-        new = row < 0
-        vals = rng.normal(size=int(new.sum()))
-        memo.store(pick[new, :3], pick[new, 3:], vals)
-        for k, v in zip([k for k, n in zip(keys, new, strict=True) if n], vals, strict=True):
-            ref.setdefault(k, v)
-    row = memo.lookup(pool[:, :3], pool[:, 3:])
-    for i, r in enumerate(row):
-        assert (r >= 0) == ((pool[i] + 0.0).tobytes() in ref)
-
-
-def test_a_shared_gouge_memo_changes_no_path():
-    # every stage of a plan computed with one memo per tool and with none: the same moves
-    from tests.test_toolpath import hemisphere_pocket
-    from zwcore import default_tools, plan_scanline
-    from zwcore.toolpath.plans import _refine_tolerance, tool_numbers
-    from zwcore.toolpath.scanline_paths import scanline_stage_path, sim_cl_heights
-
-    part = hemisphere_pocket()
-    plan = plan_scanline(part, default_tools("ball"), tolerance=0.01)
-    data = tool_numbers(list(dict.fromkeys(s.tool for s in plan.stages)), None)
-    memos = {s.tool.id: MoveMemo() for s in plan.stages}
-    for i, stage in enumerate(plan.stages):
-        kw = dict(clearance=plan.stock_top + 5, chord_tolerance=0.25 * plan.tolerance,
-                  stock_top=plan.stock_top, refine_tolerance=_refine_tolerance(plan, stage))
-        a = scanline_stage_path(part, stage, i, data[stage.tool.id], sim_cl_heights, **kw)
-        b = scanline_stage_path(part, stage, i, data[stage.tool.id], sim_cl_heights, **kw,
-                                gouge_memo=memos[stage.tool.id])
-        np.testing.assert_array_equal(a.moves.end, b.moves.end)
-        np.testing.assert_array_equal(a.moves.kind, b.moves.kind)
-        held = memos[stage.tool.id].size
-        # a second run with the memo finds every move it measures there: nothing new
-        c = scanline_stage_path(part, stage, i, data[stage.tool.id], sim_cl_heights, **kw,
-                                gouge_memo=memos[stage.tool.id])
-        np.testing.assert_array_equal(a.moves.end, c.moves.end)
-        assert memos[stage.tool.id].size == held
-    assert max(m.size for m in memos.values()) > 1000  # the finishing pass measured there

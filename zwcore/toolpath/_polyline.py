@@ -11,15 +11,12 @@ the tool's width plus a disc at its end, and the discs dominate short moves.
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
 from zwcore.grid.tools import Tool
 from zwcore.grid.zmap import ZMap
-from zwcore.toolpath._repeats import MoveMemo
 from zwcore.toolpath.sweep import GridFrame, sweep_moves
 
 F64 = NDArray[np.float64]
@@ -92,14 +89,10 @@ class PartGouge:
     any node; only the others are swept over the part's own nodes. The values that decide a
     lift or a split (``> 0``) are always the exact ones, so the path is the same as with
     ``block = 1``, at a cost that scales with the coarse grid for moves clear of the part.
-
-    With a ``memo`` (one per tool and part) a move measured before, bit for bit (another
-    pass of the tool over the part), takes its stored exact gouge instead of a sweep.
     """
 
-    def __init__(self, part: ZMap, tool: Tool, block: int = 1, memo: MoveMemo | None = None):
+    def __init__(self, part: ZMap, tool: Tool, block: int = 1):
         self.part, self.tool, self.block = part, tool, max(1, int(block))
-        self.memo = memo
         self.ball = tool.kind == "ball"
         self.frame = GridFrame(part.x0, part.y0, part.dx, part.dy, part.shape)
         if self.block > 1:
@@ -131,25 +124,8 @@ class PartGouge:
         return out
 
     def _fine(self, p0: F64, p1: F64) -> F64:
-        if self.memo is None or not self.memo.active or not len(p0):
-            _, gouge = sweep_moves(self.frame, p0, p1, self.tool.radius, self.ball,
-                                   self.part.z, ref=self.part.z, apply=False)
-            return gouge
-        # a move measured before (another pass of the tool over the same part) is not swept
-        t0 = time.perf_counter()
-        row = self.memo.lookup(p0, p1)
-        gouge = np.empty(len(p0))
-        held = row >= 0
-        gouge[held] = self.memo.values[row[held]]
-        new = np.flatnonzero(~held)
-        t1 = t2 = time.perf_counter()
-        if len(new):
-            _, gouge[new] = sweep_moves(self.frame, p0[new], p1[new], self.tool.radius,
-                                        self.ball, self.part.z, ref=self.part.z, apply=False)
-            t2 = time.perf_counter()
-            self.memo.store(p0[new], p1[new], gouge[new])
-        self.memo.account(t1 - t0 + time.perf_counter() - t2, t2 - t1, int(held.sum()),
-                          len(new))
+        _, gouge = sweep_moves(self.frame, p0, p1, self.tool.radius, self.ball,
+                               self.part.z, ref=self.part.z, apply=False)
         return gouge
 
 

@@ -2,11 +2,9 @@
 
 A scan-line plan's flute-length passes re-follow what the passes before them finished: on
 the 1025² part 77 % of the Ø1 ball's moves are, to the last bit, moves it made before. A
-move is keyed by its start, its end and its radius. What depends only on that sweep and a
-fixed surface (its gouge against the part) is the same for every repeat
-(:class:`MoveMemo`), and a repeat of a move that already cut the stock removes nothing: the
-stock is already at or under its envelope and only goes down (:func:`repeat_of`). So
-neither needs sweeping again, and no result changes.
+move is keyed by its start, its end and its radius. A repeat of a move that already cut the
+stock removes nothing: the stock is already at or under its envelope and only goes down
+(:func:`repeat_of`). So it needs no sweep, and no result changes.
 """
 
 from __future__ import annotations
@@ -20,7 +18,7 @@ I64 = NDArray[np.int64]
 #: The bits of -0.0 (compared and hashed as 0.0).
 _NEG_ZERO = np.int64(-(2**63))
 
-__all__ = ["MoveMemo", "repeat_of"]
+__all__ = ["repeat_of"]
 
 
 def repeat_of(p0: F64, p1: F64, radius: F64, insert: NDArray[np.bool_]) -> NDArray[np.int64]:
@@ -55,69 +53,6 @@ def repeat_of(p0: F64, p1: F64, radius: F64, insert: NDArray[np.bool_]) -> NDArr
 def _bits(a: F64) -> I64:
     """The float64 bits of ``(n, 3)`` points as int64 (a view when contiguous)."""
     return np.ascontiguousarray(a, np.float64).reshape(-1, 3).view(np.int64)
-
-
-#: Moves looked up before a memo's cost is weighed (:attr:`MoveMemo.active`).
-MEMO_TRIAL = 200_000
-
-
-class MoveMemo:
-    """Values of moves measured before (e.g. their gouge against a fixed part), kept across
-    calls: a growing hash table over the moves' start and end points (one memo per tool
-    and surface). Its users report the seconds its lookups and their sweeps took
-    (:meth:`account`) and stop asking (:attr:`active`) once, after :data:`MEMO_TRIAL`
-    lookups, the sweeps it saved (its hits at the measured seconds per swept move) cost
-    less than it did: short moves on a small part sweep faster than a lookup in a large
-    table. The values are the measured ones either way: only the time changes."""
-
-    def __init__(self) -> None:
-        self.looked = self.found = 0
-        self.cost = self.saved = 0.0
-        self.table = np.full(1024, -1, np.int64)
-        self.p0: F64 = np.empty((512, 3))
-        self.p1: F64 = np.empty((512, 3))
-        self.values: F64 = np.empty(512)
-        self.size = 0
-
-    def lookup(self, p0: F64, p1: F64) -> NDArray[np.int64]:
-        """Row of each move in :attr:`values`, or -1."""
-        out = np.empty(len(p0), np.int64)
-        _lookup_kernel(self.table, _bits(self.p0), _bits(self.p1), _bits(p0), _bits(p1), out)
-        self.looked += len(out)
-        self.found += int((out >= 0).sum())
-        return out
-
-    def account(self, memo_seconds: float, sweep_seconds: float, found: int, swept: int
-                ) -> None:
-        """Seconds spent on lookups and stores, and on sweeping ``swept`` moves while
-        ``found`` were answered."""
-        self.cost += memo_seconds
-        self.saved += found * sweep_seconds / max(swept, 1)
-
-    @property
-    def active(self) -> bool:
-        """Whether the lookups have paid so far (or too few were made to tell)."""
-        return self.looked < MEMO_TRIAL or self.saved > self.cost
-
-    def store(self, p0: F64, p1: F64, values: F64) -> None:
-        """Remember ``values`` of moves ``p0 -> p1`` (a move already held keeps its row)."""
-        n, m = len(p0), self.size
-        if m + n > len(self.values):
-            cap = max(2 * len(self.values), m + n)
-            grown = [np.empty((cap, 3)), np.empty((cap, 3)), np.empty(cap)]
-            for new, old in zip(grown, (self.p0, self.p1, self.values), strict=True):
-                new[:m] = old[:m]
-            self.p0, self.p1, self.values = grown
-        self.p0[m:m + n], self.p1[m:m + n], self.values[m:m + n] = p0, p1, values
-        if 2 * (m + n) + 2 > len(self.table):  # rehash everything at load <= 1/2
-            cap = len(self.table)
-            while cap < 2 * (m + n) + 2:
-                cap *= 2
-            self.table = np.full(2 * cap, -1, np.int64)
-            _insert_kernel(self.table, _bits(self.p0), _bits(self.p1), 0, m + n)
-        else:
-            _insert_kernel(self.table, _bits(self.p0), _bits(self.p1), m, m + n)
-        self.size = m + n
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -173,34 +108,3 @@ def _repeat_kernel(p0: I64, p1: I64, r: I64, insert: NDArray[np.bool_],
                 src[i] = j
                 break
             slot = (slot + np.uint64(1)) & mask
-
-
-@njit(cache=True, nogil=True)
-def _find(table: I64, s0: I64, s1: I64, q0: I64, q1: I64, i: int, none: I64
-          ) -> tuple[int, np.uint64]:
-    """(stored row equal to query ``i`` or -1, the slot where the search ended); ``none``
-    an empty array (no radius)."""
-    mask = np.uint64(len(table) - 1)
-    slot = _slot(q0, q1, none, i, mask)
-    while True:
-        j = table[slot]
-        if j < 0 or _same(s0, s1, none, j, q0, q1, none, i):
-            return j, slot
-        slot = (slot + np.uint64(1)) & mask
-
-
-@njit(cache=True, nogil=True)
-def _lookup_kernel(table: I64, s0: I64, s1: I64, q0: I64, q1: I64, out: I64) -> None:
-    none = np.empty(0, np.int64)
-    for i in range(len(q0)):
-        out[i] = _find(table, s0, s1, q0, q1, i, none)[0]
-
-
-@njit(cache=True, nogil=True)
-def _insert_kernel(table: I64, s0: I64, s1: I64, a: int, b: int) -> None:
-    """Enter stored rows ``a..b-1`` (a row equal to one held already is skipped)."""
-    none = np.empty(0, np.int64)
-    for i in range(a, b):
-        j, slot = _find(table, s0, s1, s0, s1, i, none)
-        if j < 0:
-            table[slot] = i

@@ -22,7 +22,6 @@ from zwcore.grid.sampling import bilinear_at_fine_nodes, cells_at_fine_nodes
 from zwcore.grid.tools import Tool
 from zwcore.grid.zmap import ZMap, finite_number
 from zwcore.scanline.results import ScanlinePlan, ScanlineStage
-from zwcore.toolpath._repeats import MoveMemo
 from zwcore.toolpath.contour_paths import contour_stage_path
 from zwcore.toolpath.parse import parse_program
 from zwcore.toolpath.program import CuttingData, ProgramSettings, StagePath
@@ -182,13 +181,12 @@ def scanline_toolpaths(part: ZMap, plan: ScanlinePlan, cl_heights: CLHeights = s
         raise InvalidInputError("regions", f"one per stage ({len(plan.stages)}), got "
                                 f"{len(regions)}")
     t = time.perf_counter()
-    memos = {tool.id: MoveMemo() for tool in tools}  # each tool's gouges against the part
     stages = [scanline_stage_path(part, st, i, data[st.tool.id], cl_heights, clearance=clear,
                                   chord_tolerance=CHORD_FRACTION * plan.tolerance,
                                   stock_top=plan.stock_top,
                                   refine_tolerance=_refine_tolerance(plan, st),
                                   region=regions[i],
-                                  rapid_feed=rapid_feed, gouge_memo=memos[st.tool.id],
+                                  rapid_feed=rapid_feed,
                                   # only the plan's last pass is re-cut from its own
                                   # simulation: an earlier ball's scallops are in the plan's
                                   # simulated stock, so the rest regions of the balls after

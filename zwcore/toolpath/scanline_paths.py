@@ -28,7 +28,6 @@ from zwcore.grid.zmap import ZMap
 from zwcore.scanline.results import ScanlineStage
 from zwcore.sim import drop_cutter
 from zwcore.toolpath._polyline import PartGouge, follow_part
-from zwcore.toolpath._repeats import MoveMemo
 from zwcore.toolpath._scallop import fine_points, finishing_closing, scallop_segments
 from zwcore.toolpath._scan_links import StockBound, merge_stretches, region_stretches
 from zwcore.toolpath.program import LINE, RAPID, CuttingData, Moves, StagePath
@@ -102,9 +101,9 @@ class _Polyline:
     """Builds a path (xy rounded to the output) through the refine, thin and lift steps."""
 
     def __init__(self, part: ZMap, tool: Tool, along_x: bool, chord: float, decimals: int,
-                 refine: float, min_len: float, block: int = 1, memo: MoveMemo | None = None):
+                 refine: float, min_len: float, block: int = 1):
         self.part, self.tool, self.along_x = part, tool, along_x
-        self.measure = PartGouge(part, tool, block, memo)
+        self.measure = PartGouge(part, tool, block)
         self.chord, self.decimals = chord, decimals
         self.refine, self.min_len = refine, min_len
 
@@ -331,8 +330,7 @@ def scanline_stage_path(part: ZMap, stage: ScanlineStage, index: int, cutting: C
                         model: F64 | None = None, spacing: tuple[float, float] | None = None,
                         region: NDArray[np.bool_] | None = None,
                         scallop_tolerance: float | None = None, decimals: int = 4,
-                        rapid_feed: float = 15_000.0,
-                        gouge_memo: MoveMemo | None = None) -> StagePath:
+                        rapid_feed: float = 15_000.0) -> StagePath:
     """Tool path of one scan-line stage.
 
     Parameters
@@ -364,9 +362,6 @@ def scanline_stage_path(part: ZMap, stage: ScanlineStage, index: int, cutting: C
         Where the stage cuts, on the nodes of the model the path is computed on (e.g. its
         rest regions): only the stretches of lines over it are cut
         (:func:`~zwcore.toolpath._scan_links.region_stretches`); default everywhere.
-    gouge_memo : MoveMemo, optional
-        Gouges against ``part`` of this tool's moves measured before (shared by the stages
-        of one tool: a move another pass made is not swept again).
     rapid_feed : float
         Rapid rate, mm/min: a link between segments stays down or lifts, whichever the
         time estimate favours.
@@ -417,8 +412,7 @@ def scanline_stage_path(part: ZMap, stage: ScanlineStage, index: int, cutting: C
     min_len = min(part.dx, part.dy) / 16.0 if refine_tolerance is None else 0.25 * min(sx, sy)
     # the gouge measure's coarse look: blocks of a quarter of the model's spacing
     block = max(BLOCK_MIN, round(0.25 * min(sx / du, sy / dv)))
-    poly = _Polyline(part, tool, along_x, chord_tolerance, decimals, refine, min_len, block,
-                     gouge_memo)
+    poly = _Polyline(part, tool, along_x, chord_tolerance, decimals, refine, min_len, block)
     ext = tool.radius + max(part.dx, part.dy)
     pts, max_lift, n_raw, per_line = _full_lines(cl, lines.offset[full] / sy, sx, sy, extent,
                                                  ext, poly)
