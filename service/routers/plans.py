@@ -250,25 +250,27 @@ async def post_scanline_plan(body: ScanlinePlanRequest, request: Request, settin
               "include_models": body.include_models}
     job = (ToolpathJob(body, tools, store, settings.max_program_bytes, "plan_scanline", params,
                        zmap) if body.toolpaths else None)
-    response = await serve_task(
+
+    def compute() -> dict[str, Any]:
+        result = scanline_result(zmap, tools, body.tolerance, body.stock_top,
+                                 body.include_models, job)
+        # computed once per task id (a cache hit reuses what was kept with the result)
+        keep_plan_inputs(store, request.state.task_id, params)
+        return result
+
+    return await serve_task(
         request, store, pool, operation="plan_scanline", params=params, arrays={"z": zmap.z},
-        compute=lambda: scanline_result(zmap, tools, body.tolerance, body.stock_top,
-                                        body.include_models, job),
-        encoding=encoding, respond_async=respond_async,
+        compute=compute, encoding=encoding, respond_async=respond_async,
         memory=zmap.z.size * (SCANLINE_MODELS_BYTES if body.include_models else SCANLINE_BYTES))
-    if response.status_code in (200, 202):
-        await anyio.to_thread.run_sync(keep_plan_inputs, store, request.state.task_id, params)
-    return response
 
 
 def keep_plan_inputs(store: TaskStore, task_id: str, params: dict[str, Any]) -> None:
-    """Keep what a scan-line plan was computed from beside its result (once; small): what
+    """Keep what a scan-line plan was computed from beside its result (small): what
     ``POST /v1/simulate`` with its task id plans again from (the part comes with that
     request and must hash, with these parameters, to the task id)."""
-    key = plan_inputs_key(task_id)
-    if store.get(key) is None:
-        store.put(key, orjson.dumps({"operation": "plan_scanline", "core_build": core_build(),
-                                     "params": params}))
+    store.put(plan_inputs_key(task_id),
+              orjson.dumps({"operation": "plan_scanline", "core_build": core_build(),
+                            "params": params}))
 
 
 @router.post("/contour", response_model=ContourPlanResult, operation_id="plan_contour",
