@@ -154,18 +154,26 @@ def _rounding(stock_top: float, z: np.ndarray) -> float:
 
 # ---------------------------------------------------------------- the plan, simulated again
 
-def test_a_plan_without_toolpaths_replays_its_passes(client: TestClient) -> None:
-    z = part_heights()
-    plan = _plan(client, z, toolpaths=False)
+def _plan_simulated(client: TestClient, z: np.ndarray, *, toolpaths: bool,
+                    ) -> tuple[dict, SimulateResult, np.ndarray]:
+    """A plan of ``z`` simulated by its task id: the plan, the result and the machined
+    surface, which does not gouge the part (measured here)."""
+    plan = _plan(client, z, toolpaths=toolpaths)
     r = _simulate(client, z, plan["task_id"])
     assert r.status_code == 200, r.text
     res = SimulateResult.model_validate(r.json())
-    assert res.cl_source == "plan_passes" and res.plan is not None
-    assert res.plan.source == "passes" and res.plan.task_id == plan["task_id"]
-    assert res.tool is None and res.depth_of_cut is None
+    assert res.cl_source == ("plan_program" if toolpaths else "plan_passes")
+    assert res.plan is not None and res.plan.task_id == plan["task_id"]
     machined = grid_array(r.json()["machined"])
-    # no gouge against the part, measured here
     assert res.gouge == 0.0 and (machined - z).min() >= -1e-12
+    return plan, res, machined
+
+
+def test_a_plan_without_toolpaths_replays_its_passes(client: TestClient) -> None:
+    z = part_heights()
+    plan, res, machined = _plan_simulated(client, z, toolpaths=False)
+    assert res.plan is not None and res.plan.source == "passes"
+    assert res.tool is None and res.depth_of_cut is None
     # the machined surface is the numpy re-simulation's, to float rounding
     ref, left = _brute_passes(ZMap(z, dx=DX, dy=DX))
     tol = _rounding(plan["stock_top"], z)
@@ -195,14 +203,9 @@ def test_a_plan_without_toolpaths_replays_its_passes(client: TestClient) -> None
 
 def test_a_plan_with_toolpaths_simulates_its_program(client: TestClient) -> None:
     z = part_heights()
-    plan = _plan(client, z, toolpaths=True)
-    r = _simulate(client, z, plan["task_id"])
-    assert r.status_code == 200, r.text
-    res = SimulateResult.model_validate(r.json())
-    assert res.cl_source == "plan_program" and res.plan is not None
+    plan, res, machined = _plan_simulated(client, z, toolpaths=True)
+    assert res.plan is not None
     assert res.plan.source == "program" and res.plan.program_ended
-    machined = grid_array(r.json()["machined"])
-    assert res.gouge == 0.0 and (machined - z).min() >= -1e-12
     assert res.plan.rapid_in_material == 0.0 and res.plan.below_part_moves == 0
     # the program, read by the tests' own reader and swept by brute force
     text = client.get(f"/v1/tasks/{plan['task_id']}/program").text

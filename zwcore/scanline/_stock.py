@@ -12,7 +12,7 @@ the level's grid lines whole, the extra segments where the plan has them), every
   z(q) - h(|q - c|)`` (no position cuts below a node of the part);
 - the flute rule reads the stock before the pass: ``top(c)``, the highest stock node
   within ``R`` of the axis, and ``depth(c) = top(c) - CL(c)`` must stay at most the flute
-  length ``L``; the planner lifts the pass where it would not (:func:`flute_lift`);
+  length ``L``; the planner lifts the pass where it would not (:func:`run_pass`);
 - the stock after the pass is ``min(stock, CL(c) + h(|p - c|))`` at every input node
   ``p`` within ``R`` of a position: exact at the nodes for the positions.
 
@@ -66,9 +66,7 @@ __all__ = [
     "SimulatedPass",
     "StockSim",
     "block_max",
-    "cl_on_model",
     "drop",
-    "flute_lift",
     "interpolate",
     "left_over",
     "positions",
@@ -126,30 +124,9 @@ def positions(lines: ScanLines, part: ZMap, stride: int,
     return Positions(np.ascontiguousarray(x), np.ascontiguousarray(y))
 
 
-def cl_on_model(model: F64, sx: float, sy: float, tool: Tool, pos: Positions) -> F64:
-    """Drop-cutter CL on the model's own nodes, bilinear between them, at the positions."""
-    cl = drop_cutter(ZMap(model, dx=sx, dy=sy), tool, "bilinear")
-    return interpolate(cl, sx, sy, pos)
-
-
 def interpolate(grid: F64, sx: float, sy: float, pos: Positions) -> F64:
     """Bilinear interpolation of node values ``grid`` at the positions (clamped to the grid)."""
     return _k.interpolate(np.ascontiguousarray(grid), 1.0 / sx, 1.0 / sy, pos.x, pos.y)
-
-
-def flute_lift(model: F64, sx: float, sy: float, pos: Positions, need: F64) -> int:
-    """Raise the model's nodes so its bilinear surface is at least ``need`` at the positions.
-
-    Every corner of the model cell holding a position rises to at least ``need`` there
-    (in place): the bilinear surface over that cell is then at least ``need`` at the
-    position, so is the drop-cutter CL there (the tip never lies below the surface under
-    it), and so is the tool path's CL, bilinear between corner CLs that each are. Returns
-    the number of nodes raised.
-    """
-    if pos.size == 0:
-        return 0
-    return int(_k.raise_corners(model, 1.0 / sx, 1.0 / sy, pos.x, pos.y,
-                              np.ascontiguousarray(need, dtype=np.float64)))
 
 
 def left_over(stock: F64, surface: F64) -> tuple[float, float]:
@@ -311,8 +288,7 @@ def run_pass(sim: StockSim, model: F64, spacing: tuple[float, float], tool: Tool
     if bind.any():
         bound = Positions(pos.x[cand[bind]], pos.y[cand[bind]])
         if state.thin.k == 1:
-            lifted = _lift(model, spacing, bound, _on_nodes(bound, *spacing),
-                           np.ones(bound.size, dtype=bool), need[bind])
+            lifted = _lift(model, spacing, bound, _on_nodes(bound, *spacing), need[bind])
         else:
             lifted = state.thin.lift(model, spacing, bound, need[bind])
     new = np.where(bind, need, base[cand])
@@ -420,9 +396,10 @@ class _Thinning:
 
 
 def _lift(model: F64, spacing: tuple[float, float], pos: Positions, node: NDArray[np.bool_],
-          bind: NDArray[np.bool_], need: F64) -> int:
-    """Raise ``model`` (in place) so the tool path's CL is at least ``need`` at the binding
-    positions; returns the number of nodes raised.
+          need: F64) -> int:
+    """Raise ``model`` (in place) so the tool path's CL is at least ``need`` at the
+    (binding) positions; ``node``: those on a model node. Returns the number of nodes
+    raised.
 
     A binding position on a model node raises that node; one between nodes raises the
     corners that carry weight in its bilinear value. Either way the model under the
@@ -435,9 +412,8 @@ def _lift(model: F64, spacing: tuple[float, float], pos: Positions, node: NDArra
     the simulated CL next to a lift (it cuts less there, never more).
     """
     sx, sy = spacing
-    sel = np.flatnonzero(bind)
-    return int(_k.lift_nodes(model, 1.0 / sx, 1.0 / sy, pos.x[sel], pos.y[sel],
-                             np.ascontiguousarray(need[sel]), node[sel]))
+    return int(_k.lift_nodes(model, 1.0 / sx, 1.0 / sy, pos.x, pos.y,
+                             np.ascontiguousarray(need), node))
 
 
 def target_drop(model: F64, sx: float, sy: float, tool: Tool, positions: int) -> F64 | None:

@@ -17,7 +17,7 @@ from numpy.typing import NDArray
 __all__ = ["block_max", "blocks_diff_max", "blocks_lowered", "cl_part", "cut", "diff_max_p95",
            "disc_max", "interpolate", "lift_nodes", "lower", "may_cut", "near_blocks",
            "node_index", "on_nodes", "points", "positive_max_mean", "raise_box",
-           "raise_corners", "top"]
+           "top"]
 
 F64 = NDArray[np.float64]
 
@@ -147,27 +147,6 @@ def interpolate(grid: F64, isx: float, isy: float, px: F64, py: F64) -> F64:
         hi = grid[r1, c0] * (1.0 - tx) + grid[r1, c1] * tx
         out[n] = lo * (1.0 - ty) + hi * ty
     return out
-@njit(cache=True, nogil=True)
-def raise_corners(model: F64, isx: float, isy: float, px: F64, py: F64, need: F64) -> int:
-    """Raise to ``need`` every corner that carries weight in the bilinear value at each
-    position (a position on a grid line leaves the other row of its cell alone)."""
-    my, mx = model.shape
-    raised = 0
-    for n in range(px.size):
-        fx, fy = px[n] * isx, py[n] * isy
-        c0 = min(max(math.floor(fx), 0), max(mx - 2, 0))
-        r0 = min(max(math.floor(fy), 0), max(my - 2, 0))
-        tx, ty = fx - c0, fy - r0
-        for r in (r0, min(r0 + 1, my - 1)):
-            if (r != r0 and ty <= 0.0) or (r == r0 and r0 + 1 < my and ty >= 1.0):
-                continue
-            for c in (c0, min(c0 + 1, mx - 1)):
-                if (c != c0 and tx <= 0.0) or (c == c0 and c0 + 1 < mx and tx >= 1.0):
-                    continue
-                if model[r, c] < need[n]:
-                    model[r, c] = need[n]
-                    raised += 1
-    return raised
 
 
 @njit(cache=True, nogil=True)
@@ -422,8 +401,9 @@ def diff_max_p95(a: F64, s: F64) -> tuple[float, float]:
 @njit(cache=True, nogil=True)
 def lift_nodes(model: F64, isx: float, isy: float, px: F64, py: F64, need: F64,
                on: NDArray[np.bool_]) -> int:
-    """Raise to ``need``: the node under each position ``on`` a node, else the corners
-    :func:`raise_corners` raises. Returns the number of distinct nodes raised."""
+    """Raise to ``need``: the node under each position ``on`` a node, else every corner
+    that carries weight in the bilinear value there (a position on a grid line leaves the
+    other row of its cell alone). Returns the number of distinct nodes raised."""
     my, mx = model.shape
     raised = np.empty(4 * px.size, dtype=np.int64)
     m = 0

@@ -31,6 +31,7 @@ from zwcore.grid.sampling import bilinear_at_fine_nodes
 from zwcore.grid.tools import Tool
 from zwcore.grid.zmap import ZMap
 from zwcore.scanline._stock import StockSim, left_over, run_pass
+from zwcore.scanline.planner import _guard as rounding_guard
 from zwcore.scanline.results import ScanlinePlan, ScanlineStage
 
 __all__ = ["PassReplay", "PlanReplay", "replay_passes"]
@@ -95,11 +96,11 @@ class PlanReplay:
 
 
 def _guard(part: ZMap, plan: ScanlinePlan) -> float:
-    """A few ulps of the heights in play: the planner lifts a position when the stock it
-    meets exceeds the flute length by more than such a guard (rounding, not cutting)."""
-    magnitude = max(1.0, abs(plan.stock_top), float(np.abs(part.z).max()),
-                    *(s.tool.flute_length for s in plan.stages))
-    return 64.0 * float(np.finfo(np.float64).eps) * magnitude
+    """A few ulps of the heights in play (the planner's rounding guard): the planner lifts
+    a position when the stock it meets exceeds the flute length by more than such a
+    guard (rounding, not cutting)."""
+    return rounding_guard(plan.stock_top, float(np.abs(part.z).max()),
+                          *(s.tool.flute_length for s in plan.stages))
 
 
 def _targets(plan: ScanlinePlan) -> list[F64]:
