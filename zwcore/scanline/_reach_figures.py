@@ -19,7 +19,6 @@ from numpy.typing import NDArray
 
 from zwcore.grid.tools import Tool
 from zwcore.grid.zmap import ZMap
-from zwcore.scanline._reach import concave_radii
 from zwcore.scanline._regions import TOOL_CHANGE_MM, Chain, flat_pick_feed, region_boxes
 from zwcore.scanline._rest import RestRegion
 from zwcore.scanline._tool_choice import Stage
@@ -69,7 +68,7 @@ def with_reach(zmap: ZMap, stages: list[ScanlineStage], checks: ScanlineChecks,
     chosen : sequence of Stage
         The stages as chosen (finishing rest stages carry their :class:`RestRegion`).
     chain : Chain
-        The estimate that ranked the main ball.
+        The estimate that ranked the main ball (and the part's concave radii).
     final_stock : (ny, nx) float64
         The simulated stock after the last pass.
     tol : float
@@ -107,7 +106,7 @@ def with_reach(zmap: ZMap, stages: list[ScanlineStage], checks: ScanlineChecks,
     unreachable = float(above.sum()) * dx * dy
     height = float(left[above].max()) if above.any() else 0.0
     last = out[-1].tool
-    rho = concave_radii(zmap.z, dx, dy)
+    rho = chain.rho  # the part's concave radii
     sharp = above & (rho < last.radius)  # a smaller ball would be needed there
     need = float(rho[sharp].min()) if sharp.any() else math.inf
     if above.any():

@@ -109,11 +109,15 @@ class Chain:
     main : MainBall
     smallest_everywhere : float
         Cut length if the smallest library ball finished the whole part, mm.
+    rho : (ny, nx) float64
+        The part's concave radii (:func:`zwcore.scanline._reach.concave_radii`), for the
+        rest rules and the reach figures (computed once per plan).
     """
 
     balls: tuple[Tool, ...]
     main: MainBall
     smallest_everywhere: float
+    rho: F64
 
 
 def lattice(radius: float, dx: float, dy: float) -> int:
@@ -317,4 +321,4 @@ def finishing_chain(z: F64, dx: float, dy: float, balls: list[Tool], tolerance: 
                     f"{tolerance:g} mm on {100 * float(left.mean()):.3g} % of it (to the "
                     f"smaller balls); shortest estimated finishing cut of the library's chains")
     smallest = area / flat_pick_feed(balls[-1].radius, tolerance)
-    return Chain(tuple(balls[j] for j in chain), main, smallest)
+    return Chain(tuple(balls[j] for j in chain), main, smallest, reach.rho)

@@ -172,7 +172,7 @@ def finishing_stages(levels: list[Level], chain: Chain, tolerance: float,
     main = chain.main
     out.append(Stage(finest, main.tool, [], 0.0, None,
                      StageReach(1.0, (), 1, main.cut_length, main.rest_max, main.reason)))
-    shared = RestShared([main.tool])
+    shared = RestShared([main.tool], rho=chain.rho)
     for tool in balls[1:]:
         rule = RestRegion(part, tool, tolerance, shared, last=tool is balls[-1])
         out.append(Stage(finest, tool, [], 0.0, rule, None))
