@@ -137,7 +137,7 @@ class _Reach:
         self._rest: dict[tuple[float, int], F64] = {}
         self._rho: dict[int, F64] = {1: self.rho}
         self._safety: dict[int, B8] = {}
-        self._upsampled: dict[tuple[float, int], F64] = {}
+        self._pooled: dict[tuple[int, int], B8] = {}
         self._last_prev = math.nan
         self._upsampled_prev: dict[int, F64] = {}
 
@@ -152,14 +152,11 @@ class _Reach:
         return self._rest[key]
 
     def safety(self, k: int) -> B8:
-        """Fine nodes near detail sharper than ``k`` cells (none for ``k = 1``)."""
+        """Fine nodes near detail sharper than ``k > 1`` cells."""
         if k not in self._safety:
-            if k == 1:
-                self._safety[k] = np.zeros(self.z.shape, dtype=bool)
-            else:
-                sharp = self.rho < SHARP_SHARE * k * max(self.dx, self.dy)
-                self._safety[k] = within_distance(sharp, k * math.hypot(self.dx, self.dy),
-                                          self.dx, self.dy)
+            sharp = self.rho < SHARP_SHARE * k * max(self.dx, self.dy)
+            self._safety[k] = within_distance(sharp, k * math.hypot(self.dx, self.dy),
+                                              self.dx, self.dy)
         return self._safety[k]
 
     def fine_mask(self, coarse: B8, k: int) -> B8:
@@ -200,14 +197,12 @@ class _Reach:
         better, theirs, kn = self._compare(prev, nxt.radius)
         kp = lattice(prev, self.dx, self.dy)
         if kp > 1:
-            key = (-float(kp), kn)
-            if key not in self._upsampled:  # the fine safety nodes, on the lattice
+            key = (kp, kn)
+            if key not in self._pooled:  # the fine safety nodes, on the lattice
                 fine = self.safety(kp)
-                pooled = fine[::kn, ::kn].copy() if kn > 1 else fine
-                if kn > 1:
-                    pooled |= ndimage.maximum_filter(fine, size=kn)[::kn, ::kn]
-                self._upsampled[key] = pooled.astype(np.float64)
-            better = better | (self._upsampled[key] > 0.0)
+                self._pooled[key] = (ndimage.maximum_filter(fine, size=kn)[::kn, ::kn]
+                                     if kn > 1 else fine)
+            better = better | self._pooled[key]
         if not better.any():
             return None
         region = within_distance(better, nxt.radius, kn * self.dx, kn * self.dy)
@@ -309,7 +304,8 @@ def finishing_chain(z: F64, dx: float, dy: float, balls: list[Tool], tolerance: 
     Chain
     """
     ny, nx = z.shape
-    area = float(ny * nx) * dx * dy
+    cell = dx * dy
+    area = float(ny * nx) * cell
     reach = _Reach(z, dx, dy, tolerance)
     chain = _plan(balls, reach, area)
     tool = balls[chain[0]]
