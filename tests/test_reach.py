@@ -35,7 +35,9 @@ def brute_closing(z: np.ndarray, radius: float, dx: float, dy: float,
     """Nodal closing by every node offset: CL at every position (beyond the grid too, over
     the edge heights continued, when ``pad``), then the least ball over each node."""
     ny, nx = z.shape
-    ra, rb = int(radius // dy), int(radius // dx)
+    # one offset more than the footprint each way, the distance test below decides: ``//``
+    # alone would drop the nodes at exactly R (1.0 // 0.2 == 4.0), which are in the ball
+    ra, rb = int(radius // dy) + 1, int(radius // dx) + 1
     pa, pb = (ra + 1, rb + 1) if pad else (0, 0)
     zp = np.pad(z, ((pa, pa), (pb, pb)), mode="edge")
     my, mx = zp.shape

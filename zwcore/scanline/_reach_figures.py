@@ -19,8 +19,7 @@ from numpy.typing import NDArray
 
 from zwcore.grid.tools import Tool
 from zwcore.grid.zmap import ZMap
-from zwcore.scanline._reach import concave_radii
-from zwcore.scanline._regions import TOOL_CHANGE_MM, Chain, flat_pick_feed, region_boxes
+from zwcore.scanline._regions import TOOL_CHANGE_MM, Box, Chain, flat_pick_feed, region_boxes
 from zwcore.scanline._rest import RestRegion
 from zwcore.scanline._tool_choice import Stage
 from zwcore.scanline.results import ReachSummary, ScanlineChecks, ScanlineStage
@@ -69,7 +68,7 @@ def with_reach(zmap: ZMap, stages: list[ScanlineStage], checks: ScanlineChecks,
     chosen : sequence of Stage
         The stages as chosen (finishing rest stages carry their :class:`RestRegion`).
     chain : Chain
-        The estimate that ranked the main ball.
+        The estimate that ranked the main ball (and the part's concave radii).
     final_stock : (ny, nx) float64
         The simulated stock after the last pass.
     tol : float
@@ -80,6 +79,8 @@ def with_reach(zmap: ZMap, stages: list[ScanlineStage], checks: ScanlineChecks,
     dx, dy = zmap.dx, zmap.dy
     out = []
     finishing: list[tuple[str, float, float]] = []  # (tool id, area, pick-feed), per ball
+    # a stage's passes share its region: its share and boxes once (labelling is full-grid)
+    of_region: dict[int, tuple[float, int, tuple[Box, ...]]] = {}
     for s_ in stages:
         c = info[(s_.level, s_.tool.id)]
         rule = c.region if isinstance(c.region, RestRegion) else None
@@ -87,8 +88,13 @@ def with_reach(zmap: ZMap, stages: list[ScanlineStage], checks: ScanlineChecks,
             out.append(s_)
             continue
         region = s_.region
-        frac = 1.0 if region is None else float(region.mean())
-        count, boxes = (1, ()) if region is None else region_boxes(region, dx, dy)
+        boxes: tuple[Box, ...]
+        if region is None:
+            frac, count, boxes = 1.0, 1, ()
+        else:
+            if id(region) not in of_region:
+                of_region[id(region)] = (float(region.mean()), *region_boxes(region, dx, dy))
+            frac, count, boxes = of_region[id(region)]
         area = frac * zmap.z.size * dx * dy
         cut: float | None = None
         if s_.level == stages[-1].level:
@@ -107,7 +113,7 @@ def with_reach(zmap: ZMap, stages: list[ScanlineStage], checks: ScanlineChecks,
     unreachable = float(above.sum()) * dx * dy
     height = float(left[above].max()) if above.any() else 0.0
     last = out[-1].tool
-    rho = concave_radii(zmap.z, dx, dy)
+    rho = chain.rho  # the part's concave radii
     sharp = above & (rho < last.radius)  # a smaller ball would be needed there
     need = float(rho[sharp].min()) if sharp.any() else math.inf
     if above.any():

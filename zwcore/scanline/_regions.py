@@ -29,9 +29,8 @@ programming over (previous ball, next ball) pairs.
 
 from __future__ import annotations
 
-import itertools
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
@@ -40,7 +39,7 @@ from scipy import ndimage
 from zwcore.grid.tools import Tool
 from zwcore.scanline._reach import ball_reach, concave_radii, within_distance
 
-__all__ = ["TOOL_CHANGE_MM", "Chain", "ChainStage", "finishing_chain", "flat_pick_feed",
+__all__ = ["TOOL_CHANGE_MM", "Chain", "MainBall", "finishing_chain", "flat_pick_feed",
            "region_boxes"]
 
 F64 = NDArray[np.float64]
@@ -79,68 +78,46 @@ class Box:
     area: float
 
 
-@dataclass(eq=False)
-class ChainStage:
-    """One finishing ball of the chain.
+@dataclass(frozen=True)
+class MainBall:
+    """The chain's main ball (it machines the whole part) and its estimated figures.
 
     Attributes
     ----------
     tool : Tool
-    region : (ny, nx) bool or None
-        Where it machines (None: the whole part).
-    surface : (ny, nx) float64
-        Estimated surface after this ball (the part where within ``tolerance``).
-    area_fraction : float
-    boxes : tuple of Box
-    region_count : int
     cut_length : float
-        Region area / flat pick-feed at ``tolerance``, mm.
+        Part area / flat pick-feed at ``tolerance``, mm.
     rest_max : float
         Most material left over the part after this ball, mm.
     reason : str
     """
 
     tool: Tool
-    region: B8 | None
-    surface: F64 = field(repr=False)
-    area_fraction: float
-    boxes: tuple[Box, ...]
-    region_count: int
     cut_length: float
     rest_max: float
     reason: str
 
 
-@dataclass(eq=False)
+@dataclass(frozen=True, eq=False)
 class Chain:
     """The finishing chain and the figures of its choice.
 
     Attributes
     ----------
-    stages : list of ChainStage
-        Main ball first.
-    cut_length : float
-        Estimated finishing cut length of the chain, mm.
+    balls : tuple of Tool
+        The chain's balls, main ball first.
+    main : MainBall
     smallest_everywhere : float
         Cut length if the smallest library ball finished the whole part, mm.
-    unreachable_area : float
-        Area where even the chain leaves more than ``tolerance``, mm².
-    unreachable_max : float
-        Most material left there, mm.
-    needed_radius : float
-        Smallest concave radius of the part there (a ball would need to be no
-        larger), mm; inf when nothing is left.
-    by_main : dict of str to float
-        The least estimated cut length with each ball as the main one, mm.
+    rho : (ny, nx) float64
+        The part's concave radii (:func:`zwcore.scanline._reach.concave_radii`), for the
+        rest rules and the reach figures (computed once per plan).
     """
 
-    stages: list[ChainStage]
-    cut_length: float
+    balls: tuple[Tool, ...]
+    main: MainBall
     smallest_everywhere: float
-    unreachable_area: float
-    unreachable_max: float
-    needed_radius: float
-    by_main: dict[str, float] = field(default_factory=dict)
+    rho: F64
 
 
 def lattice(radius: float, dx: float, dy: float) -> int:
@@ -152,7 +129,7 @@ def lattice(radius: float, dx: float, dy: float) -> int:
 
 
 class _Reach:
-    """Rest maps per (ball, lattice), computed once; lattice surfaces upsampled."""
+    """Rest maps per (ball, lattice), computed once."""
 
     def __init__(self, z: F64, dx: float, dy: float, tolerance: float) -> None:
         self.z, self.dx, self.dy, self.tol = z, dx, dy, tolerance
@@ -160,7 +137,7 @@ class _Reach:
         self._rest: dict[tuple[float, int], F64] = {}
         self._rho: dict[int, F64] = {1: self.rho}
         self._safety: dict[int, B8] = {}
-        self._upsampled: dict[tuple[float, int], F64] = {}
+        self._pooled: dict[tuple[int, int], B8] = {}
         self._last_prev = math.nan
         self._upsampled_prev: dict[int, F64] = {}
 
@@ -175,14 +152,11 @@ class _Reach:
         return self._rest[key]
 
     def safety(self, k: int) -> B8:
-        """Fine nodes near detail sharper than ``k`` cells (none for ``k = 1``)."""
+        """Fine nodes near detail sharper than ``k > 1`` cells."""
         if k not in self._safety:
-            if k == 1:
-                self._safety[k] = np.zeros(self.z.shape, dtype=bool)
-            else:
-                sharp = self.rho < SHARP_SHARE * k * max(self.dx, self.dy)
-                self._safety[k] = within_distance(sharp, k * math.hypot(self.dx, self.dy),
-                                          self.dx, self.dy)
+            sharp = self.rho < SHARP_SHARE * k * max(self.dx, self.dy)
+            self._safety[k] = within_distance(sharp, k * math.hypot(self.dx, self.dy),
+                                              self.dx, self.dy)
         return self._safety[k]
 
     def fine_mask(self, coarse: B8, k: int) -> B8:
@@ -196,20 +170,6 @@ class _Reach:
         rows = np.minimum(-(-np.arange(ny) // k), coarse.shape[0] - 1)
         cols = np.minimum(-(-np.arange(nx) // k), coarse.shape[1] - 1)
         return grown[np.ix_(rows, cols)]
-
-    def surface(self, radius: float, k: int) -> F64:
-        """Estimated fine surface the ball leaves: lattice closing, bilinear between
-        lattice nodes, never below the part."""
-        rest = self.rest(radius, k)
-        if k == 1:
-            return self.z + rest
-        ny, nx = self.z.shape
-        closed = self.z[::k, ::k] + rest
-        yi = np.minimum(np.arange(ny) / k, closed.shape[0] - 1)
-        xi = np.minimum(np.arange(nx) / k, closed.shape[1] - 1)
-        up = ndimage.map_coordinates(closed, np.meshgrid(yi, xi, indexing="ij"), order=1,
-                                     mode="nearest")
-        return np.maximum(self.z, up)
 
     def _compare(self, prev: float, nxt: float) -> tuple[B8, F64, int]:
         """On the smaller ball's (finer) lattice ``kn``: where ``nxt`` does better than
@@ -230,12 +190,6 @@ class _Reach:
             theirs = self._upsampled_prev[kn]
         return (theirs - mine) > self.tol, theirs, kn
 
-    def seed(self, prev: float, nxt: float) -> B8:
-        """Fine nodes where ball ``prev`` leaves material ``nxt`` does better on by > tol
-        (and detail too sharp for ``prev``'s lattice)."""
-        better, _, kn = self._compare(prev, nxt)
-        return self.fine_mask(better, kn) | self.safety(lattice(prev, self.dx, self.dy))
-
     def cost(self, prev: float, nxt: Tool) -> float | None:
         """Estimated node passes (times the cell area: mm²) of ball ``nxt`` over its rest
         region after ``prev``, on ``nxt``'s lattice (None: no region): one pass per node,
@@ -243,14 +197,12 @@ class _Reach:
         better, theirs, kn = self._compare(prev, nxt.radius)
         kp = lattice(prev, self.dx, self.dy)
         if kp > 1:
-            key = (-float(kp), kn)
-            if key not in self._upsampled:  # the fine safety nodes, on the lattice
+            key = (kp, kn)
+            if key not in self._pooled:  # the fine safety nodes, on the lattice
                 fine = self.safety(kp)
-                pooled = fine[::kn, ::kn].copy() if kn > 1 else fine
-                if kn > 1:
-                    pooled |= ndimage.maximum_filter(fine, size=kn)[::kn, ::kn]
-                self._upsampled[key] = pooled.astype(np.float64)
-            better = better | (self._upsampled[key] > 0.0)
+                self._pooled[key] = (ndimage.maximum_filter(fine, size=kn)[::kn, ::kn]
+                                     if kn > 1 else fine)
+            better = better | self._pooled[key]
         if not better.any():
             return None
         region = within_distance(better, nxt.radius, kn * self.dx, kn * self.dy)
@@ -305,14 +257,11 @@ def region_boxes(region: B8, dx: float, dy: float) -> tuple[int, tuple[Box, ...]
     return int(count), tuple(out)
 
 
-def _plan(balls: list[Tool], reach: _Reach, area: float, cell: float
-          ) -> tuple[list[int], list[float], dict[tuple[int, int], B8]]:
-    """The chain (indices into ``balls``, largest first) of least estimated cut length,
-    and the least total with each ball as the main one."""
+def _plan(balls: list[Tool], reach: _Reach, area: float) -> list[int]:
+    """The chain (indices into ``balls``, largest first) of least estimated cut length."""
     tol = reach.tol
     n = len(balls)
     pf = [flat_pick_feed(b.radius, tol) for b in balls]
-    regions: dict[tuple[int, int], B8] = {}
     best: list[float] = [math.inf] * n
     after: list[int | None] = [None] * n
     for j in range(n - 1, -1, -1):
@@ -334,15 +283,12 @@ def _plan(balls: list[Tool], reach: _Reach, area: float, cell: float
     chain = [main]
     while after[chain[-1]] is not None:
         chain.append(after[chain[-1]])  # type: ignore[arg-type]
-    for j, i in itertools.pairwise(chain):  # the chain's regions on the input nodes
-        regions[(j, i)] = within_distance(reach.seed(balls[j].radius, balls[i].radius),
-                                          balls[i].radius, reach.dx, reach.dy)
-    return chain, totals, regions
+    return chain
 
 
 def finishing_chain(z: F64, dx: float, dy: float, balls: list[Tool], tolerance: float
                     ) -> Chain:
-    """The finishing balls and their regions on the part's nodes.
+    """The finishing balls the estimate ranks first, and its figures for the main ball.
 
     Parameters
     ----------
@@ -361,60 +307,14 @@ def finishing_chain(z: F64, dx: float, dy: float, balls: list[Tool], tolerance: 
     cell = dx * dy
     area = float(ny * nx) * cell
     reach = _Reach(z, dx, dy, tolerance)
-    chain, totals, regions = _plan(balls, reach, area, cell)
-    total = totals[chain[0]]
-    pf = [flat_pick_feed(balls[j].radius, tolerance) for j in chain]
-    stages = []
-    surface = z
-    left = np.zeros(z.shape, dtype=bool)
-    boxes: tuple[Box, ...]
-    for n, j in enumerate(chain):
-        tool = balls[j]
-        k = lattice(tool.radius, dx, dy)
-        rest = reach.rest(tool.radius, k)
-        mine = reach.fine_mask(rest > tolerance, k)
-        if n == 0:
-            region, length, frac = None, area / pf[0], 1.0
-            count, boxes = 1, ()
-            surface = reach.surface(tool.radius, k)
-            left = mine
-            rest_max = float(rest.max())
-        else:
-            region = regions[(chain[n - 1], j)]
-            seed = reach.seed(balls[chain[n - 1]].radius, tool.radius)
-            surface = np.where(seed, np.minimum(surface, reach.surface(tool.radius, k)),
-                               surface)
-            left = np.where(seed, mine, left)
-            length = float(region.sum()) * cell / pf[n]
-            frac = float(region.mean())
-            count, boxes = region_boxes(region, dx, dy)
-            rest_max = float(np.max(np.where(seed & left, surface - z, 0.0), initial=0.0))
-        # the estimated surface only where the lattice says the ball leaves material
-        # (between lattice nodes the bilinear estimate cuts chords over concave walls)
-        shown = np.where(left, surface, z)
-        stages.append(ChainStage(tool, region, shown, frac, boxes, count, length, rest_max,
-                                 _reason(n, tool, balls, chain, left, frac, tolerance)))
-    last = chain[-1]
-    k = lattice(balls[last].radius, dx, dy)
-    rest = reach.rest(balls[last].radius, k)
-    out = left
+    chain = _plan(balls, reach, area)
+    tool = balls[chain[0]]
+    k = lattice(tool.radius, dx, dy)
+    rest = reach.rest(tool.radius, k)
+    left = reach.fine_mask(rest > tolerance, k)
+    main = MainBall(tool, area / flat_pick_feed(tool.radius, tolerance), float(rest.max()),
+                    f"simulated reach: {tool.id} finishes the whole part and leaves more than "
+                    f"{tolerance:g} mm on {100 * float(left.mean()):.3g} % of it (to the "
+                    f"smaller balls); shortest estimated finishing cut of the library's chains")
     smallest = area / flat_pick_feed(balls[-1].radius, tolerance)
-    return Chain(stages, total, smallest, float(out.sum()) * cell,
-                 float(rest[rest > tolerance].max()) if out.any() and (rest > tolerance).any()
-                 else 0.0,
-                 float(reach.rho[out].min()) if out.any() else math.inf,
-                 {b.id: t for b, t in zip(balls, totals, strict=True)})
-
-
-def _reason(n: int, tool: Tool, balls: list[Tool], chain: list[int], above: B8, frac: float,
-            tolerance: float) -> str:
-    left = float(above.mean())
-    if n == 0:
-        return (f"simulated reach: {tool.id} finishes the whole part and leaves more than "
-                f"{tolerance:g} mm on {100 * left:.3g} % of it (to the smaller balls); "
-                f"shortest estimated finishing cut of the library's chains")
-    prev = balls[chain[n - 1]]
-    return (f"simulated reach: rest of {prev.id} (more than {tolerance:g} mm, and {tool.id} "
-            f"leaves at least {tolerance:g} mm less there) grown by its radius: "
-            f"{100 * frac:.3g} % of the part; {100 * left:.3g} % still above the tolerance "
-            f"after it")
+    return Chain(tuple(balls[j] for j in chain), main, smallest, reach.rho)

@@ -60,7 +60,8 @@ class RestShared:
         The finishing balls that machined so far, main first (a rule whose region is
         not empty appends its ball).
     rho : (ny, nx) float64 or None
-        The part's concave radii (:func:`zwcore.scanline._reach.concave_radii`), once.
+        The part's concave radii (:func:`zwcore.scanline._reach.concave_radii`): the
+        plan passes the estimate's; computed on first use when None.
     closings : dict
         Closings minus the part by (tool, window) while the stock stays the same (the
         ball before is compared with every smaller candidate on it).

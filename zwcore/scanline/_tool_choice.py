@@ -166,13 +166,13 @@ def finishing_stages(levels: list[Level], chain: Chain, tolerance: float,
     the part: the flute rule on the simulated stock sees the rest as depth of cut.
     """
     finest = levels[-1]
-    balls = [cs.tool for cs in chain.stages]
+    balls = list(chain.balls)
     balls += [t for t in library if t.radius < balls[-1].radius]
     out: list[Stage] = []
-    main = chain.stages[0]
+    main = chain.main
     out.append(Stage(finest, main.tool, [], 0.0, None,
                      StageReach(1.0, (), 1, main.cut_length, main.rest_max, main.reason)))
-    shared = RestShared([main.tool])
+    shared = RestShared([main.tool], rho=chain.rho)
     for tool in balls[1:]:
         rule = RestRegion(part, tool, tolerance, shared, last=tool is balls[-1])
         out.append(Stage(finest, tool, [], 0.0, rule, None))
