@@ -331,8 +331,10 @@ def test_plan_response_reports_regions(client) -> None:  # type: ignore[no-untyp
     plan = ScanlinePlanResult.model_validate(body)
     assert plan.reach is not None
     assert plan.reach.finishing_tools[-1] == plan.tool_sequence[-1]
-    assert plan.reach.cut_length_factor == pytest.approx(
-        plan.reach.smallest_ball_cut_length / plan.reach.finishing_cut_length)
+    # finishing the whole part with the smallest ball is one of the chains the choice
+    # weighs, so the chosen one is never longer
+    assert plan.reach.finishing_cut_length <= plan.reach.smallest_ball_cut_length * (1 + 1e-12)
+    assert plan.reach.cut_length_factor >= 1.0 - 1e-12
     regions = [s for s in plan.stages if s.region is not None]
     assert regions
     for s in plan.stages:
