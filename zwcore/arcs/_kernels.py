@@ -5,7 +5,7 @@ The band's questions are asked thousands of times per run on a few dozen to a fe
 thousand samples each; as numpy expressions their cost is the per-call overhead of some
 thirty small array operations, not the arithmetic. These numba kernels do the same
 arithmetic in the same order in one loop (so the figures, and the chains, are those of
-the numpy formulas in :mod:`zwcore.arcs._geometry` and :mod:`zwcore.arcs._checks`; the
+the numpy formulas in :mod:`zwcore.arcs._geometry` and ``tests/arc_reference.py``; the
 property tests in ``tests/test_arc_kernels.py`` compare the two), and stop at the first
 sample that decides the answer.
 
@@ -162,7 +162,7 @@ def _pymod(a: float, b: float) -> float:
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def foot_positions(u: FloatArray, v: FloatArray, kappa: float, sig: FloatArray) -> None:
-    """:func:`zwcore.arcs._checks.foot_positions` written to ``sig`` ``(n,)`` (the angles
+    """``foot_positions`` of ``tests/arc_reference.py`` written to ``sig`` ``(n,)`` (the angles
     unwrapped as :func:`numpy.unwrap` does)."""
     n = len(u)
     if kappa == 0.0:
@@ -244,7 +244,7 @@ def arc_near_polyline(samples: FloatArray, px: float, py: float, tx: float, ty: 
 def _segments_within(u: FloatArray, v: FloatArray, sig: FloatArray, sig_end: float,
                      e0: float, e1: float, e2: float, e3: float, kappa: float, tol: float,
                      dense_first: bool) -> bool:
-    """:func:`zwcore.arcs._checks.segments_within`; ``e0..e3``: the end point's offsets
+    """``segments_within`` of ``tests/arc_reference.py``; ``e0..e3``: the end point's offsets
     from the start times the tangent's components, ``(ex-px)tx, (ey-py)ty, (ey-py)tx,
     (ex-px)ty`` (the order of its arithmetic kept)."""
     rk = 1.0 / kappa
@@ -276,7 +276,7 @@ def _portions_within(samples: FloatArray, k: int, sig: FloatArray, sig_end: floa
                      px: float, py: float, tx: float, ty: float, dense_first: bool,
                      step0: float) -> tuple[bool, float]:
     """The arc portions between consecutive (running-max) foot points within ``tol`` of
-    the polyline (:func:`zwcore.arcs._checks.portion_bounds`; with ``dense_first`` the
+    the polyline (``portion_bounds`` of ``tests/arc_reference.py``; with ``dense_first`` the
     first non-empty portion is checked densely instead), and the last clipped foot
     position."""
     n = len(sig)
