@@ -13,7 +13,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from zwcore.arcs._kernels import foot_positions, verify_piece
+from zwcore.arcs._kernels import foot_positions, local1, verify_piece
 
 FloatArray = NDArray[np.float64]
 
@@ -24,10 +24,7 @@ __all__ = ["arc_through", "biarc"]
 def arc_through(px: float, py: float, tx: float, ty: float, qx: float, qy: float,
                 dist: float, kmin: float, kcap: float) -> tuple[bool, float, float]:
     """:meth:`zwcore.arcs._pieces.ToleranceBand.arc_through`: ``(ok, kappa, length)``."""
-    dx = qx - px
-    dy = qy - py
-    u = dx * tx + dy * ty
-    v = dy * tx - dx * ty
+    u, v = local1(qx, qy, px, py, tx, ty)
     q2 = u * u + v * v
     if q2 <= 0.0:
         return False, 0.0, 0.0
