@@ -67,7 +67,7 @@ def _last_on_first_arc(uu: FloatArray, vv: FloatArray, k1: float, s1: float, k: 
         foot_positions(uu, vv, k1, sg)
     else:
         sg[:] = uu
-    m = k + b - k - 1
+    m = b - 1
     for i in range(len(sg)):
         if sg[i] > s1:
             m = k + i - 1

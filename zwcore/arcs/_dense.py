@@ -90,16 +90,6 @@ def _pieces_near(ks: IntArray, js: IntArray, nseg: int) -> tuple[IntArray, IntAr
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _to_pieces(geo: FloatArray, qs: IntArray, x: float, y: float) -> float:
-    """Distance of ``(x, y)`` to the pieces ``qs``."""
-    d = np.inf
-    for q in qs:
-        d = min(d, point_arc_distance(x, y, geo[q, 0], geo[q, 1], geo[q, 2], geo[q, 3],
-                                      geo[q, 4], geo[q, 5], geo[q, 6], geo[q, 7], d))
-    return d
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
 def _nearest_piece(geo: FloatArray, qs: IntArray, x: float, y: float) -> tuple[float, int]:
     """Distance of ``(x, y)`` to the pieces ``qs`` and the piece it is measured to."""
     d = np.inf
@@ -213,7 +203,7 @@ def _polyline_to_chain(samples: FloatArray, geo: FloatArray, ks: IntArray, js: I
             if q >= 0 and d <= tol:
                 slope, curv, reach = _piece_growth(geo, q, x, y, ux, uy)
             if not d <= tol:
-                d = _to_pieces(geo, every, x, y)
+                d = _nearest_piece(geo, every, x, y)[0]
             worst = max(worst, d)
             # the next points within the safe move cannot raise the maximum
             skip = 0
@@ -221,7 +211,7 @@ def _polyline_to_chain(samples: FloatArray, geo: FloatArray, ks: IntArray, js: I
                 skip = int(min(_safe_move(d, worst, slope, curv, reach) / dl, hi))
             i += 1 + skip
     if nseg == 0:
-        worst = _to_pieces(geo, every, samples[0, 0], samples[0, 1])
+        worst = _nearest_piece(geo, every, samples[0, 0], samples[0, 1])[0]
     return worst
 
 

@@ -247,7 +247,7 @@ class ToleranceBand:
         ``dist`` is the scale below which a curvature counts as a line. None when
         ``q`` is ``p``, the arc is degenerate or its radius is not allowed.
         """
-        # (scalar arithmetic: the figures of local_uv and arc_length_position)
+        # (scalar arithmetic: the figures of local_uv; the foot point at arctan2 / kappa)
         dx = float(q[0] - p[0])
         dy = float(q[1] - p[1])
         tx = float(t[0])
