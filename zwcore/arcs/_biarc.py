@@ -23,7 +23,10 @@ __all__ = ["arc_through", "biarc"]
 @njit(cache=True, nogil=True, error_model="numpy")
 def arc_through(px: float, py: float, tx: float, ty: float, qx: float, qy: float,
                 dist: float, kmin: float, kcap: float) -> tuple[bool, float, float]:
-    """:meth:`zwcore.arcs._pieces.ToleranceBand.arc_through`: ``(ok, kappa, length)``."""
+    """Curvature and length of the arc from ``p`` along ``t`` through ``q``: ``(ok, kappa,
+    length)``; ``dist`` is the scale below which a curvature counts as a line, ``ok`` false
+    when ``q`` is ``p``, the arc is degenerate or its radius is not in
+    ``1/kcap..1/kmin``."""
     u, v = local1(qx, qy, px, py, tx, ty)
     q2 = u * u + v * v
     if q2 <= 0.0:
