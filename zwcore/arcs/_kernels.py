@@ -224,7 +224,7 @@ def arc_near_polyline(samples: FloatArray, px: float, py: float, tx: float, ty: 
                       kappa: float, s0: float, s1: float, a: int, b: int, tol: float,
                       step0: float) -> bool:
     """Dense check of the arc portion ``[s0, s1]`` against polyline segments ``a..b``
-    (:meth:`zwcore.arcs._pieces.ToleranceBand._arc_near_polyline`; ``step0`` its
+    (``arc_near_polyline`` of ``tests/arc_reference.py``; ``step0``: the band's
     ``dense_step``)."""
     if s1 <= s0:
         return True
