@@ -128,10 +128,10 @@ def _timed_cpu(pts: np.ndarray, closed: bool, tol: float) -> tuple[float, float,
 
 
 def _warm_up() -> None:
-    """One small fit before anything is timed: the compiled kernels are loaded (or
-    compiled) once per process, not counted against the first curve."""
-    th = np.linspace(0.0, 6.0, 200)
-    fit_arcs(np.stack([10 * np.cos(th), 5 * np.sin(th)], 1), 0.01)
+    """Before anything is timed, the compiled kernels loaded (or compiled) once per
+    process, not counted against the first curve: importing :mod:`zwcore.arcs.warmup`
+    fits the small curves that take every compiled path (as the service's workers do)."""
+    import zwcore.arcs.warmup  # noqa: F401
 
 
 def _corners_kept(chain: object, corners: np.ndarray, reach: float) -> int:

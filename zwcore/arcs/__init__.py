@@ -9,7 +9,9 @@
   beam search of one run) with ``_states`` (its junction states) and ``_unstick``
   (bridges and the fallback when it is stuck), ``_start`` (start tangents, one-piece
   runs), ``_pieces`` (the tolerance band: feasible curvatures, reach, verification,
-  biarcs) with ``_checks`` (the two-sided bounds) and ``_biarc`` (biarc geometry),
+  biarcs) with ``_kernels`` (its compiled scans and two-sided bounds), ``_biarc`` (the
+  compiled biarc), ``_select`` (a beam level's candidates, compiled), ``_dense`` (the
+  compiled dense deviation of :mod:`zwcore.arcs.verify`),
   ``_lines`` (refits along straight runs) with ``_straight`` (finding them) and
   ``_anchors`` (following them), ``_fallback`` (the filleted polyline, valid by
   construction), ``_geometry`` (arc primitives).

@@ -13,7 +13,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from zwcore.arcs._kernels import foot_positions, verify_piece
+from zwcore.arcs._kernels import foot_positions, local1, verify_piece
 
 FloatArray = NDArray[np.float64]
 
@@ -23,11 +23,11 @@ __all__ = ["arc_through", "biarc"]
 @njit(cache=True, nogil=True, error_model="numpy")
 def arc_through(px: float, py: float, tx: float, ty: float, qx: float, qy: float,
                 dist: float, kmin: float, kcap: float) -> tuple[bool, float, float]:
-    """:meth:`zwcore.arcs._pieces.ToleranceBand.arc_through`: ``(ok, kappa, length)``."""
-    dx = qx - px
-    dy = qy - py
-    u = dx * tx + dy * ty
-    v = dy * tx - dx * ty
+    """Curvature and length of the arc from ``p`` along ``t`` through ``q``: ``(ok, kappa,
+    length)``; ``dist`` is the scale below which a curvature counts as a line, ``ok`` false
+    when ``q`` is ``p``, the arc is degenerate or its radius is not in
+    ``1/kcap..1/kmin``."""
+    u, v = local1(qx, qy, px, py, tx, ty)
     q2 = u * u + v * v
     if q2 <= 0.0:
         return False, 0.0, 0.0
@@ -70,7 +70,7 @@ def _last_on_first_arc(uu: FloatArray, vv: FloatArray, k1: float, s1: float, k: 
         foot_positions(uu, vv, k1, sg)
     else:
         sg[:] = uu
-    m = k + b - k - 1
+    m = b - 1
     for i in range(len(sg)):
         if sg[i] > s1:
             m = k + i - 1

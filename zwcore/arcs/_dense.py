@@ -15,7 +15,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from zwcore.arcs._kernels import arc_xy, circle_gap1, foot_positions, seg_dist
+from zwcore.arcs._kernels import arc_xy, circle_gap1, foot_positions, local1, seg_dist
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -30,10 +30,7 @@ def point_arc_distance(x: float, y: float, px: float, py: float, tx: float, ty: 
     """Exact distance of ``(x, y)`` to the piece from ``p`` along ``t`` of curvature
     ``kappa`` and arc length ``length`` ending at ``(ex, ey)`` when it is below ``known``
     (a distance already found); else a figure no smaller than ``known``."""
-    dx = x - px
-    dy = y - py
-    u = dx * tx + dy * ty
-    v = dy * tx - dx * ty
+    u, v = local1(x, y, px, py, tx, ty)
     if kappa == 0.0:
         if 0.0 <= u <= length:
             return abs(v)
@@ -93,16 +90,6 @@ def _pieces_near(ks: IntArray, js: IntArray, nseg: int) -> tuple[IntArray, IntAr
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _to_pieces(geo: FloatArray, qs: IntArray, x: float, y: float) -> float:
-    """Distance of ``(x, y)`` to the pieces ``qs``."""
-    d = np.inf
-    for q in qs:
-        d = min(d, point_arc_distance(x, y, geo[q, 0], geo[q, 1], geo[q, 2], geo[q, 3],
-                                      geo[q, 4], geo[q, 5], geo[q, 6], geo[q, 7], d))
-    return d
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
 def _nearest_piece(geo: FloatArray, qs: IntArray, x: float, y: float) -> tuple[float, int]:
     """Distance of ``(x, y)`` to the pieces ``qs`` and the piece it is measured to."""
     d = np.inf
@@ -129,10 +116,7 @@ def _piece_growth(geo: FloatArray, q: int, x: float, y: float, ux: float,
     """
     px, py, tx, ty, kappa, length = geo[q, 0], geo[q, 1], geo[q, 2], geo[q, 3], \
         geo[q, 4], geo[q, 5]
-    dx = x - px
-    dy = y - py
-    u = dx * tx + dy * ty
-    v = dy * tx - dx * ty
+    u, v = local1(x, y, px, py, tx, ty)
     du = ux * tx + uy * ty
     dv = uy * tx - ux * ty
     if kappa == 0.0:
@@ -219,7 +203,7 @@ def _polyline_to_chain(samples: FloatArray, geo: FloatArray, ks: IntArray, js: I
             if q >= 0 and d <= tol:
                 slope, curv, reach = _piece_growth(geo, q, x, y, ux, uy)
             if not d <= tol:
-                d = _to_pieces(geo, every, x, y)
+                d = _nearest_piece(geo, every, x, y)[0]
             worst = max(worst, d)
             # the next points within the safe move cannot raise the maximum
             skip = 0
@@ -227,7 +211,7 @@ def _polyline_to_chain(samples: FloatArray, geo: FloatArray, ks: IntArray, js: I
                 skip = int(min(_safe_move(d, worst, slope, curv, reach) / dl, hi))
             i += 1 + skip
     if nseg == 0:
-        worst = _to_pieces(geo, every, samples[0, 0], samples[0, 1])
+        worst = _nearest_piece(geo, every, samples[0, 0], samples[0, 1])[0]
     return worst
 
 
@@ -316,10 +300,7 @@ def _chain_to_polyline(samples: FloatArray, geo: FloatArray, ks: IntArray, js: I
         u = np.empty(nf)
         v = np.empty(nf)
         for i in range(nf):
-            dx = samples[k + i, 0] - px
-            dy = samples[k + i, 1] - py
-            u[i] = dx * tx + dy * ty
-            v[i] = dy * tx - dx * ty
+            u[i], v[i] = local1(samples[k + i, 0], samples[k + i, 1], px, py, tx, ty)
         foot = np.empty(nf)
         foot_positions(u, v, kappa, foot)
         if kappa == 0.0 and nf:

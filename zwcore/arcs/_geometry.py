@@ -20,7 +20,6 @@ from numpy.typing import NDArray
 FloatArray = NDArray[np.float64]
 
 __all__ = [
-    "arc_length_position",
     "arc_point",
     "arc_points",
     "circle_gap",
@@ -90,18 +89,6 @@ def kappa_bounds(u: FloatArray, v: FloatArray, tol: float) -> tuple[FloatArray, 
     lo = np.where(ok, 2.0 * (v - tol) / safe, -np.inf)
     hi = np.where(ok, 2.0 * (v + tol) / safe, np.inf)
     return lo, hi
-
-
-def arc_length_position(u: FloatArray, v: FloatArray, kappa: float) -> FloatArray:
-    """Arc length from the start to the foot point of each local point (not unwrapped).
-
-    For a line this is ``u``; for an arc it is the signed sweep to the point's
-    angular position divided by ``kappa``, in ``(-pi, pi] / |kappa|``.
-    """
-    if kappa == 0.0:
-        return np.array(u, dtype=np.float64, copy=True)
-    phi = np.arctan2(kappa * u, 1.0 - kappa * v)
-    return np.asarray(phi / kappa, dtype=np.float64)
 
 
 def arc_points(

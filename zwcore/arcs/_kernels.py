@@ -5,7 +5,7 @@ The band's questions are asked thousands of times per run on a few dozen to a fe
 thousand samples each; as numpy expressions their cost is the per-call overhead of some
 thirty small array operations, not the arithmetic. These numba kernels do the same
 arithmetic in the same order in one loop (so the figures, and the chains, are those of
-the numpy formulas in :mod:`zwcore.arcs._geometry` and :mod:`zwcore.arcs._checks`; the
+the numpy formulas in :mod:`zwcore.arcs._geometry` and ``tests/arc_reference.py``; the
 property tests in ``tests/test_arc_kernels.py`` compare the two), and stop at the first
 sample that decides the answer.
 
@@ -46,6 +46,26 @@ def circle_gap1(u: float, v: float, kappa: float) -> float:
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
+def local1(x: float, y: float, px: float, py: float, tx: float,
+           ty: float) -> tuple[float, float]:
+    """:func:`zwcore.arcs._geometry.local_uv` of one point: ``(u, v)`` in the frame of
+    ``(p, t)``."""
+    dx = x - px
+    dy = y - py
+    return dx * tx + dy * ty, dy * tx - dx * ty
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def kappa_interval1(u: float, v: float, wt: float) -> tuple[float, float]:
+    """:func:`zwcore.arcs._geometry.kappa_bounds` of one local point: the curvatures of
+    the circles through it within ``wt`` (``(-inf, inf)`` for a point that close)."""
+    den = u * u + v * v - wt * wt
+    if den > 0.0:
+        return 2.0 * (v - wt) / den, 2.0 * (v + wt) / den
+    return -np.inf, np.inf
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
 def arc_xy(px: float, py: float, tx: float, ty: float, kappa: float,
            sigma: float) -> tuple[float, float]:
     """:func:`zwcore.arcs._geometry.arc_points` at one arc length."""
@@ -80,7 +100,6 @@ def reach_lines(samples: FloatArray, ps: FloatArray, ts: FloatArray, ks: IntArra
     if c == 0:
         return reach, lreach
     k0 = ks.min()
-    wt2 = wt * wt
     for i in range(c):
         px, py, tx, ty = ps[i, 0], ps[i, 1], ts[i, 0], ts[i, 1]
         col = k0 + 1 + stride * ((ks[i] - k0 - 1) // stride + 1)
@@ -88,14 +107,10 @@ def reach_lines(samples: FloatArray, ps: FloatArray, ts: FloatArray, ks: IntArra
         r, lr = b, b
         line_alive = True
         while col <= b:
-            dx = samples[col, 0] - px
-            dy = samples[col, 1] - py
-            u = dx * tx + dy * ty
-            v = dy * tx - dx * ty
-            den = u * u + v * v - wt2
-            if den > 0.0:
-                lo = max(lo, 2.0 * (v - wt) / den)
-                up = min(up, 2.0 * (v + wt) / den)
+            u, v = local1(samples[col, 0], samples[col, 1], px, py, tx, ty)
+            lo_i, up_i = kappa_interval1(u, v, wt)
+            lo = max(lo, lo_i)
+            up = min(up, up_i)
             if lo > up:
                 r = col - 1
                 break
@@ -114,17 +129,12 @@ def _bounds_scan(samples: FloatArray, px: float, py: float, tx: float, ty: float
     """Running curvature bounds from sample ``k + 1`` on, written to ``lo_out, up_out``
     while they fit (both may be empty: only counted); the number of feasible samples."""
     lo, up = -np.inf, np.inf
-    wt2 = wt * wt
     cap = len(lo_out)
     for i in range(k + 1, b + 1):
-        dx = samples[i, 0] - px
-        dy = samples[i, 1] - py
-        u = dx * tx + dy * ty
-        v = dy * tx - dx * ty
-        den = u * u + v * v - wt2
-        if den > 0.0:
-            lo = max(lo, 2.0 * (v - wt) / den)
-            up = min(up, 2.0 * (v + wt) / den)
+        u, v = local1(samples[i, 0], samples[i, 1], px, py, tx, ty)
+        lo_i, up_i = kappa_interval1(u, v, wt)
+        lo = max(lo, lo_i)
+        up = min(up, up_i)
         if lo > up:
             return i - k - 1
         n = i - k - 1
@@ -162,7 +172,7 @@ def _pymod(a: float, b: float) -> float:
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def foot_positions(u: FloatArray, v: FloatArray, kappa: float, sig: FloatArray) -> None:
-    """:func:`zwcore.arcs._checks.foot_positions` written to ``sig`` ``(n,)`` (the angles
+    """``foot_positions`` of ``tests/arc_reference.py`` written to ``sig`` ``(n,)`` (the angles
     unwrapped as :func:`numpy.unwrap` does)."""
     n = len(u)
     if kappa == 0.0:
@@ -214,7 +224,7 @@ def arc_near_polyline(samples: FloatArray, px: float, py: float, tx: float, ty: 
                       kappa: float, s0: float, s1: float, a: int, b: int, tol: float,
                       step0: float) -> bool:
     """Dense check of the arc portion ``[s0, s1]`` against polyline segments ``a..b``
-    (:meth:`zwcore.arcs._pieces.ToleranceBand._arc_near_polyline`; ``step0`` its
+    (``arc_near_polyline`` of ``tests/arc_reference.py``; ``step0``: the band's
     ``dense_step``)."""
     if s1 <= s0:
         return True
@@ -244,7 +254,7 @@ def arc_near_polyline(samples: FloatArray, px: float, py: float, tx: float, ty: 
 def _segments_within(u: FloatArray, v: FloatArray, sig: FloatArray, sig_end: float,
                      e0: float, e1: float, e2: float, e3: float, kappa: float, tol: float,
                      dense_first: bool) -> bool:
-    """:func:`zwcore.arcs._checks.segments_within`; ``e0..e3``: the end point's offsets
+    """``segments_within`` of ``tests/arc_reference.py``; ``e0..e3``: the end point's offsets
     from the start times the tangent's components, ``(ex-px)tx, (ey-py)ty, (ey-py)tx,
     (ex-px)ty`` (the order of its arithmetic kept)."""
     rk = 1.0 / kappa
@@ -276,7 +286,7 @@ def _portions_within(samples: FloatArray, k: int, sig: FloatArray, sig_end: floa
                      px: float, py: float, tx: float, ty: float, dense_first: bool,
                      step0: float) -> tuple[bool, float]:
     """The arc portions between consecutive (running-max) foot points within ``tol`` of
-    the polyline (:func:`zwcore.arcs._checks.portion_bounds`; with ``dense_first`` the
+    the polyline (``portion_bounds`` of ``tests/arc_reference.py``; with ``dense_first`` the
     first non-empty portion is checked densely instead), and the last clipped foot
     position."""
     n = len(sig)
@@ -325,10 +335,7 @@ def verify_piece(samples: FloatArray, px: float, py: float, tx: float, ty: float
     g = np.empty(n)
     sig = np.empty(n)
     for i in range(n):
-        dx = samples[k + i, 0] - px
-        dy = samples[k + i, 1] - py
-        u[i] = dx * tx + dy * ty
-        v[i] = dy * tx - dx * ty
+        u[i], v[i] = local1(samples[k + i, 0], samples[k + i, 1], px, py, tx, ty)
         g[i] = abs(circle_gap1(u[i], v[i], kappa))
     foot_positions(u, v, kappa, sig)
     if not given:
@@ -403,13 +410,9 @@ def kappa_fits(samples: FloatArray, px: float, py: float, tx: float, ty: float, 
                b: int, wt: float, kappa: float, slack: float) -> bool:
     """True when the curvature ``kappa`` (within ``slack``) is in the interval of every
     sample ``k+1..b`` from the junction ``(p, t)`` at working half-width ``wt``."""
-    wt2 = wt * wt
     for i in range(k + 1, b + 1):
-        dx = samples[i, 0] - px
-        dy = samples[i, 1] - py
-        u = dx * tx + dy * ty
-        v = dy * tx - dx * ty
-        den = u * u + v * v - wt2
+        u, v = local1(samples[i, 0], samples[i, 1], px, py, tx, ty)
+        den = u * u + v * v - wt * wt
         if den > 0.0 and not (
                 2.0 * (v - wt) / den - slack <= kappa <= 2.0 * (v + wt) / den + slack):
             return False
@@ -425,13 +428,10 @@ def last_before(samples: FloatArray, px: float, py: float, tx: float, ty: float,
     prev = 0.0
     corr = 0.0
     for i in range(k + 1, hi + 1):
-        dx = samples[i, 0] - px
-        dy = samples[i, 1] - py
-        u = dx * tx + dy * ty
+        u, v = local1(samples[i, 0], samples[i, 1], px, py, tx, ty)
         if kappa == 0.0:
             sig = u
         else:
-            v = dy * tx - dx * ty
             phi = math.atan2(kappa * u, 1.0 - kappa * v)
             if i > k + 1:
                 dd = phi - prev
@@ -456,10 +456,7 @@ def line_reaches(samples: FloatArray, px: float, py: float, ts: FloatArray, k: i
     for c in range(len(ts)):
         tx, ty = ts[c, 0], ts[c, 1]
         for i in range(k + 1, b + 1):
-            dx = samples[i, 0] - px
-            dy = samples[i, 1] - py
-            u = dx * tx + dy * ty
-            v = dy * tx - dx * ty
+            u, v = local1(samples[i, 0], samples[i, 1], px, py, tx, ty)
             if abs(v) > wt or u < -wt:
                 out[c] = i - 1
                 break
@@ -472,17 +469,13 @@ def chord_circle_gap(samples: FloatArray, px: float, py: float, th: float, k: in
     """Largest distance of samples ``k+1..b`` from the circle through ``p`` along the
     direction ``th`` and through sample ``b`` (inf when ``b`` is ``p``)."""
     tx, ty = math.cos(th), math.sin(th)
-    dx = samples[b, 0] - px
-    dy = samples[b, 1] - py
-    ub = dx * tx + dy * ty
-    vb = dy * tx - dx * ty
+    ub, vb = local1(samples[b, 0], samples[b, 1], px, py, tx, ty)
     q2 = ub * ub + vb * vb
     if q2 <= 0.0:
         return np.inf
     kap = 2.0 * vb / q2
     worst = 0.0
     for i in range(k + 1, b + 1):
-        dx = samples[i, 0] - px
-        dy = samples[i, 1] - py
-        worst = max(worst, abs(circle_gap1(dx * tx + dy * ty, dy * tx - dx * ty, kap)))
+        u, v = local1(samples[i, 0], samples[i, 1], px, py, tx, ty)
+        worst = max(worst, abs(circle_gap1(u, v, kap)))
     return worst

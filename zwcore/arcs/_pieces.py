@@ -239,32 +239,6 @@ class ToleranceBand:
         piece.end = self.samples[b].copy()
         return piece
 
-    def arc_through(
-        self, p: FloatArray, t: FloatArray, q: FloatArray, dist: float
-    ) -> tuple[float, float] | None:
-        """Curvature and length of the arc from ``p`` along ``t`` through ``q``.
-
-        ``dist`` is the scale below which a curvature counts as a line. None when
-        ``q`` is ``p``, the arc is degenerate or its radius is not allowed.
-        """
-        # (scalar arithmetic: the figures of local_uv and arc_length_position)
-        dx = float(q[0] - p[0])
-        dy = float(q[1] - p[1])
-        tx = float(t[0])
-        ty = float(t[1])
-        u = dx * tx + dy * ty
-        v = dy * tx - dx * ty
-        q2 = u * u + v * v
-        if q2 <= 0.0:
-            return None
-        k = 2.0 * v / q2
-        if abs(k) < 1e-15 * max(1.0 / dist, 1.0):
-            k = 0.0  # numerically straight: a line
-        length = u if k == 0.0 else math.atan2(k * u, 1.0 - k * v) / k
-        if not length > 0.0 or not self.radius_ok(k):
-            return None
-        return k, length
-
     #: where between start and end the biarc's junction is tried (share of the chord)
     BIARC_SPLITS = (0.5, 0.4, 0.6, 0.3, 0.7, 0.2, 0.8, 0.12, 0.9, 0.06, 0.94)
 

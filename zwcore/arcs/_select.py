@@ -14,7 +14,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from zwcore.arcs._kernels import arc_xy, verify_piece
+from zwcore.arcs._kernels import arc_xy, local1, verify_piece
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -121,10 +121,7 @@ def candidates(samples: FloatArray, cum: FloatArray, px: float, py: float, tx: f
     for i in range(n):
         j = jj[i]
         kap = kk[i]
-        dx = samples[j, 0] - px
-        dy = samples[j, 1] - py
-        u = dx * tx + dy * ty
-        v = dy * tx - dx * ty
+        u, v = local1(samples[j, 0], samples[j, 1], px, py, tx, ty)
         if kap == 0.0:
             sj = u
             bonus[i] = 0.3 * (cum[j] - cum[k])

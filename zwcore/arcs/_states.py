@@ -3,7 +3,7 @@ pieces proposed from them."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 from numpy.typing import NDArray
@@ -65,14 +65,8 @@ class Cands:
         """The candidates of ``parts``, in order."""
         if len(parts) == 1:
             return parts[0]
-        return Cands(np.concatenate([c.si for c in parts]),
-                     np.concatenate([c.j for c in parts]),
-                     np.concatenate([c.kappa for c in parts]),
-                     np.concatenate([c.end for c in parts]),
-                     np.concatenate([c.t_end for c in parts]),
-                     np.concatenate([c.bonus for c in parts]),
-                     np.concatenate([c.sig_end for c in parts]),
-                     np.concatenate([c.special for c in parts]))
+        return Cands(**{f.name: np.concatenate([getattr(c, f.name) for c in parts])
+                        for f in fields(Cands)})
 
 
 def approx_lengths(c: Cands, chord: FloatArray) -> FloatArray:
