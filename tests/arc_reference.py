@@ -373,7 +373,7 @@ def last_on_first_arc(
 
 def _arc_through(kmin: float, kcap: float, p: FloatArray, t: FloatArray, q: FloatArray,
                  dist: float) -> tuple[float, float] | None:
-    """:meth:`zwcore.arcs._pieces.ToleranceBand.arc_through` (radii ``1/kcap..1/kmin``)."""
+    """The numpy reference of :func:`zwcore.arcs._biarc.arc_through` (radii ``1/kcap..1/kmin``)."""
     dx = float(q[0] - p[0])
     dy = float(q[1] - p[1])
     u = dx * float(t[0]) + dy * float(t[1])
