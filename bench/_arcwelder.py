@@ -106,7 +106,35 @@ def _fits_line(pts: list[tuple[float, float]], tol: float) -> bool:
     rel = p - p[0]
     along = rel @ u
     off = np.abs(rel[:, 0] * u[1] - rel[:, 1] * u[0])
-    return bool(off.max() <= tol and np.all(np.diff(along) > 0.0))
+    return bool(off.max() <= tol and np.all(np.diff(along) >= 0.0))
+
+
+def merge_straight_runs(segs: list[Segment], pts: FloatArray, closed: bool,
+                        tol: float) -> int:
+    """How many segments ArcWelder's chain would have if, besides its G1 runs, every run
+    of its moves (lines or nearly flat arcs) that one line can replace at ``tol`` were
+    one line: a run is replaced when every input point it covers is within ``tol`` of
+    the line through its ends and projects onto it in order. The most generous reading
+    of "its G1 runs merged" (ArcWelder fits 3-point arcs of radius up to 9999 mm to
+    straight edges whose points were rounded)."""
+    path = np.array([[float(f"{x:.4f}"), float(f"{y:.4f}")] for x, y in
+                     (np.vstack([pts, pts[:1]]) if closed else pts)])
+    ends, k = [0], 0
+    for s in segs:  # input index of every segment's end (moves follow the input)
+        e = np.asarray(s[2])
+        k += 1
+        while k < len(path) - 1 and not np.array_equal(path[k], e):
+            k += 1
+        ends.append(k)
+    assert ends[-1] == len(path) - 1, "ArcWelder's moves do not follow the input"
+    count, i = 0, 0
+    while i < len(segs):
+        j = i + 1
+        while j < len(segs) and _fits_line(list(map(tuple, path[ends[i] : ends[j + 1] + 1])), tol):
+            j += 1
+        count += 1
+        i = j
+    return count
 
 
 def run_arcwelder(exe: str, pts: FloatArray, tol: float, closed: bool = True,

@@ -148,7 +148,7 @@ def glyphs(quick: bool, arcwelder: str | None) -> None:
     contours against ArcWelder (``arcwelder``: its console) or the greedy bound."""
     from _arcwelder import deviation as aw_deviation
     from _arcwelder import max_kink as aw_max_kink
-    from _arcwelder import run_arcwelder
+    from _arcwelder import merge_straight_runs, run_arcwelder
     from glyphs import GLYPHS, QUICK_GLYPHS, glyph_contours
 
     from zwcore.arcs.fit import chain_tangents
@@ -162,12 +162,14 @@ def glyphs(quick: bool, arcwelder: str | None) -> None:
     head = (f"{'sampling':8s} {'tol':>5s} {'points':>6s} {'seg':>5s} {'arc':>5s} {'line':>5s}"
             f" {'max dev':>8s} {'kink deg':>8s} {'corners':>9s} {'time s':>7s}"
             f" {'ms/seg':>6s} {'cpu s':>6s} {'cpu ms/seg':>10s} {ref:>8s} {'ratio':>5s}"
-            + (f" {'AW dev':>8s} {'AW kink':>7s} {'AW s':>6s}" if arcwelder else ""))
+            + (f" {'AW dev':>8s} {'AW kink':>7s} {'AW s':>6s} {'AW str':>6s} {'ratio':>5s}"
+               if arcwelder else ""))
     print(head)
     print("-" * len(head))
     for tol in (0.05, 0.01):
         for name in ("even", "chordal", "noisy"):
             n_pts = seg = arcs = lines = kept = n_corner = n_ref = 0
+            n_str = 0
             dev = kink = t_all = c_all = aw_dev = aw_kink = aw_t = 0.0
             for _label, pts, corners in sets[name]:
                 dt, dc, chain = _timed_cpu(pts, True, tol)
@@ -187,6 +189,7 @@ def glyphs(quick: bool, arcwelder: str | None) -> None:
                     aw_t += adt
                     aw_dev = max(aw_dev, *aw_deviation(aw, pts, True))
                     aw_kink = max(aw_kink, aw_max_kink(aw, True, corners, 0.2 + 3 * tol))
+                    n_str += merge_straight_runs(aw, pts, True, tol)
                 else:
                     n_ref += greedy_min_pieces(pts, tol, True)
             _ = chain_tangents
@@ -195,7 +198,8 @@ def glyphs(quick: bool, arcwelder: str | None) -> None:
                   f" {1e3 * t_all / max(seg, 1):6.2f} {c_all:6.2f}"
                   f" {1e3 * c_all / max(seg, 1):10.2f}"
                   f" {n_ref:8d} {seg / max(n_ref, 1):5.2f}"
-                  + (f" {aw_dev:8.5f} {aw_kink:7.1f} {aw_t:6.2f}" if arcwelder else ""),
+                  + (f" {aw_dev:8.5f} {aw_kink:7.1f} {aw_t:6.2f} {n_str:6d}"
+                     f" {seg / max(n_str, 1):5.2f}" if arcwelder else ""),
                   flush=True)
 
 
