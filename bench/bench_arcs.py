@@ -205,14 +205,23 @@ def glyphs(quick: bool, arcwelder: str | None) -> None:
 
 def _aw_columns(exe: str, pts: np.ndarray, closed: bool, tol: float, nseg: int) -> str:
     """ArcWelder's measured columns for one smooth curve: its segments (G1 runs merged),
-    our count over its, its largest deviation (both ways, sampled) and its largest kink
-    (degrees) away from the input's corners (vertices turning more than 30 deg)."""
-    from _arcwelder import deviation, max_kink, polyline_corners, run_arcwelder
+    our count over its, its largest deviation (both ways, sampled), its largest kink
+    (degrees) away from the input's corners (vertices turning more than 30 deg), and its
+    count with straight runs of lines or flat arcs merged too, with our count over it."""
+    from _arcwelder import (
+        deviation,
+        max_kink,
+        merge_straight_runs,
+        polyline_corners,
+        run_arcwelder,
+    )
 
     aw, _ = run_arcwelder(exe, pts, tol, closed)
     corners = polyline_corners(pts, closed)
+    n_str = merge_straight_runs(aw, pts, closed, tol)
     return (f" {len(aw):6d} {nseg / len(aw):5.2f} {max(deviation(aw, pts, closed)):7.4f}"
-            f" {max_kink(aw, closed, corners, 0.2 + 3 * tol):7.1f}")
+            f" {max_kink(aw, closed, corners, 0.2 + 3 * tol):7.1f} {n_str:6d}"
+            f" {nseg / n_str:5.2f}")
 
 
 def coarse_polygon(n: int = 1000, edge: float = 10.0, turn_deg: float = 12.0,
@@ -334,8 +343,8 @@ def main() -> None:
     head = (f"{'curve':10s} {'N':>6s} {'seg':>4s} {'arc':>4s} {'line':>4s} {'dev pts':>8s}"
             f" {'dev chain':>9s} {'kink':>8s} {'corners':>7s} {'time s':>7s} {'cpu s':>6s}"
             f" {'cpu ms/seg':>10s} {'greedy<=':>8s} {'AW':>7s}"
-            + (f" {'AW seg':>6s} {'ratio':>5s} {'AW dev':>7s} {'AW kink':>7s}"
-               if args.arcwelder else ""))
+            + (f" {'AW seg':>6s} {'ratio':>5s} {'AW dev':>7s} {'AW kink':>7s} {'AW str':>6s}"
+               f" {'ratio':>5s}" if args.arcwelder else ""))
     print(head)
     print("-" * len(head))
     for name, make in BENCH_CURVES.items():
