@@ -11,7 +11,11 @@ as far as one circle or line keeps its points and the polyline between them
 within the tolerance, i.e. an annulus of width <= 2 tol; a run counts as
 feasible only with a witness circle/line, so the count is a valid partition:
 exact if the local annulus search never misses, otherwise an upper bound),
-``AW``: ArcWelder 2.0 at the same tolerance (issue text).
+``AW``: ArcWelder 2.0 at the same tolerance (issue text). With ``--arcwelder PATH``
+(an ArcWelder console, bench/README.md) ArcWelder is run on each curve too:
+``AW seg`` its segments with its G1 runs merged and ``ratio`` ours over it, its
+deviation (both ways, sampled) and kink, ``AW str`` its segments with every straight
+run of lines or flat arcs merged (the generous count) and ``ratio`` ours over that.
 """
 
 from __future__ import annotations
