@@ -11,7 +11,8 @@ as far as one circle or line keeps its points and the polyline between them
 within the tolerance, i.e. an annulus of width <= 2 tol; a run counts as
 feasible only with a witness circle/line, so the count is a valid partition:
 exact if the local annulus search never misses, otherwise an upper bound),
-``AW``: ArcWelder 2.0 at the same tolerance (issue text). With ``--arcwelder PATH``
+``AW``: ArcWelder at the same tolerance (``curves.ARCWELDER_REFERENCE``, measured
+with ArcWelder 1.2.0 and stored). With ``--arcwelder PATH``
 (an ArcWelder console, bench/README.md) ArcWelder is run on each curve too:
 ``AW seg`` its segments with its G1 runs merged and ``ratio`` ours over it, its
 deviation (both ways, sampled) and kink, ``AW str`` its segments with every straight
@@ -367,6 +368,12 @@ def main() -> None:
     _scaling(tol, args.quick)
     _coarse()
     print("\nArcWelder 2.0 on the 0.02 mm ellipse (24,223 points): 10.3 s (issue text)")
+    if args.arcwelder:
+        from _arcwelder import run_arcwelder
+
+        pts, closed = ellipse(0.02)
+        aw, adt = run_arcwelder(args.arcwelder, pts, tol, closed)
+        print(f"ArcWelder here on it: {len(aw)} segments, {adt:.1f} s wall")
     _ = math.pi
 
 
