@@ -35,7 +35,8 @@ def _rest_reason(rule: RestRegion, frac: float, tol: float) -> str:
             if rule.against_stock else prev + "'s")
     return (f"simulated stock: {rule.seed_nodes} nodes still more than {tol:g} mm above the "
             f"part (up to {rule.left_before:.4g} mm) where {rule.tool.id}'s bilinear closing "
-            f"lies more than {tol:g} mm below {than}, grown by its radius: "
+            f"lies more than {tol:g} mm below {than}; positions within its radius whose "
+            f"ball cuts into stock more than {tol:g} mm above the part: "
             f"{100 * frac:.3g} % of the part")
 
 
