@@ -50,6 +50,12 @@ B8 = NDArray[np.bool_]
 #: nodes (scallops and borders too).
 REST_CLOSING_WORK = 1 << 32
 
+#: Most (position, node) pairs the region's cutting test may visit (about a second of
+#: the nodal drop at worst); beyond, the region is the seed grown by the radius (a
+#: superset). A thinned pass before leaves stock over most of a large grid and would
+#: ask for every position.
+CUT_WORK = 1 << 28
+
 #: The ball before is compared only within ``2R`` of nodes whose concave radius is below
 #: this many times its radius.
 TIGHT_SHARE = 2.0
@@ -104,6 +110,9 @@ class RestRegion:
     grown_nodes : int
         After the call: the seed grown by the ball's radius, nodes (the region is the
         part of it whose positions cut the seed's stock).
+    cut_tested : bool
+        After the call: False when that test was over :data:`CUT_WORK` and the region is
+        the seed grown by the radius.
     """
 
     part: ZMap
@@ -116,6 +125,7 @@ class RestRegion:
     previous: Tool | None = None
     against_stock: bool = False
     grown_nodes: int = 0
+    cut_tested: bool = True
     region: B8 | None = field(default=None, repr=False)
     _window_seed: B8 | None = field(default=None, repr=False)
 
@@ -126,6 +136,7 @@ class RestRegion:
         self.left_before = float(rest.max(initial=0.0))
         self.previous = self.shared.ran[-1]
         self._window_seed = None
+        self.cut_tested = True
         seed = rest > self.tolerance
         if seed.any():
             seed = self._better(seed, rest)
@@ -183,13 +194,20 @@ class RestRegion:
         far = float(z.min()) - 1.0  # below every CL on the part: nothing to cut here
         top = stock[win]
         material = np.where(top - z > self.tolerance, top, far)
+        # a ball whose tip lies below that stock at its own node cuts it (h(0) = 0): only
+        # the other positions need the drop on the stock
+        here = grown[win] & (cl < material)
+        asked = grown[win] & ~here
+        disc = math.pi * self.tool.radius ** 2 / (self.part.dx * self.part.dy)
+        if int(asked.sum()) * disc > CUT_WORK:
+            self.cut_tested = False
+            return grown
         # a position within R of a seed node sees all of the part within R of itself in
         # the window (2R and two cells): at the seed nodes the test below is exact
-        asked = grown[win]
         lowers, _ = nodal_drop_cutter(material, self.tool.radius, self.part.dx, self.part.dy,
                                       asked)
         out = np.zeros(seed.shape, dtype=bool)
-        out[win] = asked & (cl < lowers)
+        out[win] = here | (asked & (cl < lowers))
         return out
 
     def _work(self, seed: B8, tool: Tool) -> int:
