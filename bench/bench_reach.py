@@ -9,7 +9,10 @@ regions, cut-length factors and what is left (``tests/test_reach.py``); then
 Mount Rushmore (../shared/data) with this tree: the tool sequence, each finishing
 ball's region area, and the finishing cut length against finishing the whole part with
 the smallest ball (both region area over the flat pick-feed that holds the tolerance).
-Usage: ``python bench/bench_reach.py [--before ../zwplan-old] [--sizes 513 1025]``.
+With ``--forced`` it also plans Mount Rushmore with the finishing chains Ø3 > Ø1 and
+Ø2 > Ø1 (the estimate's ranking replaced for those runs) and prints the simulated regions.
+Usage: ``python bench/bench_reach.py [--before ../zwplan-old] [--sizes 513 1025]
+[--forced]``.
 """
 
 from __future__ import annotations
@@ -141,7 +144,7 @@ def _sizes(before: str | None, sizes: list[int], repeat: int) -> None:
             print(f"| {name} | {part} | {k['regions']} | {k['factor']:.2f} | {k['left']} |")
 
 
-def _rushmore() -> None:
+def _rushmore(forced: bool) -> None:
     import numpy as np
 
     sys.path.insert(0, str(ROOT))
@@ -172,6 +175,42 @@ def _rushmore() -> None:
         print(f"left above the tolerance: {r.unreachable_area:.0f} mm², up to "
               f"{r.unreachable_max_height:.2f} mm")
     _why(z, 0.1, plan.tolerance)
+    if forced:
+        _forced(z, [["BEM-D3", "BEM-D1"], ["BEM-D2", "BEM-D1"]])
+
+
+def _forced(z: object, chains: list[list[str]]) -> None:
+    """Mount Rushmore planned with given finishing chains instead of the estimate's choice
+    (its ranking function replaced for the run): the simulated rest regions, cut-length
+    factor and what is left, as the plan reports them."""
+    import numpy as np
+
+    from zwcore import ZMap
+    from zwcore.scanline import _regions
+    from zwcore.scanline.planner import plan_scanline
+
+    ranked = _regions._plan
+    print("\n| forced chain | plan s | passes | finishing regions (simulated) | factor "
+          "| left above the tolerance |")
+    print("| --- | --- | --- | --- | --- | --- |")
+    try:
+        for chain in chains:
+            def fixed(balls: list, reach: object, area: float, ids: list = chain) -> list:
+                names = [b.id for b in balls]
+                return [names.index(i) for i in ids]
+            _regions._plan = fixed
+            t = time.perf_counter()
+            plan = plan_scanline(ZMap(np.asarray(z), dx=0.1, dy=0.1))
+            took = time.perf_counter() - t
+            fin = [s for s in plan.stages if s.level == plan.depth and s.pass_index == 1]
+            r = plan.reach
+            regions = " > ".join(f"{s.tool.id} {100 * s.region_area_fraction:.1f} %"
+                                 for s in fin)
+            print(f"| {' > '.join(chain)} | {took:.1f} | {len(plan.stages)} | {regions} "
+                  f"| {r.smallest_ball_cut_length / r.finishing_cut_length:.2f} "
+                  f"| {r.unreachable_area:.0f} mm² up to {r.unreachable_max_height:.2f} mm |")
+    finally:
+        _regions._plan = ranked
 
 
 def _why(z: object, d: float, tol: float) -> None:
@@ -214,6 +253,8 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=1)
     ap.add_argument("--child", action="store_true")
     ap.add_argument("--no-rushmore", action="store_true")
+    ap.add_argument("--forced", action="store_true",
+                    help="also plan Mount Rushmore with the chains D3 > D1 and D2 > D1")
     args = ap.parse_args()
     if args.child:
         _child(args.sizes, args.repeat)
@@ -221,7 +262,7 @@ def main() -> None:
     if args.sizes:
         _sizes(args.before, args.sizes, args.repeat)
     if not args.no_rushmore:
-        _rushmore()
+        _rushmore(args.forced)
 
 
 if __name__ == "__main__":
