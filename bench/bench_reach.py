@@ -4,17 +4,22 @@ Prints, in one run: the whole scan-line plan's time (best of ``--repeat``) with 
 phases on the synthetic part of ``bench_scanline_core.py`` at 513² and 1025², for the
 code of another checkout (``--before PATH``, e.g. a ``git worktree`` of the commit before
 reach; without it only this tree is timed) and of this one, each in its own process,
-and the ratios after/before and 1025²/513²; then
+and the ratios after/before and 1025²/513², and the known-answer parts' finishing
+regions, cut-length factors and what is left (``tests/test_reach.py``); then
 Mount Rushmore (../shared/data) with this tree: the tool sequence, each finishing
 ball's region area, and the finishing cut length against finishing the whole part with
 the smallest ball (both region area over the flat pick-feed that holds the tolerance).
-Usage: ``python bench/bench_reach.py [--before ../zwplan-old] [--sizes 513 1025]``.
+With ``--forced`` it also plans Mount Rushmore with the finishing chains Ø3 > Ø1 and
+Ø2 > Ø1 (the estimate's ranking replaced for those runs) and prints the simulated regions.
+Usage: ``python bench/bench_reach.py [--before ../zwplan-old] [--sizes 513 1025]
+[--forced]``.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import subprocess
 import sys
@@ -23,6 +28,52 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA = ROOT.parent / "shared" / "data" / "mount_rush_zmap_0.1mm.npy"
+
+
+def _known_parts() -> dict[str, object]:
+    """The known-answer parts of ``tests/test_reach.py`` and the trenches of
+    ``tests/test_scanline_stock.py`` (same geometry, written out here)."""
+    import numpy as np
+
+    from zwcore import ZMap
+
+    x = (np.arange(129) - 64) * 0.25
+    r = np.hypot(*np.meshgrid(x, x))
+    pocket = np.where(r < 8.0, 8.0 - np.sqrt(np.maximum(64.0 - r * r, 0.0)), 8.0)
+    al, h, rf = math.radians(45.0), 0.2, 3.0
+    xf = np.arange(0.0, 60.0 + 1e-9, h)
+    xt, zt = 20.0 + rf * math.sin(al), rf - rf * math.cos(al)
+    prof = np.where(xf < 20.0, 0.0,
+                    np.where(xf < xt, rf - np.sqrt(np.maximum(rf * rf - (xf - 20.0) ** 2, 0.0)),
+                             zt + math.tan(al) * (xf - xt)))
+    fillet = np.tile(np.minimum(prof, 25.0), (121, 1))
+    rect = np.zeros((161, 201))
+    rect[40:121, 40:161] = -5.0
+    parts = {"R 8 pocket": ZMap(pocket, dx=0.25, dy=0.25),
+             "45° fillet": ZMap(fillet, dx=h, dy=h),
+             "rectangular pocket": ZMap(rect, dx=0.25, dy=0.25)}
+    xs = np.arange(129) * 0.25
+    for width in (2.0, 3.0):
+        z = np.zeros((129, 129))
+        z[:, np.abs(xs - xs[-1] / 2) <= width / 2] = -20.0
+        parts[f"trench {width:g} mm"] = ZMap(z, dx=0.25, dy=0.25)
+    return parts
+
+
+def _known() -> dict[str, dict[str, object]]:
+    from zwcore.scanline.planner import plan_scanline
+
+    out: dict[str, dict[str, object]] = {}
+    for name, zmap in _known_parts().items():
+        plan = plan_scanline(zmap)
+        fin = [s for s in plan.stages if s.level == plan.depth and s.pass_index == 1]
+        r = plan.reach
+        out[name] = {
+            "regions": " > ".join(f"{s.tool.id} {100 * s.region_area_fraction:.1f} %"
+                                  for s in fin),
+            "factor": r.smallest_ball_cut_length / r.finishing_cut_length,
+            "left": f"{r.unreachable_area:.4g} mm² up to {r.unreachable_max_height:.4g} mm"}
+    return out
 
 
 def _child(sizes: list[int], repeat: int) -> None:
@@ -46,8 +97,13 @@ def _child(sizes: list[int], repeat: int) -> None:
                 phases = {}
                 for name, sec in plan.timings:
                     phases[name] = phases.get(name, 0.0) + sec
+        regions = {s.tool.id: round(100 * s.region_area_fraction, 2) for s in plan.stages
+                   if s.level == plan.depth and s.region_area_fraction is not None}
+        factor = (plan.reach.smallest_ball_cut_length / plan.reach.finishing_cut_length
+                  if plan.reach is not None else None)
         out[n] = {"seconds": best, "phases": phases, "passes": len(plan.stages),
-                  "tools": list(plan.tool_sequence)}
+                  "tools": list(plan.tool_sequence), "regions": regions, "factor": factor}
+    out["known"] = _known()
     print(json.dumps(out))
 
 
@@ -63,14 +119,16 @@ def _sizes(before: str | None, sizes: list[int], repeat: int) -> None:
     runs = {"after": _run(str(ROOT), sizes, repeat)}
     if before is not None:
         runs = {"before": _run(before, sizes, repeat), **runs}
-    print("| code | cells | plan s | passes | tools | phases (s) |")
-    print("| --- | --- | --- | --- | --- | --- |")
+    print("| code | cells | plan s | passes | tools | finishing regions % | factor | phases (s) |")
+    print("| --- | --- | --- | --- | --- | --- | --- | --- |")
     for name, run in runs.items():
         for n in sizes:
             r = run[str(n)]
             ph = ", ".join(f"{k} {v:.2f}" for k, v in r["phases"].items() if v >= 0.01)
+            reg = ", ".join(f"{k} {v:g}" for k, v in r.get("regions", {}).items())
+            fac = f"{r['factor']:.2f}" if r.get("factor") is not None else "-"
             print(f"| {name} | {n}² | {r['seconds']:.2f} | {r['passes']} | "
-                  f"{' > '.join(r['tools'])} | {ph} |")
+                  f"{' > '.join(r['tools'])} | {reg} | {fac} | {ph} |")
     for n in sizes if "before" in runs else []:
         b, a = runs["before"][str(n)]["seconds"], runs["after"][str(n)]["seconds"]
         print(f"after / before at {n}²: {a / b:.2f}")
@@ -78,9 +136,15 @@ def _sizes(before: str | None, sizes: list[int], repeat: int) -> None:
         for name, run in runs.items():
             lo, hi = run[str(sizes[0])]["seconds"], run[str(sizes[-1])]["seconds"]
             print(f"{name}: {sizes[-1]}² / {sizes[0]}²: {hi / lo:.2f}")
+    print("\n| code | part | finishing regions | factor | left above the tolerance |")
+    print("| --- | --- | --- | --- | --- |")
+    for part in runs["after"]["known"]:
+        for name, run in runs.items():
+            k = run["known"][part]
+            print(f"| {name} | {part} | {k['regions']} | {k['factor']:.2f} | {k['left']} |")
 
 
-def _rushmore() -> None:
+def _rushmore(forced: bool) -> None:
     import numpy as np
 
     sys.path.insert(0, str(ROOT))
@@ -110,6 +174,76 @@ def _rushmore() -> None:
               f"{r.smallest_ball_cut_length / r.finishing_cut_length:.2f}")
         print(f"left above the tolerance: {r.unreachable_area:.0f} mm², up to "
               f"{r.unreachable_max_height:.2f} mm")
+    _why(z, 0.1, plan.tolerance)
+    if forced:
+        _forced(z, [["BEM-D3", "BEM-D1"], ["BEM-D2", "BEM-D1"]])
+
+
+def _forced(z: object, chains: list[list[str]]) -> None:
+    """Mount Rushmore planned with given finishing chains instead of the estimate's choice
+    (its ranking function replaced for the run): the simulated rest regions, cut-length
+    factor and what is left, as the plan reports them."""
+    import numpy as np
+
+    from zwcore import ZMap
+    from zwcore.scanline import _regions
+    from zwcore.scanline.planner import plan_scanline
+
+    ranked = _regions._plan
+    print("\n| forced chain | plan s | passes | finishing regions (simulated) | factor "
+          "| left above the tolerance |")
+    print("| --- | --- | --- | --- | --- | --- |")
+    try:
+        for chain in chains:
+            def fixed(balls: list, reach: object, area: float, ids: list = chain) -> list:
+                names = [b.id for b in balls]
+                return [names.index(i) for i in ids]
+            _regions._plan = fixed
+            t = time.perf_counter()
+            plan = plan_scanline(ZMap(np.asarray(z), dx=0.1, dy=0.1))
+            took = time.perf_counter() - t
+            fin = [s for s in plan.stages if s.level == plan.depth and s.pass_index == 1]
+            r = plan.reach
+            regions = " > ".join(f"{s.tool.id} {100 * s.region_area_fraction:.1f} %"
+                                 for s in fin)
+            print(f"| {' > '.join(chain)} | {took:.1f} | {len(plan.stages)} | {regions} "
+                  f"| {r.smallest_ball_cut_length / r.finishing_cut_length:.2f} "
+                  f"| {r.unreachable_area:.0f} mm² up to {r.unreachable_max_height:.2f} mm |")
+    finally:
+        _regions._plan = ranked
+
+
+def _why(z: object, d: float, tol: float) -> None:
+    """Why the estimate finishes Mount Rushmore with the smallest ball alone: per candidate
+    main ball, where it leaves more than the tolerance, where the smallest ball does better
+    by more than it (the seed), that seed grown by the small ball's radius, and the chain's
+    estimated cut length, also with the seed alone (a bound no region rule can beat)."""
+    import numpy as np
+
+    from zwcore.grid.tools import default_tools
+    from zwcore.scanline._reach import within_distance
+    from zwcore.scanline._regions import TOOL_CHANGE_MM, _Reach, flat_pick_feed, lattice
+
+    balls = list(default_tools("ball"))
+    small = balls[-1]
+    reach = _Reach(np.asarray(z), d, d, tol)
+    area = reach.z.size * d * d
+    pf_s = flat_pick_feed(small.radius, tol)
+    alone = area / pf_s
+    print(f"\nwhy (nodal estimate, tolerance {tol:g}): {small.id} alone {alone:.0f} mm")
+    print(f"| main | leaves > tol % | seed for {small.id} % | seed grown by R % "
+          f"| chain cut mm (one layer) | factor | factor, seed alone |")
+    print("| --- | --- | --- | --- | --- | --- | --- |")
+    for b in balls[:-1]:
+        rest_b = reach.rest(b.radius, lattice(b.radius, d, d))
+        better, _, kn = reach._compare(b.radius, small.radius)
+        grown = within_distance(better, small.radius, kn * d, kn * d)
+        main = area / flat_pick_feed(b.radius, tol) + TOOL_CHANGE_MM
+        chain = main + grown.mean() * area / pf_s
+        bound = main + better.mean() * area / pf_s
+        print(f"| {b.id} | {100 * (rest_b > tol).mean():.1f} | {100 * better.mean():.1f} "
+              f"| {100 * grown.mean():.1f} | {chain:.0f} | {alone / chain:.2f} "
+              f"| {alone / bound:.2f} |")
 
 
 def main() -> None:
@@ -119,6 +253,8 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=1)
     ap.add_argument("--child", action="store_true")
     ap.add_argument("--no-rushmore", action="store_true")
+    ap.add_argument("--forced", action="store_true",
+                    help="also plan Mount Rushmore with the chains D3 > D1 and D2 > D1")
     args = ap.parse_args()
     if args.child:
         _child(args.sizes, args.repeat)
@@ -126,7 +262,7 @@ def main() -> None:
     if args.sizes:
         _sizes(args.before, args.sizes, args.repeat)
     if not args.no_rushmore:
-        _rushmore()
+        _rushmore(args.forced)
 
 
 if __name__ == "__main__":

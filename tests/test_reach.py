@@ -25,7 +25,7 @@ from zwcore.grid.tools import Tool, default_tools
 from zwcore.grid.zmap import ZMap
 from zwcore.scanline._reach import ball_reach
 from zwcore.scanline.planner import plan_scanline
-from zwcore.sim import closing, nodal_closing, nodal_drop_cutter, refine_rest
+from zwcore.sim import drop_cutter, envelope, nodal_closing, nodal_drop_cutter, refine_rest
 
 BALLS = default_tools("ball")
 
@@ -296,25 +296,56 @@ def test_rectangular_pocket_gets_the_smallest_ball_only_in_its_corners() -> None
     assert any("no tool reaches" in n for n in plan.notes)
 
 
+def _brute_envelope(cl: np.ndarray, positions: np.ndarray, radius: float, dx: float,
+                    dy: float) -> np.ndarray:
+    """What balls at the given positions only leave at every node: ``min over positions c
+    within R of cl(c) + h(|p - c|)`` (+inf where none), by every node offset."""
+    ny, nx = cl.shape
+    ra, rb = int(radius // dy) + 1, int(radius // dx) + 1
+    big = np.full((ny + 2 * ra, nx + 2 * rb), np.inf)
+    big[ra:ra + ny, rb:rb + nx] = np.where(positions, cl, np.inf)
+    out = np.full((ny, nx), np.inf)
+    for a in range(-ra, ra + 1):
+        for b in range(-rb, rb + 1):
+            d2 = (a * dy) ** 2 + (b * dx) ** 2
+            if d2 <= radius**2:
+                h = radius - math.sqrt(radius**2 - d2)
+                out = np.minimum(out, big[ra + a:ra + a + ny, rb + b:rb + b + nx] + h)
+    return out
+
+
 def test_rest_regions_cover_where_the_passes_before_leave_material() -> None:
-    """Each rest ball's region holds every node where the brute-force re-simulation of the
-    plan's passes before it leaves more than the tolerance and this ball's closing
-    (zwcore.sim, bilinear, computed here on the whole grid) is lower by more than it."""
+    """Each rest ball's region holds, for every node where the brute-force re-simulation of
+    the plan's passes before it leaves more than the tolerance and this ball's closing
+    (zwcore.sim, bilinear, on the whole grid) is lower by more than it, positions that cut
+    it as deep as every position does: the ball's envelope over the region's positions
+    alone equals its envelope over every position there (both brute force, from its
+    drop-cutter CL). Positions whose
+    ball cuts none of that material are left out: the region is smaller than the nodes
+    within the ball's radius of those nodes."""
     zmap, _, _ = _fillet(60.0)
     plan = plan_scanline(zmap, [Tool("A", "ball", 8.0, 16.0), Tool("B", "ball", 4.0, 8.0),
                                 Tool("C", "ball", 2.0, 4.0)])
     fin = _finishing(plan)
     assert len(fin) >= 2
+    dx, dy = zmap.dx, zmap.dy
     for s in fin[1:]:
         n = plan.stages.index(s)
         before = dataclasses.replace(plan, stages=plan.stages[:n])
         final: list[np.ndarray] = []
         _resimulate(zmap, before, final)
         left = final[0] - zmap.z
-        mine = closing(zmap, s.tool, "bilinear") - zmap.z
+        cl = drop_cutter(zmap, s.tool, "bilinear")
+        mine = envelope(cl, s.tool, dx, dy, "bilinear") - zmap.z
         tol = plan.tolerance + 1e-6
         gain = (left > tol) & (left - mine > tol)
-        assert s.region is not None and s.region[gain].all()
+        assert s.region is not None and gain.any()
+        everywhere = _brute_envelope(cl, np.ones(cl.shape, dtype=bool), s.tool.radius, dx, dy)
+        region_only = _brute_envelope(cl, s.region, s.tool.radius, dx, dy)
+        np.testing.assert_array_equal(region_only[gain], everywhere[gain])
+        r = s.tool.radius
+        within = ndimage.distance_transform_edt(~gain, sampling=(dy, dx)) <= r
+        assert s.region.sum() < within.sum()
 
 
 # --------------------------------------------------------------------------

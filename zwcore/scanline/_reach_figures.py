@@ -33,10 +33,12 @@ def _rest_reason(rule: RestRegion, frac: float, tol: float) -> str:
     prev = rule.previous.id if rule.previous is not None else "the ball before"
     than = ("the simulated stock (the closing of " + prev + " too large to compute)"
             if rule.against_stock else prev + "'s")
+    where = (f"positions within its radius whose ball cuts into stock more than {tol:g} mm "
+             "above the part" if rule.cut_tested else
+             "grown by its radius (too many positions to test which of them cut)")
     return (f"simulated stock: {rule.seed_nodes} nodes still more than {tol:g} mm above the "
             f"part (up to {rule.left_before:.4g} mm) where {rule.tool.id}'s bilinear closing "
-            f"lies more than {tol:g} mm below {than}, grown by its radius: "
-            f"{100 * frac:.3g} % of the part")
+            f"lies more than {tol:g} mm below {than}; {where}: {100 * frac:.3g} % of the part")
 
 
 def _left_note(last: Tool, tol: float, area: float, height: float, sharp: float,
