@@ -117,10 +117,7 @@ def positions(lines: ScanLines, part: ZMap, stride: int,
                      np.ascontiguousarray(lines.stop, dtype=np.float64), step)
     x, y = (u, v) if along_x else (v, u)
     if region is not None and spacing is not None:
-        sx, sy = spacing
-        c = np.clip(np.rint(x / sx).astype(np.intp), 0, region.shape[1] - 1)
-        r = np.clip(np.rint(y / sy).astype(np.intp), 0, region.shape[0] - 1)
-        keep = region[r, c]
+        keep = _k.in_region(x, y, np.ascontiguousarray(region), *spacing)
         x, y = x[keep], y[keep]
     return Positions(np.ascontiguousarray(x), np.ascontiguousarray(y), lines.direction)
 

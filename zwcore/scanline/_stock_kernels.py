@@ -15,7 +15,7 @@ from numba import njit
 from numpy.typing import NDArray
 
 __all__ = ["block_max", "blocks_diff_max", "blocks_lowered", "cl_part", "cut", "diff_max_p95",
-           "disc_max", "interpolate", "lift_nodes", "lower", "may_cut", "near_blocks",
+           "disc_max", "in_region", "interpolate", "lift_nodes", "lower", "may_cut", "near_blocks",
            "node_index", "on_nodes", "points", "positive_max_mean", "raise_box",
            "top"]
 
@@ -146,6 +146,20 @@ def interpolate(grid: F64, isx: float, isy: float, px: F64, py: F64) -> F64:
         lo = grid[r0, c0] * (1.0 - tx) + grid[r0, c1] * tx
         hi = grid[r1, c0] * (1.0 - tx) + grid[r1, c1] * tx
         out[n] = lo * (1.0 - ty) + hi * ty
+    return out
+
+
+@njit(cache=True, nogil=True)
+def in_region(px: F64, py: F64, region: NDArray[np.bool_], sx: float,
+              sy: float) -> NDArray[np.bool_]:
+    """Positions whose nearest node of spacing ``sx, sy`` (clamped to ``region``'s shape)
+    is in ``region``: ``region[rint(y / sy), rint(x / sx)]``, without the index arrays."""
+    my, mx = region.shape
+    out = np.empty(px.size, dtype=np.bool_)
+    for n in range(px.size):
+        c = min(max(int(np.rint(px[n] / sx)), 0), mx - 1)
+        r = min(max(int(np.rint(py[n] / sy)), 0), my - 1)
+        out[n] = region[r, c]
     return out
 
 
