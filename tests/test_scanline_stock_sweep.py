@@ -19,6 +19,10 @@ from zwcore.scanline._stock_state import BLOCK, Positions, block_max
 from zwcore.scanline._stock_sweep import cl_lines, cut_lines, line_starts
 from zwcore.scanline.results import ScanLines
 
+#: Balls that reach a node at the same height differ in their rounding only: the sweep
+#: takes one of them, a few ulps from the least (the per-position kernel's).
+_ULPS = 8
+
 _Case = tuple[np.ndarray, float, float, float, np.ndarray, np.ndarray, np.ndarray]
 
 
@@ -82,8 +86,10 @@ def test_sweep_cut_equals_the_per_position_kernel(case: _Case, along_x: bool) ->
     cut_lines(view(got), np.ascontiguousarray(u[order]), np.ascontiguousarray(v[order]),
               np.ascontiguousarray(c[order]), line_starts(v[order]), r, du, dv, BLOCK,
               view(t_got))
-    assert np.array_equal(got, ref)
-    assert np.array_equal(t_got, t_ref)
+    # the same to the rounding of tied balls, and never below (a winner rounded higher)
+    assert np.all(got >= ref)
+    assert np.all(got - ref <= _ULPS * np.spacing(np.abs(ref)))
+    assert not np.any(t_got & ~t_ref)
     np.testing.assert_allclose(got, _brute_cut(stock, x, y, c, r, dx, dy), rtol=0, atol=1e-12)
     # the envelope is never below a ball: every lowered node lies on some ball
     assert np.all(got <= stock)
@@ -103,7 +109,10 @@ def test_sweep_drop_equals_the_per_position_kernel(case: _Case, along_x: bool) -
     got = np.empty(c.size)
     got[order] = cl_lines(zz, np.ascontiguousarray(u[order]), np.ascontiguousarray(v[order]),
                           np.ascontiguousarray(cl0[order]), line_starts(v[order]), r, du, dv)
-    assert np.array_equal(got, ref)
+    assert np.array_equal(np.isfinite(got), np.isfinite(ref))
+    fin = np.isfinite(ref)
+    assert np.all(got[fin] <= ref[fin])
+    assert np.all(ref[fin] - got[fin] <= _ULPS * np.spacing(np.abs(ref[fin])))
     # against the brute force: the highest node under the ball, plain numpy
     ny, nx = z.shape
     yy, xx = np.mgrid[0:ny, 0:nx]

@@ -14,10 +14,14 @@ line's balls span) instead of positions x the ball's footprint: a Ø20 ball on a
 grid spans 31,000 nodes but 205 rows.
 
 Both give what the per-position kernels (:func:`_stock_kernels.cut`,
-:func:`_stock_kernels.cl_part`) give, bit for bit: a node's value is the same expression
-of the same position's CL (the envelope's winner, checked against its neighbours on the
-stack, so a crossing rounded across a node cannot pick a worse ball), and a node counts
-as within ``R`` by the same test (``d² <= R² RIM``).
+:func:`_stock_kernels.cl_part`) give, to the last bits: a node's value is the same
+expression of one position's CL (the envelope's winner, checked against its neighbours on
+the stack, so a crossing rounded across a node cannot pick a worse ball), and a node
+counts as within ``R`` by the same test (``d² <= R² RIM``). Where many balls reach a
+node at the same height (a node every ball touches, on a wall's top edge say) their
+values differ only in the rounding, and the winner may be one rounded a few ulps higher
+than the least: the envelope is then that much higher (never lower) than the
+per-position kernel's, the drop that much lower.
 
 Lines run along axis 1 of the arrays (``u`` along, ``v`` across, ``du``, ``dv`` the
 spacings); lines along y go through transposed views.
@@ -53,15 +57,22 @@ def _cross(u1: float, c1: float, u2: float, c2: float, w: float, rho2: float) ->
     if u2 - u1 > 2.0 * w:
         return 0.5 * (u1 + u2)
     a, b = u2 - w, u1 + w  # where both are defined
+    # The arcs' circles (equal radii) meet on the bisector of their centres; where the
+    # lower meeting point lies under both centres and over the common span, the lower
+    # arcs cross there (the usual case, one square root).
+    du, dz = u2 - u1, c2 - c1
+    q = rho2 / (du * du + dz * dz) - 0.25
+    if q >= 0.0:
+        t = math.sqrt(q)
+        x = 0.5 * (u1 + u2) + dz * t
+        if a <= x <= b and 0.5 * (c1 + c2) - du * t <= min(c1, c2):
+            return x
+    # else one arc lies under the other over the whole common span
     if _arc(u2, c2, a, rho2) <= _arc(u1, c1, a, rho2):
         return a
     if _arc(u2, c2, b, rho2) >= _arc(u1, c1, b, rho2):
         return b
-    # the arcs' circles (equal radii) meet on the bisector of their centres; the lower
-    # meeting point is where the lower arcs cross
-    du, dz = u2 - u1, c2 - c1
-    x = 0.5 * (u1 + u2) + dz * math.sqrt(max(rho2 / (du * du + dz * dz) - 0.25, 0.0))
-    return min(max(x, a), b)
+    return min(max(0.5 * (u1 + u2) + dz * math.sqrt(max(q, 0.0)), a), b)
 
 
 @njit(cache=True, nogil=True)
