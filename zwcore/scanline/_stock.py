@@ -62,6 +62,7 @@ __all__ = [
     "BLOCK",
     "DROP_SHARE",
     "INCREMENTAL",
+    "THINNING",
     "PassMemo",
     "Positions",
     "SimulatedPass",
@@ -412,6 +413,10 @@ def _first_state(sim: StockSim, model: F64, spacing: tuple[float, float], tool: 
     return State(thin.lines, thin, pos, act, top, cl, cl.copy(), np.zeros(pos.size), True)
 
 
+#: ``False``: no pass is thinned, whatever its work (``bench/bench_scanline_core.py
+#: --unthinned``: what thinning changes in the plan).
+THINNING = True
+
 #: Node visits one pass's simulation may make (positions times the nodes within a ball's
 #: radius): a Ø20 ball finishing a 1024² grid at 0.1 mm would make 3e10.
 MAX_PASS_WORK = 1 << 26
@@ -445,7 +450,7 @@ class _Thinning:
         unit = max(across, stride * along)
         k = 1
         small = tool.radius <= GRID_MODE_RADIUS * min(part.dx, part.dy)  # grid mode copes
-        while (not small and work / (k * k) > MAX_PASS_WORK
+        while (THINNING and not small and work / (k * k) > MAX_PASS_WORK
                and 2 * k * unit <= 0.7 * tool.radius):
             k *= 2
         if k == 1:

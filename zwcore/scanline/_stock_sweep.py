@@ -109,11 +109,54 @@ def _envelope(pu: F64, pc: F64, j0: int, j1: int, w: float, rho2: float, st: I64
 
 
 @njit(cache=True, nogil=True)
+def _cut_row(row: F64, i: int, b: int, ey2: float, floor: float, pu: F64, pc: F64,
+             st: I64, start: F64, m: int, w: float, r: float, du: float,
+             touched: NDArray[np.bool_]) -> None:
+    """Lower one row (``ey2`` from the line) by the envelope ``st[:m]``, ``start[:m]``."""
+    nu = row.size
+    r2, rin = r * r, r * r * RIM
+    k0, _ = _span(pu[st[0]], w, du, nu)
+    _, k1 = _span(pu[st[m - 1]], w, du, nu)
+    near = _NEAR * du
+    at = 0
+    for k in range(k0, k1 + 1):
+        if row[k] <= floor:
+            continue
+        x = k * du
+        while at + 1 < m and start[at + 1] <= x:
+            at += 1
+        # the winner; its neighbours too where a crossing lies close (its rounding)
+        lo, hi = at, at
+        if at > 0 and x - start[at] <= near:
+            lo = at - 1
+        if at + 1 < m and start[at + 1] - x <= near:
+            hi = at + 1
+        best = np.inf
+        for e in range(lo, hi + 1):
+            j = st[e]
+            ex = x - pu[j]
+            d2 = ex * ex + ey2
+            if d2 <= rin:
+                best = min(best, pc[j] + (r - math.sqrt(max(r2 - d2, 0.0))))
+        if best < row[k]:
+            row[k] = best
+            touched[i // b, k // b] = True
+
+
+#: A node this close to a crossing of the envelope (in spacings) is also tried with the
+#: arc on the crossing's other side: the crossing's rounding, with room to spare.
+_NEAR = 1e-6
+
+
+@njit(cache=True, nogil=True)
 def cut_lines(s: F64, pu: F64, pv: F64, pc: F64, starts: I64, r: float, du: float,
               dv: float, b: int, touched: NDArray[np.bool_]) -> None:
     """``s = min(s, c + h(|p - c|))`` at every node within ``r`` of each position, in
     place; ``touched`` (blocks of ``b x b`` nodes, ``(ceil(nv/b), ceil(nu/b))``) is set
     where a node was lowered.
+
+    A line on a node row sees the rows ``a`` above and below it alike (to the rounding of
+    ``e``): one envelope serves both.
 
     Parameters
     ----------
@@ -124,7 +167,7 @@ def cut_lines(s: F64, pu: F64, pv: F64, pc: F64, starts: I64, r: float, du: floa
     starts : (lines + 1,) int64
         Each line's first position, and ``n``.
     """
-    nv, nu = s.shape
+    nv = s.shape[0]
     r2, rin = r * r, r * r * RIM
     n = pu.size
     st = np.empty(n, dtype=np.int64)
@@ -136,36 +179,28 @@ def cut_lines(s: F64, pu: F64, pv: F64, pc: F64, starts: I64, r: float, du: floa
         for j in range(j0, j1):
             cmin = min(cmin, pc[j])
         i0, i1 = _span(q, r, dv, nv)
+        iq = round(q / dv)
+        mirror = abs(q / dv - iq) <= 1e-9  # a line on a node row
         for i in range(i0, i1 + 1):
+            if mirror and i < iq and 2 * iq - i <= i1:
+                continue  # done with its mirror row below
             ey = i * dv - q
             ey2 = ey * ey
             if ey2 > rin:
                 continue
             rho2 = r2 - ey2
             w = math.sqrt(rin - ey2)
-            floor = cmin + (r - math.sqrt(max(rho2, 0.0)))
             m = _envelope(pu, pc, j0, j1, w, rho2, st, start)
-            k0, _ = _span(pu[st[0]], w, du, nu)
-            _, k1 = _span(pu[st[m - 1]], w, du, nu)
-            row = s[i]
-            at = 0
-            for k in range(k0, k1 + 1):
-                if row[k] <= floor:
-                    continue
-                x = k * du
-                while at + 1 < m and start[at + 1] <= x:
-                    at += 1
-                best = np.inf
-                for e in range(max(at - 1, 0), min(at + 2, m)):
-                    j = st[e]
-                    ex = x - pu[j]
-                    d2 = ex * ex + ey2
-                    if d2 <= rin:
-                        v = pc[j] + (r - math.sqrt(max(r2 - d2, 0.0)))
-                        best = min(best, v)
-                if best < row[k]:
-                    row[k] = best
-                    touched[i // b, k // b] = True
+            _cut_row(s[i], i, b, ey2, cmin + (r - math.sqrt(max(rho2, 0.0))), pu, pc, st,
+                     start, m, w, r, du, touched)
+            other = 2 * iq - i
+            if mirror and other != i and i0 <= other <= i1:
+                ey_o = other * dv - q
+                e2 = ey_o * ey_o
+                if e2 <= rin:
+                    _cut_row(s[other], other, b, e2,
+                             cmin + (r - math.sqrt(max(r2 - e2, 0.0))), pu, pc, st,
+                             start, m, math.sqrt(rin - e2), r, du, touched)
 
 
 @njit(cache=True, nogil=True)
