@@ -464,10 +464,8 @@ class _Thinning:
         return cls(kept, k, k * max(across, stride * along))
 
     def lift(self, model: F64, spacing: tuple[float, float], pos: Positions, need: F64) -> int:
-        old = model.copy()
-        _k.raise_box(model, spacing[0], spacing[1], pos.x, pos.y,
-                     np.ascontiguousarray(need), self.gap)
-        return int(np.count_nonzero(model != old))
+        return int(_k.raise_box(model, spacing[0], spacing[1], pos.x, pos.y,
+                                np.ascontiguousarray(need), self.gap))
 
 
 def _lift(model: F64, spacing: tuple[float, float], pos: Positions, node: NDArray[np.bool_],

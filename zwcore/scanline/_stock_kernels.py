@@ -272,9 +272,12 @@ def points(offset: F64, start: F64, stop: F64, step: float) -> tuple[F64, F64]:
 
 @njit(cache=True, nogil=True)
 def raise_box(model: F64, sx: float, sy: float, px: F64, py: F64, need: F64,
-              half: float) -> None:
-    """Raise every model node within ``half`` (each axis) of each position to its ``need``."""
+              half: float) -> int:
+    """Raise every model node within ``half`` (each axis) of each position to its
+    ``need``; returns the number of distinct nodes raised."""
     my, mx = model.shape
+    raised = np.zeros((my, mx), dtype=np.bool_)
+    count = 0
     for n in range(px.size):
         c0 = max(math.floor((px[n] - half) / sx), 0)
         c1 = min(math.ceil((px[n] + half) / sx), mx - 1)
@@ -284,6 +287,10 @@ def raise_box(model: F64, sx: float, sy: float, px: F64, py: F64, need: F64,
             for c in range(c0, c1 + 1):
                 if model[r, c] < need[n]:
                     model[r, c] = need[n]
+                    if not raised[r, c]:
+                        raised[r, c] = True
+                        count += 1
+    return count
 
 
 @njit(cache=True, nogil=True)
