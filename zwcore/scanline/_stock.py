@@ -30,6 +30,10 @@ and bound for the drop-cutter and the top, a block whose stock lies under the ba
 everywhere for the envelope): near linear in the positions times the nodes a ball
 really touches. A stage's later passes on the same lines visit only the positions whose
 CL may fall and those near stock that changed (:mod:`zwcore.scanline._stock_state`).
+For a large ball with dense positions the envelope and the drop against the nodes run
+as a line sweep instead (:mod:`zwcore.scanline._stock_sweep`: per line and node row a
+1-D lower envelope, lines x rows x nodes instead of positions x footprint), whichever
+costs less (:data:`SWEEP_SHARE`).
 """
 
 from __future__ import annotations
