@@ -5,6 +5,8 @@ growth ratios per x4 cells in the same run, for the simulated stock as planned (
 stage's next pass visits only what can change) and, unless ``--no-before``, as before
 (``_stock.INCREMENTAL = False``: every pass simulates every position; the kernels are
 today's in both). Usage: ``python bench/bench_scanline_core.py [--no-before]``.
+``--unthinned [--big]``: instead, the plan with and without thinning the passes over
+``MAX_PASS_WORK`` (257², 513², with ``--big`` also 1025²), same run.
 """
 
 from __future__ import annotations
@@ -18,7 +20,7 @@ import numpy as np
 
 from zwcore.grid.zmap import ZMap
 from zwcore.scanline import _stock
-from zwcore.scanline.planner import plan_scanline
+from zwcore.scanline.planner import ScanlinePlan, plan_scanline
 
 DATA = pathlib.Path(__file__).resolve().parents[2] / "shared" / "data"
 
@@ -68,7 +70,45 @@ def _ratios(label: str, times: dict[int, tuple[float, float]]) -> None:
         print(f"{label} {what} ratios: {steps} (cells x4 each)")
 
 
+def _regions(plan: ScanlinePlan) -> str:
+    """Per tool, its passes and region area fraction."""
+    out: dict[str, list[float]] = {}
+    for s in plan.stages:
+        got = out.setdefault(s.tool.id, [0, 1.0])
+        got[0] += 1
+        got[1] = s.region_area_fraction if s.region_area_fraction is not None else 1.0
+    return ", ".join(f"{t} {int(n)} passes on {100 * f:.1f} %" for t, (n, f) in out.items())
+
+
+def unthinned(sizes: tuple[int, ...]) -> None:
+    """The plan with every pass simulated at all its positions (``_stock.THINNING =
+    False``) against the plan as it runs (passes over ``MAX_PASS_WORK`` thinned), same
+    run: time, passes and regions, and what the simulated stock leaves on the part."""
+    for n in sizes:
+        zmap = synthetic(n)
+        rows = []
+        for thin in (True, False):
+            _stock.THINNING = thin
+            t, c = time.perf_counter(), time.process_time()
+            plan = plan_scanline(zmap)
+            wall, cpu = time.perf_counter() - t, time.process_time() - c
+            phases = dict(plan.timings)
+            rows.append(wall)
+            print(f"{'thinned' if thin else 'unthinned':>10s} {n}x{n}: {wall:.2f} s wall, "
+                  f"{cpu:.2f} s CPU (passes {phases['passes_simulated']:.2f} s), "
+                  f"{len(plan.stages)} passes: {_regions(plan)}; left over part p95 "
+                  f"{plan.checks.sim_left_over_part_p95:.4f} max "
+                  f"{plan.checks.sim_left_over_part_max:.3f} mm, ok {plan.checks.ok}",
+                  flush=True)
+        _stock.THINNING = True
+        print(f"{'':>10s} {n}x{n}: unthinned/thinned wall {rows[1] / rows[0]:.2f}")
+
+
 def main() -> None:
+    if "--unthinned" in sys.argv:
+        plan_scanline(synthetic(129))  # load the compiled kernels
+        unthinned((257, 513, 1025) if "--big" in sys.argv else (257, 513))
+        return
     before = "--no-before" not in sys.argv
     sizes = (513, 1025, 2049)
     parts = {n: synthetic(n) for n in sizes}

@@ -30,6 +30,10 @@ and bound for the drop-cutter and the top, a block whose stock lies under the ba
 everywhere for the envelope): near linear in the positions times the nodes a ball
 really touches. A stage's later passes on the same lines visit only the positions whose
 CL may fall and those near stock that changed (:mod:`zwcore.scanline._stock_state`).
+For a large ball with dense positions the envelope and the drop against the nodes run
+as a line sweep instead (:mod:`zwcore.scanline._stock_sweep`: per line and node row a
+1-D lower envelope, lines x rows x nodes instead of positions x footprint), whichever
+costs less (:data:`SWEEP_SHARE`).
 """
 
 from __future__ import annotations
@@ -43,6 +47,7 @@ from numpy.typing import NDArray
 from zwcore.grid.tools import Tool
 from zwcore.grid.zmap import ZMap
 from zwcore.scanline import _stock_kernels as _k
+from zwcore.scanline import _stock_sweep as _sw
 from zwcore.scanline._stock_grid import GRID_MODE_RADIUS, GridMode
 from zwcore.scanline._stock_state import (
     BLOCK,
@@ -61,6 +66,7 @@ __all__ = [
     "BLOCK",
     "DROP_SHARE",
     "INCREMENTAL",
+    "THINNING",
     "PassMemo",
     "Positions",
     "SimulatedPass",
@@ -116,12 +122,9 @@ def positions(lines: ScanLines, part: ZMap, stride: int,
                      np.ascontiguousarray(lines.stop, dtype=np.float64), step)
     x, y = (u, v) if along_x else (v, u)
     if region is not None and spacing is not None:
-        sx, sy = spacing
-        c = np.clip(np.rint(x / sx).astype(np.intp), 0, region.shape[1] - 1)
-        r = np.clip(np.rint(y / sy).astype(np.intp), 0, region.shape[0] - 1)
-        keep = region[r, c]
+        keep = _k.in_region(x, y, np.ascontiguousarray(region), *spacing)
         x, y = x[keep], y[keep]
-    return Positions(np.ascontiguousarray(x), np.ascontiguousarray(y))
+    return Positions(np.ascontiguousarray(x), np.ascontiguousarray(y), lines.direction)
 
 
 def interpolate(grid: F64, sx: float, sy: float, pos: Positions) -> F64:
@@ -186,9 +189,8 @@ class StockSim:
 
     def base_cl(self, model_cl: F64, pos: Positions, tool: Tool) -> F64:
         """``max(model_cl, CL against the part's nodes)`` at the positions."""
-        return _k.cl_part(self.part.z, self._zmax, BLOCK, pos.x, pos.y,
-                        np.ascontiguousarray(model_cl), tool.radius, self.part.dx,
-                        self.part.dy)
+        return drop_nodes(self.part.z, self._zmax, pos, np.ascontiguousarray(model_cl),
+                          tool.radius, self.part.dx, self.part.dy)
 
     def top(self, pos: Positions, idx: NDArray[np.intp], tool: Tool, smax: F64,
             grid_ok: bool) -> F64:
@@ -219,12 +221,85 @@ class StockSim:
         touched = np.zeros(smax.shape, dtype=bool)
         px, py, c = pos.x[idx], pos.y[idx], np.ascontiguousarray(cl[idx])
         grid = self._grid(pos, idx, px, py, tool) if grid_ok else None
+        sweep = (None if grid is not None
+                 else _Sweep.of(px, py, pos.along, tool.radius, self.part.dx, self.part.dy))
         if grid is not None:
             grid.cut(self.stock, smax, self.part, px, py, c, tool, touched)
+        elif sweep is not None:
+            sweep.cut(self.stock, c, touched)
         else:
             _k.cut(self.stock, smax, BLOCK, px, py, c, tool.radius, self.part.dx,
                    self.part.dy, touched)
         return touched
+
+
+#: The line sweep (:mod:`zwcore.scanline._stock_sweep`) runs instead of the per-position
+#: kernels (envelope and drop against nodes) when its node visits are at most this share
+#: of the footprint visits theirs would make. Those skip whole blocks the ball cannot
+#: change and come out about 20 times under the footprint on the bench part; the sweep
+#: visits every node of its rows, about 20 ns each (measured: a thinned Ø3 pass at 1025²,
+#: share 0.18, took twice as long swept; the Ø20 finishing pass on every node, share
+#: 0.013, ten times less). The highest stock within ``R`` stays per position: its block
+#: bound (a block no higher than the best so far) beat the sweep at every size measured.
+SWEEP_SHARE = 0.05
+
+
+@dataclass(frozen=True, eq=False)
+class _Sweep:
+    """Positions on scan lines sorted for :mod:`zwcore.scanline._stock_sweep` (by line,
+    then along it), with the arrays' axes swapped for lines along y. The sweep gives the
+    per-position kernels' results bit for bit (tests), so the choice is by cost alone."""
+
+    order: NDArray[np.intp]
+    u: F64
+    v: F64
+    starts: NDArray[np.int64]
+    along_x: bool
+    r: float
+    du: float
+    dv: float
+
+    @classmethod
+    def of(cls, px: F64, py: F64, along: str | None, r: float, dx: float,
+           dy: float) -> _Sweep | None:
+        """The sweep when the positions lie on lines (``along``) and it is cheaper."""
+        if along is None or px.size == 0:
+            return None
+        along_x = along == "x"
+        u, v = (px, py) if along_x else (py, px)
+        du, dv = (dx, dy) if along_x else (dy, dx)
+        per_position = px.size * math.pi * (r / dx + 1.0) * (r / dy + 1.0)
+        order = np.lexsort((u, v))
+        us, vs = np.ascontiguousarray(u[order]), np.ascontiguousarray(v[order])
+        starts = _sw.line_starts(vs)
+        if _sw.sweep_work(us, starts, r, du, dv) > SWEEP_SHARE * per_position:
+            return None
+        return cls(order, us, vs, starts, along_x, r, du, dv)
+
+    def cut(self, stock: F64, cl: F64, touched: NDArray[np.bool_]) -> None:
+        """:func:`_stock_kernels.cut` at the positions with CL ``cl`` (their order)."""
+        s, t = (stock, touched) if self.along_x else (stock.T, touched.T)
+        _sw.cut_lines(s, self.u, self.v, np.ascontiguousarray(cl[self.order]),
+                      self.starts, self.r, self.du, self.dv, BLOCK, t)
+
+    def drop(self, z: F64, cl0: F64) -> F64:
+        """:func:`_stock_kernels.cl_part` at the positions (their order)."""
+        zz = z if self.along_x else np.ascontiguousarray(z.T)
+        out = np.empty(self.order.size)
+        out[self.order] = _sw.cl_lines(zz, self.u, self.v,
+                                       np.ascontiguousarray(cl0[self.order]), self.starts,
+                                       self.r, self.du, self.dv)
+        return out
+
+
+def drop_nodes(z: F64, zmax: F64, pos: Positions, cl0: F64, r: float, dx: float,
+               dy: float) -> F64:
+    """``max(cl0, max over nodes q within r of z[q] - h(|q - c|))`` at the positions (the
+    line sweep or the per-position kernel, whichever is cheaper: the same values)."""
+    sweep = _Sweep.of(pos.x, pos.y, pos.along, r, dx, dy)
+    if sweep is not None:
+        return sweep.drop(z, cl0)
+    return _k.cl_part(z, zmax, BLOCK, pos.x, pos.y, cl0, r, dx, dy)
 
 
 @dataclass(frozen=True, eq=False)
@@ -326,8 +401,8 @@ def _first_state(sim: StockSim, model: F64, spacing: tuple[float, float], tool: 
     elif target_cl is None:
         target_cl = target_drop(model, sx, sy, tool, pos.size)
     if target_cl is None:  # a large ball on a fine model: dropped on its nodes here only
-        cl = _k.cl_part(model, block_max(model), BLOCK, pos.x, pos.y,
-                        np.full(pos.size, -np.inf), tool.radius, sx, sy)
+        cl = drop_nodes(model, block_max(model), pos, np.full(pos.size, -np.inf),
+                        tool.radius, sx, sy)
     else:
         cl = interpolate(target_cl, sx, sy, pos)
     smax = block_max(sim.stock)
@@ -336,11 +411,15 @@ def _first_state(sim: StockSim, model: F64, spacing: tuple[float, float], tool: 
     act = np.flatnonzero(may)
     off = act[~_on_nodes(Positions(pos.x[act], pos.y[act]), sx, sy)]
     if off.size:
-        cl[off] = sim.base_cl(cl[off], Positions(pos.x[off], pos.y[off]), tool)
+        cl[off] = sim.base_cl(cl[off], Positions(pos.x[off], pos.y[off], pos.along), tool)
     top = np.full(pos.size, -np.inf)
     top[act] = sim.top(pos, act, tool, smax, thin.k == 1)
     return State(thin.lines, thin, pos, act, top, cl, cl.copy(), np.zeros(pos.size), True)
 
+
+#: ``False``: no pass is thinned, whatever its work (``bench/bench_scanline_core.py
+#: --unthinned``: what thinning changes in the plan).
+THINNING = True
 
 #: Node visits one pass's simulation may make (positions times the nodes within a ball's
 #: radius): a Ø20 ball finishing a 1024² grid at 0.1 mm would make 3e10.
@@ -375,7 +454,7 @@ class _Thinning:
         unit = max(across, stride * along)
         k = 1
         small = tool.radius <= GRID_MODE_RADIUS * min(part.dx, part.dy)  # grid mode copes
-        while (not small and work / (k * k) > MAX_PASS_WORK
+        while (THINNING and not small and work / (k * k) > MAX_PASS_WORK
                and 2 * k * unit <= 0.7 * tool.radius):
             k *= 2
         if k == 1:
@@ -389,10 +468,8 @@ class _Thinning:
         return cls(kept, k, k * max(across, stride * along))
 
     def lift(self, model: F64, spacing: tuple[float, float], pos: Positions, need: F64) -> int:
-        old = model.copy()
-        _k.raise_box(model, spacing[0], spacing[1], pos.x, pos.y,
-                     np.ascontiguousarray(need), self.gap)
-        return int(np.count_nonzero(model != old))
+        return int(_k.raise_box(model, spacing[0], spacing[1], pos.x, pos.y,
+                                np.ascontiguousarray(need), self.gap))
 
 
 def _lift(model: F64, spacing: tuple[float, float], pos: Positions, node: NDArray[np.bool_],
@@ -432,9 +509,16 @@ def target_drop(model: F64, sx: float, sy: float, tool: Tool, positions: int) ->
     model may hold the tool path up to about ``spacing² / (8R)`` higher than simulated).
     """
     work = model.size * math.pi * (tool.radius / sx + 1.0) * (tool.radius / sy + 1.0)
-    if work <= 4 * MAX_PASS_WORK or (INCREMENTAL and model.size <= DROP_SHARE * positions):
+    if work <= 4 * MAX_PASS_WORK or (INCREMENTAL and model.size <= DROP_SHARE * positions
+                                     and work <= MAX_DROP_WORK):
         return drop(model, sx, sy, tool)
     return None
+
+
+#: Node-offset pairs beyond which a stage's target is not dropped on whole even when the
+#: pass's positions cover its nodes (a Ø20 ball finishing a 1024² grid at 0.1 mm, 3.5e10:
+#: about 40 s); its positions are dropped on the model's nodes by the line sweep instead.
+MAX_DROP_WORK = 1 << 32
 
 
 #: See :func:`target_drop`.

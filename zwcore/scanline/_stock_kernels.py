@@ -15,7 +15,7 @@ from numba import njit
 from numpy.typing import NDArray
 
 __all__ = ["block_max", "blocks_diff_max", "blocks_lowered", "cl_part", "cut", "diff_max_p95",
-           "disc_max", "interpolate", "lift_nodes", "lower", "may_cut", "near_blocks",
+           "disc_max", "in_region", "interpolate", "lift_nodes", "lower", "may_cut", "near_blocks",
            "node_index", "on_nodes", "points", "positive_max_mean", "raise_box",
            "top"]
 
@@ -150,6 +150,20 @@ def interpolate(grid: F64, isx: float, isy: float, px: F64, py: F64) -> F64:
 
 
 @njit(cache=True, nogil=True)
+def in_region(px: F64, py: F64, region: NDArray[np.bool_], sx: float,
+              sy: float) -> NDArray[np.bool_]:
+    """Positions whose nearest node of spacing ``sx, sy`` (clamped to ``region``'s shape)
+    is in ``region``: ``region[rint(y / sy), rint(x / sx)]``, without the index arrays."""
+    my, mx = region.shape
+    out = np.empty(px.size, dtype=np.bool_)
+    for n in range(px.size):
+        c = min(max(int(np.rint(px[n] / sx)), 0), mx - 1)
+        r = min(max(int(np.rint(py[n] / sy)), 0), my - 1)
+        out[n] = region[r, c]
+    return out
+
+
+@njit(cache=True, nogil=True)
 def may_cut(grown: F64, b: int, px: F64, py: F64, cl: F64, idx: float,
              idy: float) -> NDArray[np.bool_]:
     """Positions whose CL lies under the highest stock its ball may reach (block bound)."""
@@ -258,9 +272,12 @@ def points(offset: F64, start: F64, stop: F64, step: float) -> tuple[F64, F64]:
 
 @njit(cache=True, nogil=True)
 def raise_box(model: F64, sx: float, sy: float, px: F64, py: F64, need: F64,
-              half: float) -> None:
-    """Raise every model node within ``half`` (each axis) of each position to its ``need``."""
+              half: float) -> int:
+    """Raise every model node within ``half`` (each axis) of each position to its
+    ``need``; returns the number of distinct nodes raised."""
     my, mx = model.shape
+    raised = np.zeros((my, mx), dtype=np.bool_)
+    count = 0
     for n in range(px.size):
         c0 = max(math.floor((px[n] - half) / sx), 0)
         c1 = min(math.ceil((px[n] + half) / sx), mx - 1)
@@ -270,6 +287,10 @@ def raise_box(model: F64, sx: float, sy: float, px: F64, py: F64, need: F64,
             for c in range(c0, c1 + 1):
                 if model[r, c] < need[n]:
                     model[r, c] = need[n]
+                    if not raised[r, c]:
+                        raised[r, c] = True
+                        count += 1
+    return count
 
 
 @njit(cache=True, nogil=True)

@@ -34,10 +34,13 @@ def block_max(z: F64, b: int = BLOCK) -> F64:
 
 @dataclass(frozen=True, eq=False)
 class Positions:
-    """Tool positions of one pass: ``x, y`` in mm from the grid's first node, ``(n,)``."""
+    """Tool positions of one pass: ``x, y`` in mm from the grid's first node, ``(n,)``;
+    ``along``: the direction of the scan lines they lie on (``"x"``, ``"y"``; ``None``:
+    not known, the line-sweep kernels are not used)."""
 
     x: F64
     y: F64
+    along: str | None = None
 
     @property
     def size(self) -> int:
