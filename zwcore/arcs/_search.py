@@ -101,30 +101,38 @@ class Fitter:
         #: given a new level, True when the chains it continues cannot be worth
         #: finishing (the run then raises :class:`Stuck`; the loop start sweep)
         self.cutoff: Callable[[list[State]], bool] | None = None
+        #: the levels of the last :meth:`run`, first to last, when recording (a list)
+        self.levels: list[list[State]] | None = None
 
     # -- the beam ---------------------------------------------------------------
 
     def run(
-        self, a: int, b: int, loop: bool, allow_forced: bool, t_start: FloatArray | None = None
+        self, a: int, b: int, loop: bool, allow_forced: bool, t_start: FloatArray | None = None,
+        resume: list[State] | None = None,
     ) -> tuple[list[Piece], list[int]]:
         """Fit samples ``a..b``.
 
         ``loop``: the run is a whole closed curve (C1 closure onto the first
         tangent). ``allow_forced``: where the beam is stuck, cover a stretch by a
         filleted polyline instead of raising :class:`Stuck`. ``t_start``: the
-        tangent the first piece must start with (free when None).
+        tangent the first piece must start with (free when None). ``resume``: a level
+        of an earlier run of the same samples to go on from (see
+        :func:`resume_level`) instead of the run's start.
 
         Returns the pieces and the piece indices after which a forced corner sits
         (empty in practice: the fallback joins C1).
         """
-        fin = self._one_piece(a, b, loop, t_start)
-        if fin is not None:
-            return [fin], []
-        level = self._start_level(a, b, loop, t_start)
+        if resume is None:
+            fin = self._one_piece(a, b, loop, t_start)
+            if fin is not None:
+                return [fin], []
+        level = self._start_level(a, b, loop, t_start) if resume is None else resume
         forced_at: list[int] = []
         # (chain, levels left, its arcs over straight runs)
         flat_fin: tuple[list[Piece], int, int] | None = None
         while True:
+            if self.levels is not None:
+                self.levels.append(level)
             if flat_fin is not None:
                 if flat_fin[1] == 0:
                     return flat_fin[0], forced_at
