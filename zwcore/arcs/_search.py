@@ -38,9 +38,9 @@ from zwcore.arcs._geometry import (
     rotate,
 )
 from zwcore.arcs._pieces import Piece, ToleranceBand
-from zwcore.arcs._select import candidates, select_verified
+from zwcore.arcs._select import candidates, candidates_level, select_verified
 from zwcore.arcs._start import free_start, free_start_tangents, full_circle, one_piece_to_end
-from zwcore.arcs._states import Cands, State, approx_lengths, unwind
+from zwcore.arcs._states import Cands, State, approx_lengths, level_arrays, unwind
 from zwcore.arcs._unstick import bridge, fallback
 
 FloatArray = NDArray[np.float64]
@@ -285,12 +285,27 @@ class Fitter:
         if self.straight is not None:
             extra = self.straight.candidates(p, t, k, b)
             if extra:
-                m = len(extra)
-                out.append(Cands(
-                    np.full(m, si, dtype=np.int64), np.array([c[0] for c in extra]),
-                    np.array([c[1] for c in extra]), np.array([c[2] for c in extra]),
-                    np.array([c[3] for c in extra]), np.zeros(m),
-                    np.array([c[4] for c in extra]), np.ones(m, dtype=bool)))
+                out.append(Cands.anchored(si, extra))
+        return out
+
+    def _level_candidates(self, level: list[State], b: int) -> list[Cands]:
+        """:meth:`_candidates` of every state of ``level`` (no radius cap) in one kernel
+        call (:func:`zwcore.arcs._select.candidates_level`), the pieces onto straight
+        runs after them (the ranking keeps them apart: the same order)."""
+        sp, stt, sk, sjm, lo_all, up_all, b_off = level_arrays(level, b, self._bounds)
+        si, jj, kk, ends, tends, bonus = candidates_level(
+            self.samples, self.cum, sp, stt, sk, sjm, lo_all, up_all, b_off,
+            self._j_fractions, self._k_fractions, self.band.kcap)
+        n = len(jj)
+        out = [Cands(si, jj, kk, ends, tends, bonus, np.full(n, np.nan),
+                     np.zeros(n, dtype=bool))] if n else []
+        if self.straight is not None:
+            for i, st in enumerate(level):
+                if sjm[i] > st.k:
+                    assert st.t is not None
+                    extra = self.straight.candidates(st.p, st.t, st.k, b)
+                    if extra:
+                        out.append(Cands.anchored(i, extra))
         return out
 
     def _capped_kappas(
@@ -313,8 +328,11 @@ class Fitter:
         then candidates rank by the arcs over straight runs in their chain, and landing
         biarcs (:meth:`StraightRuns.landing_biarc`) join one level later.
         """
-        parts = [c for si, st in enumerate(level) for c in self._candidates(si, st, b)
-                 if len(c)]
+        if self.band.kmin > 0.0:
+            parts = [c for si, st in enumerate(level) for c in self._candidates(si, st, b)
+                     if len(c)]
+        else:
+            parts = self._level_candidates(level, b)
         out: list[State] = self._verified(level, Cands.join(parts), b) if parts else []
         if self.straight is not None:
             out.extend(self._landings(level, b))
@@ -463,8 +481,6 @@ class Fitter:
                 count += sr.is_over(pc.k, pc.j, pc.kappa, pc.length)
             nd.n_over = count
         return count
-
-    # -- ways out of a stuck level ---------------------------------------------
 
     # -- closing a loop ----------------------------------------------------------
 
