@@ -54,10 +54,13 @@ class _RunFitter:
         #: the levels of the plain fit of each run ``(a, b, work)``: a refit goes on from
         #: one of them (:func:`_resume_level`)
         self._levels: dict[tuple[int, int, float], list[list[State]]] = {}
+        #: free run starts per working tolerance, shared by the fitters of each run
+        self._starts: dict[float, dict[tuple[int, int], tuple[FloatArray, int]]] = {}
 
     def fitter(self, work: float, anchors: list[Anchor]) -> Fitter:
         f = Fitter(self.prep.samples, self.prep.tol, work, self.max_radius)
         f.use_bridge = self.bridge
+        f.starts = self._starts.setdefault(work, {})
         if anchors:
             f.straight = StraightRuns(f.band, anchors)
         return f

@@ -32,11 +32,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from zwcore.arcs._anchors import StraightRuns
-from zwcore.arcs._geometry import (
-    arc_points,
-    local_uv,
-    rotate,
-)
+from zwcore.arcs._geometry import arc_points, local_uv, rotate
 from zwcore.arcs._pieces import Piece, ToleranceBand
 from zwcore.arcs._select import candidates, candidates_level, select_verified
 from zwcore.arcs._start import free_start, free_start_tangents, full_circle, one_piece_to_end
@@ -103,6 +99,8 @@ class Fitter:
         self.cutoff: Callable[[list[State]], bool] | None = None
         #: the levels of the last :meth:`run`, first to last, when recording (a list)
         self.levels: list[list[State]] | None = None
+        #: free run starts found so far (:func:`zwcore.arcs._start.free_start`)
+        self.starts: dict[tuple[int, int], tuple[FloatArray, int]] = {}
 
     # -- the beam ---------------------------------------------------------------
 
@@ -162,7 +160,7 @@ class Fitter:
                 return circ
         if not loop and t_start is None:
             p0 = self.samples[a].copy()
-            t0, r0 = free_start(self.band, p0, a, b)
+            t0, r0 = free_start(self.band, p0, a, b, self.starts)
             if r0 >= b and self.one_piece_runs:
                 return one_piece_to_end(self.band, p0, a, b, math.atan2(t0[1], t0[0]))
         return None
@@ -172,7 +170,8 @@ class Fitter:
     ) -> list[State]:
         """The first level: the run's start with the given tangent, else a few free ones."""
         p0 = self.samples[a].copy()
-        starts = [t_start] if t_start is not None else free_start_tangents(self.band, p0, a, b)
+        starts = [t_start] if t_start is not None else free_start_tangents(self.band, p0, a,
+                                                                           b, self.starts)
         sr = self.straight
         if t_start is None and not loop and sr is not None:
             d0 = sr.start_direction(a, p0)
@@ -289,9 +288,8 @@ class Fitter:
         return out
 
     def _level_candidates(self, level: list[State], b: int) -> list[Cands]:
-        """:meth:`_candidates` of every state of ``level`` (no radius cap) in one kernel
-        call (:func:`zwcore.arcs._select.candidates_level`), the pieces onto straight
-        runs after them (the ranking keeps them apart: the same order)."""
+        """:meth:`_candidates` of all of ``level`` (no radius cap) in one kernel call, the
+        pieces onto straight runs after them (the ranking keeps them apart: same order)."""
         sp, stt, sk, sjm, lo_all, up_all, b_off = level_arrays(level, b, self._bounds)
         si, jj, kk, ends, tends, bonus = candidates_level(
             self.samples, self.cum, sp, stt, sk, sjm, lo_all, up_all, b_off,
