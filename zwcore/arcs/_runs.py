@@ -58,7 +58,8 @@ class _RunFitter:
         self._starts: dict[float, dict[tuple[int, int], tuple[FloatArray, int]]] = {}
 
     def fitter(self, work: float, anchors: list[Anchor]) -> Fitter:
-        f = Fitter(self.prep.samples, self.prep.tol, work, self.max_radius)
+        f = Fitter(self.prep.samples, self.prep.tol, work, self.max_radius,
+                   None if self._band is None else self._band.cum)
         f.use_bridge = self.bridge
         f.starts = self._starts.setdefault(work, {})
         if anchors:
@@ -222,7 +223,7 @@ def sweep_loop_start(
 
     for d in LOOP_START_TURNS:
         tt = rotate(t0, d)
-        fit = Fitter(samples, tol, 0.95, max_radius)
+        fit = Fitter(samples, tol, 0.95, max_radius, fz.band.cum)
         fit.cutoff = behind
         # (the first fit found no full circle; the samples and the band are the same)
         fit.one_piece_runs = False

@@ -61,6 +61,8 @@ class Fitter:
         Share of ``tol`` the feasibility scans use (see :class:`ToleranceBand`).
     max_radius : float or None
         Largest arc radius allowed; None: no limit.
+    cum : ndarray, shape (M,), optional
+        The samples' cumulative polyline length, when known (:class:`ToleranceBand`).
     """
 
     #: ends of candidate pieces, as shares of the longest feasible piece's length: dense
@@ -80,10 +82,9 @@ class Fitter:
     #: a closing biarc is tried when the rest is within this many single-piece reaches
     CLOSE_SPAN = 2.2
 
-    def __init__(
-        self, samples: FloatArray, tol: float, work: float, max_radius: float | None
-    ) -> None:
-        self.band = ToleranceBand(samples, tol, work, max_radius)
+    def __init__(self, samples: FloatArray, tol: float, work: float,
+                 max_radius: float | None, cum: FloatArray | None = None) -> None:
+        self.band = ToleranceBand(samples, tol, work, max_radius, cum)
         self.samples = samples
         self.tol = tol
         self.cum = self.band.cum
