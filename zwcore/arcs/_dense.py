@@ -198,6 +198,75 @@ def _safe_move(d: float, worst: float, e0: float, rate: float, curv: float,
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
+def _arc_angle(u: float, v: float, kappa: float) -> float:
+    """Angle (in ``[0, 2 pi)``, along the piece's turn) of a local point's foot on the
+    circle of curvature ``kappa`` from the piece's start."""
+    phi = math.atan2(kappa * u, 1.0 - kappa * v)
+    ang = phi if kappa > 0.0 else -phi
+    return ang + 2.0 * math.pi if ang < 0.0 else ang
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _segment_max(samples: FloatArray, off: IntArray, s: int, hi: int, geo: FloatArray,
+                 qs: IntArray, q: int, tol: float) -> float:
+    """The largest distance of the dense points ``off[s]..hi-1`` of segment ``s`` to the
+    pieces ``qs``, exactly, when every point's foot lies inside piece ``q`` and ``q`` is
+    the nearest piece where that distance peaks; else -1 (walk the points).
+
+    Along a line the offset ``e`` from the piece (a line's ``v``, a circle's ``rho - R``)
+    is linear or convex (``rho`` is), so over the evenly spaced points ``|e| = max(e,
+    -e)`` peaks at the first or last point or, ``-e`` being concave, at the two points
+    about the line's closest approach to the centre: at most four points to measure.
+    The distance to the pieces is at most ``|e|`` at every point and equal to it where
+    ``q`` is the nearest, so where that holds at the peak the peak is the maximum.
+    """
+    i0 = off[s]
+    i1 = hi - 1
+    if i1 <= i0 + 3:
+        return -1.0
+    px, py, tx, ty, kappa, length = geo[q, 0], geo[q, 1], geo[q, 2], geo[q, 3], \
+        geo[q, 4], geo[q, 5]
+    x0, y0 = _dense_point(samples, off, s, i0)
+    x1, y1 = _dense_point(samples, off, s, i1)
+    u0, v0 = local1(x0, y0, px, py, tx, ty)
+    u1, v1 = local1(x1, y1, px, py, tx, ty)
+    c2 = i0
+    if kappa == 0.0:
+        if not (0.0 <= u0 <= length and 0.0 <= u1 <= length):
+            return -1.0
+    else:
+        a0 = _arc_angle(u0, v0, kappa)
+        a1 = _arc_angle(u1, v1, kappa)
+        sweep = abs(kappa * length)
+        # (the foot turns monotonically, by less than pi, along a line)
+        if not (a0 <= sweep and a1 <= sweep and abs(a1 - a0) < math.pi):
+            return -1.0
+        # the dense point before the line's closest approach to the centre
+        cx = px - ty / kappa
+        cy = py + tx / kappa
+        dx = x1 - x0
+        dy = y1 - y0
+        span = math.hypot(dx, dy)
+        if not span > 0.0:
+            return -1.0
+        h = ((cx - x0) * dx + (cy - y0) * dy) / span
+        f = h / span * (i1 - i0)
+        c2 = i0 + int(min(max(f, 0.0), float(i1 - i0)))
+    best_q = -1.0
+    best_d = -1.0
+    for c in (i0, i1, c2, min(c2 + 1, i1)):
+        x, y = _dense_point(samples, off, s, c)
+        dq = point_arc_distance(x, y, px, py, tx, ty, kappa, length, geo[q, 6], geo[q, 7],
+                                np.inf)
+        d = _nearest_piece(geo, qs, x, y)[0]
+        if not d <= tol:
+            return -1.0
+        if dq > best_q:
+            best_q, best_d = dq, d
+    return best_q if best_d == best_q else -1.0
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
 def _polyline_to_chain(samples: FloatArray, geo: FloatArray, ks: IntArray, js: IntArray,
                        off: IntArray, tol: float) -> float:
     """Largest distance of the dense polyline points to the chain: to the pieces covering
@@ -239,6 +308,12 @@ def _polyline_to_chain(samples: FloatArray, geo: FloatArray, ks: IntArray, js: I
             if dl > 0.0:
                 skip = int(min(_safe_move(d, worst + SLACK * tol, e0, rate, curv, reach) / dl,
                                hi))
+            if i == off[s] and i + 1 + skip < hi and q >= 0 and d <= tol:
+                # the whole segment from a few points, where the closed form holds
+                top = _segment_max(samples, off, s, hi, geo, qs, q, tol)
+                if top >= 0.0:
+                    worst = max(worst, top)
+                    break
             i += 1 + skip
     if nseg == 0:
         worst = _nearest_piece(geo, every, samples[0, 0], samples[0, 1])[0]
