@@ -11,7 +11,12 @@ as far as one circle or line keeps its points and the polyline between them
 within the tolerance, i.e. an annulus of width <= 2 tol; a run counts as
 feasible only with a witness circle/line, so the count is a valid partition:
 exact if the local annulus search never misses, otherwise an upper bound),
-``AW``: ArcWelder 2.0 at the same tolerance (issue text).
+``AW``: ArcWelder at the same tolerance (``curves.ARCWELDER_REFERENCE``, measured
+with ArcWelder 1.2.0 and stored). With ``--arcwelder PATH``
+(an ArcWelder console, bench/README.md) ArcWelder is run on each curve too:
+``AW seg`` its segments with its G1 runs merged and ``ratio`` ours over it, its
+deviation (both ways, sampled) and kink, ``AW str`` its segments with every straight
+run of lines or flat arcs merged (the generous count) and ``ratio`` ours over that.
 """
 
 from __future__ import annotations
@@ -31,7 +36,6 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from curves import ARCWELDER_REFERENCE, BENCH_CURVES, coarse_ellipse, coarse_spiral, ellipse
 
 from zwcore.arcs.fit import fit_arcs
-from zwcore.arcs.verify import densify
 
 
 def _annulus_width(pts: np.ndarray, cc: np.ndarray) -> float:
@@ -147,6 +151,9 @@ def _corners_kept(chain: object, corners: np.ndarray, reach: float) -> int:
 def glyphs(quick: bool, arcwelder: str | None) -> None:
     """Glyph outlines (bench/glyphs.py): per sampling and tolerance, the totals over all
     contours against ArcWelder (``arcwelder``: its console) or the greedy bound."""
+    from _arcwelder import deviation as aw_deviation
+    from _arcwelder import max_kink as aw_max_kink
+    from _arcwelder import merge_straight_runs, run_arcwelder
     from glyphs import GLYPHS, QUICK_GLYPHS, glyph_contours
 
     from zwcore.arcs.fit import chain_tangents
@@ -160,12 +167,14 @@ def glyphs(quick: bool, arcwelder: str | None) -> None:
     head = (f"{'sampling':8s} {'tol':>5s} {'points':>6s} {'seg':>5s} {'arc':>5s} {'line':>5s}"
             f" {'max dev':>8s} {'kink deg':>8s} {'corners':>9s} {'time s':>7s}"
             f" {'ms/seg':>6s} {'cpu s':>6s} {'cpu ms/seg':>10s} {ref:>8s} {'ratio':>5s}"
-            + (f" {'AW dev':>7s} {'AW kink':>7s} {'AW s':>6s}" if arcwelder else ""))
+            + (f" {'AW dev':>8s} {'AW kink':>7s} {'AW s':>6s} {'AW str':>6s} {'ratio':>5s}"
+               if arcwelder else ""))
     print(head)
     print("-" * len(head))
     for tol in (0.05, 0.01):
         for name in ("even", "chordal", "noisy"):
             n_pts = seg = arcs = lines = kept = n_corner = n_ref = 0
+            n_str = 0
             dev = kink = t_all = c_all = aw_dev = aw_kink = aw_t = 0.0
             for _label, pts, corners in sets[name]:
                 dt, dc, chain = _timed_cpu(pts, True, tol)
@@ -180,13 +189,12 @@ def glyphs(quick: bool, arcwelder: str | None) -> None:
                 n_corner += len(corners)
                 t_all += dt
                 if arcwelder:
-                    from _arcwelder import run_arcwelder
-
                     aw, adt = run_arcwelder(arcwelder, pts, tol)
                     n_ref += len(aw)
                     aw_t += adt
-                    awd, awk = _aw_figures(aw, pts)
-                    aw_dev, aw_kink = max(aw_dev, awd), max(aw_kink, awk)
+                    aw_dev = max(aw_dev, *aw_deviation(aw, pts, True))
+                    aw_kink = max(aw_kink, aw_max_kink(aw, True, corners, 0.2 + 3 * tol))
+                    n_str += merge_straight_runs(aw, pts, True, tol)
                 else:
                     n_ref += greedy_min_pieces(pts, tol, True)
             _ = chain_tangents
@@ -195,40 +203,30 @@ def glyphs(quick: bool, arcwelder: str | None) -> None:
                   f" {1e3 * t_all / max(seg, 1):6.2f} {c_all:6.2f}"
                   f" {1e3 * c_all / max(seg, 1):10.2f}"
                   f" {n_ref:8d} {seg / max(n_ref, 1):5.2f}"
-                  + (f" {aw_dev:7.4f} {aw_kink:7.1f} {aw_t:6.2f}" if arcwelder else ""),
+                  + (f" {aw_dev:8.5f} {aw_kink:7.1f} {aw_t:6.2f} {n_str:6d}"
+                     f" {seg / max(n_str, 1):5.2f}" if arcwelder else ""),
                   flush=True)
 
 
-def _aw_figures(segs: list[tuple], pts: np.ndarray) -> tuple[float, float]:
-    """ArcWelder's chain -> polyline deviation (sampled) and largest kink (degrees)."""
-    from scipy.spatial import cKDTree
+def _aw_columns(exe: str, pts: np.ndarray, closed: bool, tol: float, nseg: int) -> str:
+    """ArcWelder's measured columns for one smooth curve: its segments (G1 runs merged),
+    our count over its, its largest deviation (both ways, sampled), its largest kink
+    (degrees) away from the input's corners (vertices turning more than 30 deg), and its
+    count with straight runs of lines or flat arcs merged too, with our count over it."""
+    from _arcwelder import (
+        deviation,
+        max_kink,
+        merge_straight_runs,
+        polyline_corners,
+        run_arcwelder,
+    )
 
-    samples = []
-    tans = []
-    for s in segs:
-        a, b = np.array(s[1]), np.array(s[2])
-        if s[0] == "line":
-            samples.append(a + np.linspace(0, 1, 50)[:, None] * (b - a))
-            d = (b - a) / max(np.hypot(*(b - a)), 1e-300)
-            tans.append((d, d))
-        else:
-            c = np.array(s[3])
-            a0 = math.atan2(*(a - c)[::-1])
-            a1 = math.atan2(*(b - c)[::-1])
-            sw = (a1 - a0) % (2 * math.pi) if s[4] else -((a0 - a1) % (2 * math.pi))
-            r = np.hypot(*(a - c))
-            ang = a0 + np.linspace(0, sw, 50)
-            samples.append(c + r * np.stack([np.cos(ang), np.sin(ang)], 1))
-            sg = 1.0 if s[4] else -1.0
-            tans.append((sg * np.array([-(a - c)[1], (a - c)[0]]) / r,
-                         sg * np.array([-(b - c)[1], (b - c)[0]]) / r))
-    dense = densify(np.vstack([pts, pts[:1]]), 0.002)
-    dev = float(cKDTree(dense).query(np.vstack(samples))[0].max())
-    kink = 0.0
-    for (_, t0), (t1, _) in zip(tans, tans[1:] + tans[:1], strict=True):
-        kink = max(kink, abs(math.degrees(math.atan2(t0[0] * t1[1] - t0[1] * t1[0],
-                                                     float(t0 @ t1)))))
-    return dev, kink
+    aw, _ = run_arcwelder(exe, pts, tol, closed)
+    corners = polyline_corners(pts, closed)
+    n_str = merge_straight_runs(aw, pts, closed, tol)
+    return (f" {len(aw):6d} {nseg / len(aw):5.2f} {max(deviation(aw, pts, closed)):7.4f}"
+            f" {max_kink(aw, closed, corners, 0.2 + 3 * tol):7.1f} {n_str:6d}"
+            f" {nseg / n_str:5.2f}")
 
 
 def coarse_polygon(n: int = 1000, edge: float = 10.0, turn_deg: float = 12.0,
@@ -349,7 +347,9 @@ def main() -> None:
     print(f"C1 arc fit, tolerance {tol} mm, curves sampled at 0.5 mm\n")
     head = (f"{'curve':10s} {'N':>6s} {'seg':>4s} {'arc':>4s} {'line':>4s} {'dev pts':>8s}"
             f" {'dev chain':>9s} {'kink':>8s} {'corners':>7s} {'time s':>7s} {'cpu s':>6s}"
-            f" {'cpu ms/seg':>10s} {'greedy<=':>8s} {'AW':>7s}")
+            f" {'cpu ms/seg':>10s} {'greedy<=':>8s} {'AW':>7s}"
+            + (f" {'AW seg':>6s} {'ratio':>5s} {'AW dev':>7s} {'AW kink':>7s} {'AW str':>6s}"
+               f" {'ratio':>5s}" if args.arcwelder else ""))
     print(head)
     print("-" * len(head))
     for name, make in BENCH_CURVES.items():
@@ -363,10 +363,17 @@ def main() -> None:
               f" {chain.n_lines:4d} {chain.max_deviation_points:8.4f}"
               f" {chain.max_deviation_chain:9.4f} {chain.max_kink_smooth:8.1e}"
               f" {len(chain.corners):7d} {dt:7.3f} {dc:6.3f} {1e3 * dc / nseg:10.2f}"
-              f" {greedy:8d} {aw:>7s}")
+              f" {greedy:8d} {aw:>7s}"
+              + (_aw_columns(args.arcwelder, pts, closed, tol, nseg) if args.arcwelder else ""))
     _scaling(tol, args.quick)
     _coarse()
     print("\nArcWelder 2.0 on the 0.02 mm ellipse (24,223 points): 10.3 s (issue text)")
+    if args.arcwelder:
+        from _arcwelder import run_arcwelder
+
+        pts, closed = ellipse(0.02)
+        aw, adt = run_arcwelder(args.arcwelder, pts, tol, closed)
+        print(f"ArcWelder here on it: {len(aw)} segments, {adt:.1f} s wall")
     _ = math.pi
 
 
