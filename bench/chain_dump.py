@@ -68,13 +68,13 @@ def forced_fallback() -> object:
     original ``run`` to restore."""
     orig = _search.Fitter.run
 
-    def run(self, a, b, loop, allow_forced, t_start=None):  # type: ignore[no-untyped-def]
+    def run(self, a, b, loop, allow_forced, t_start=None, resume=None):  # type: ignore[no-untyped-def]
         if not allow_forced:
             raise _search.Stuck
         self._expand = lambda level, b: []
         self.use_bridge = False
         self.one_piece_runs = False
-        return orig(self, a, b, loop, allow_forced, t_start)
+        return orig(self, a, b, loop, allow_forced, t_start, resume)
 
     _search.Fitter.run = run  # type: ignore[method-assign]
     return orig

@@ -22,15 +22,11 @@ from numpy.typing import NDArray
 from zwcore.arcs._geometry import (
     arc_point,
     arc_points,
-    circle_gap,
-    kappa_bounds,
     local_uv,
-    point_to_arc_distance,
     points_to_segments_distance,
     rotate,
     rotate1,
     sagitta,
-    unwrap,
 )
 from zwcore.arcs._pieces import Piece
 from zwcore.arcs.verify import _densify_idx
@@ -39,17 +35,80 @@ FloatArray = NDArray[np.float64]
 
 __all__ = [
     "biarc",
+    "circle_gap",
     "deviations",
     "foot_positions",
     "junction",
+    "kappa_bounds",
     "last_on_first_arc",
     "longest_piece_bounds",
+    "point_to_arc_distance",
     "portion_bounds",
     "reach_with_lines",
     "samples_within",
     "segments_within",
+    "unwrap",
     "verify",
 ]
+
+
+# -- numpy geometry (the compiled kernels do these per point) ---------------
+
+
+def circle_gap(u: FloatArray, v: FloatArray, kappa: float | FloatArray) -> FloatArray:
+    """Signed distance of local points to the circle (or line) of curvature ``kappa``.
+
+    Positive means right of the travel direction. The magnitude is the exact
+    Euclidean distance to the full circle; the sign convention makes the value
+    increase monotonically with ``kappa``, which is what turns each point into an
+    interval of admissible curvatures (see :func:`kappa_bounds`).
+    """
+    w = kappa * (u * u + v * v) - 2.0 * v
+    # 1 + kappa*w = (1 - kappa v)^2 + (kappa u)^2 >= 0; the clip only guards rounding.
+    return w / (1.0 + np.sqrt(np.maximum(1.0 + kappa * w, 0.0)))
+
+
+def kappa_bounds(u: FloatArray, v: FloatArray, tol: float) -> tuple[FloatArray, FloatArray]:
+    """Curvature interval ``[lo, hi]`` that keeps each point within ``tol`` of the circle.
+
+    Points closer than ``tol`` to the start point impose nothing (the start point
+    is on every candidate circle), and get ``(-inf, inf)``.
+    """
+    den = u * u + v * v - tol * tol
+    ok = den > 0.0
+    safe = np.where(ok, den, 1.0)
+    lo = np.where(ok, 2.0 * (v - tol) / safe, -np.inf)
+    hi = np.where(ok, 2.0 * (v + tol) / safe, np.inf)
+    return lo, hi
+
+
+def unwrap(phi: FloatArray) -> FloatArray:
+    """``numpy.unwrap(phi)`` (1-D), without its overhead when no step reaches pi."""
+    dd = np.diff(phi)
+    if dd.size and not float(np.abs(dd).max()) < math.pi:
+        return np.unwrap(phi)
+    out = np.array(phi, dtype=np.float64, copy=True)
+    out[1:] += 0.0  # (as numpy.unwrap adds its zero corrections: -0.0 becomes 0.0)
+    return out
+
+
+def point_to_arc_distance(
+    pts: FloatArray, p: FloatArray, t: FloatArray, kappa: float, length: float
+) -> FloatArray:
+    """Exact distance of ``pts`` ``(M, 2)`` to the piece of arc length ``length`` from ``p``."""
+    u, v = local_uv(p, t, pts)
+    end = arc_points(p, t, kappa, np.array([length]))[0]
+    d_ends = np.minimum(np.hypot(u, v), np.hypot(pts[:, 0] - end[0], pts[:, 1] - end[1]))
+    if kappa == 0.0:
+        inside = (u >= 0.0) & (u <= length)
+        return np.where(inside, np.abs(v), d_ends)
+    phi = np.arctan2(kappa * u, 1.0 - kappa * v)
+    sweep = abs(kappa * length)
+    ang = np.mod(phi * np.sign(kappa), 2.0 * np.pi)
+    # points at the centre itself: every arc point is at the radius
+    inside = ang <= sweep
+    gap = np.abs(circle_gap(u, v, kappa))
+    return np.where(inside, np.minimum(gap, d_ends), d_ends)
 
 
 def foot_positions(u: FloatArray, v: FloatArray, kappa: float) -> FloatArray:

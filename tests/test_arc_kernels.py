@@ -14,7 +14,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, assume, given, settings
+from hypothesis import HealthCheck, assume, example, given, settings
 from hypothesis import strategies as st
 
 from tests import arc_reference as ref
@@ -22,11 +22,8 @@ from zwcore.arcs import _kernels
 from zwcore.arcs._geometry import (
     arc_point,
     arc_points,
-    circle_gap,
-    kappa_bounds,
     line_fit,
     local_uv,
-    point_to_arc_distance,
     points_to_segments_distance,
 )
 from zwcore.arcs._pieces import Piece, ToleranceBand
@@ -127,12 +124,39 @@ def _pieces(pts: np.ndarray, tol: float, closed: bool) -> tuple[np.ndarray, list
     return prep.samples, pieces
 
 
+def _brute_deviations(samples: np.ndarray, pieces: list[Piece],
+                      step: float) -> tuple[float, float]:
+    """Brute force: the two-sided deviation over the dense points the measures sample
+    (the polyline at ``step``, each piece at ``step``), each point measured against the
+    whole other side."""
+    dpoly = densify(samples, step)
+    d_p = np.min([ref.point_to_arc_distance(dpoly, pc.p, pc.t, pc.kappa, pc.length)
+                  for pc in pieces], axis=0)
+    cpts = np.vstack([ref._piece_points(pc, step)[0] for pc in pieces])
+    d_c = ref._dist_all_segments(cpts, samples)
+    return float(d_p.max()), float(d_c.max())
+
+
+#: a straight there-and-back loop (the wiggle, 1e-236 mm, only keeps the points apart)
+#: whose spoilt chain the dense measure once put at 0.003407 where a polyline point is
+#: 0.003440 from it: its jump along a piece whose foot was off the arc's start
+_BACK_AND_FORTH = np.stack([np.arange(17) * 0.0234375,
+                            1e-236 * np.sin(np.arange(17) * 0.0234375 / 0.4)], 1)
+
+
 @settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(wavy_curves(), st.booleans(), st.floats(-1.0, 1.0))
-def test_dense_deviations_agree_with_the_reference(case, closed, bend):
+@example((_BACK_AND_FORTH, 0.02308252770447345), True, 0.0625)
+def test_dense_deviations_bound_the_brute_force(case, closed, bend):
+    """The dense measure (and its numpy reference) measure each point against the nearby
+    geometry only, so each figure is at least the brute-force one over the same points;
+    where the reference finds the chain within the tolerance, so does the measure. (On a
+    spoilt chain the two may pick different nearby pieces, so their figures need not
+    agree: random draws found a bent chain at tolerance 0.28 measured 0.2569 and 0.2808
+    where the truth is 0.2132.)"""
     pts, tol = case
-    # (the reference measures a spoilt chain's points against every segment: keep the
-    # dense sampling, length / (tol / 20), to some 40,000 points)
+    # (the brute force measures every point against every segment: keep the dense
+    # sampling, length / (tol / 20), to some 40,000 points)
     assume(float(np.hypot(*np.diff(pts, axis=0).T).sum()) <= 2000.0 * tol)
     samples, pieces = _pieces(pts - pts[0], tol, closed)
     if bend:
@@ -146,7 +170,17 @@ def test_dense_deviations_agree_with_the_reference(case, closed, bend):
         pieces = spoilt
     got = deviations(samples, pieces, tol)
     want = ref.deviations(samples, pieces, tol)
-    np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-12)
+    length = float(np.hypot(*np.diff(samples, axis=0).T).sum())
+    step = max(tol / 20.0, (length + sum(pc.length for pc in pieces)) / 2e6)
+    truth = _brute_deviations(samples, pieces, step)
+    hair = HAIR * tol
+    for g, w, tr in zip(got, want, truth, strict=True):
+        assert g >= tr - hair and w >= tr - hair
+        if w <= tol:
+            assert g <= tol + hair
+    if not bend:
+        # a fitted chain (its pieces are where the bookkeeping says): the same figure
+        np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-12)
 
 
 def _within_two_sided(pieces: list[Piece], covered: np.ndarray, near: np.ndarray,
@@ -162,7 +196,7 @@ def _within_two_sided(pieces: list[Piece], covered: np.ndarray, near: np.ndarray
     cpts = np.vstack(chain)
     d_c = points_to_segments_distance(cpts, near[:-1], near[1:]).min(axis=1)
     dense = densify(covered, step)
-    d_p = np.min([point_to_arc_distance(dense, pc.p, pc.t, pc.kappa, pc.length)
+    d_p = np.min([ref.point_to_arc_distance(dense, pc.p, pc.t, pc.kappa, pc.length)
                   for pc in pieces], axis=0)
     return bool(d_c.max() <= tol + step and d_p.max() <= tol + step)
 
@@ -268,7 +302,7 @@ def test_kappa_fits_agrees_with_the_intervals(case, fj, fk):
     b = len(pts) - 1
     j = k + 1 + int(fj * (b - k - 1))
     u, v = local_uv(p, t, pts[k + 1 : j + 1])
-    lo, up = kappa_bounds(u, v, tol)
+    lo, up = ref.kappa_bounds(u, v, tol)
     lo_m, up_m = float(lo.max()), float(up.min())
     assume(math.isfinite(lo_m) and math.isfinite(up_m) and lo_m <= up_m)
     kappa = lo_m + fk * (up_m - lo_m)
@@ -293,7 +327,7 @@ def test_line_reaches_and_chord_circles_agree_with_numpy(case, turn):
     ub, vb = local_uv(p, tt, pts[b : b + 1])
     kap = float(2.0 * vb[0] / (ub[0] ** 2 + vb[0] ** 2))
     uu, vv = local_uv(p, tt, pts[k + 1 : b + 1])
-    gap = float(np.abs(circle_gap(uu, vv, kap)).max())
+    gap = float(np.abs(ref.circle_gap(uu, vv, kap)).max())
     got = _kernels.chord_circle_gap(pts, p[0], p[1], float(ths[0]), k, b)
     assert got == pytest.approx(gap, rel=1e-9, abs=1e-12)
 

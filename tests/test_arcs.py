@@ -400,15 +400,20 @@ def assert_gives_lines(pts: np.ndarray, straight, tol: float = 0.1) -> None:
         if length < 15.0:
             continue
         d = (b - a) / length
-        # the longest chain line lying along this straight part
+        # the longest chain line lying along this straight part: within the tolerance
+        # of it where they overlap (beyond its ends the fillets turn away, and a line
+        # that runs on a little past an end may leave the part's line there)
         best = 0.0
         for s in lines:
             s0, s1 = np.array(s.start), np.array(s.end)
-            off = max(abs(float(d[0] * (q - a)[1] - d[1] * (q - a)[0])) for q in (s0, s1))
+            f0, f1 = float(d @ (s0 - a)), float(d @ (s1 - a))
+            lo, hi = max(0.0, min(f0, f1)), min(length, max(f0, f1))
+            if not hi > lo or f1 == f0:
+                continue
+            ends = [s0 + (f - f0) / (f1 - f0) * (s1 - s0) for f in (lo, hi)]
+            off = max(abs(float(d[0] * (q - a)[1] - d[1] * (q - a)[0])) for q in ends)
             if off > tol:
                 continue
-            lo = max(0.0, min(float(d @ (s0 - a)), float(d @ (s1 - a))))
-            hi = min(length, max(float(d @ (s0 - a)), float(d @ (s1 - a))))
             best = max(best, hi - lo)
         assert best >= 0.5 * length, (length, best)
 
@@ -459,10 +464,18 @@ DATA = Path(__file__).resolve().parent / "data"
     # 1,282: the refit along it laid a flat arc over the 8 mm end part instead and was
     # two segments longer, so it was dropped (a second round anchors that part too)
     "refit_new_flat_end_arc",
+    # the chain's line along the 16.4 mm straight part runs 0.3 mm past its end, where it
+    # is 0.1 mm off the part's line: the check measured the line's ends, not the overlap
+    "line_past_straight_end",
     # no noise, 1 mm sampling: the 26.8 mm middle straight part is an arc of radius 767;
     # the refit along it splits both fillets into two arcs and is two segments longer
     pytest.param("refit_split_fillets", marks=pytest.mark.xfail(
         strict=True, reason="open: the refit along the straight part costs two segments")),
+    # found by a local (random) run on main 57274c8 and on arcs3 alike: the 17.0 mm
+    # straight part between two fillets is an arc of radius 452 (sagitta 0.045 mm, not
+    # flat) covering 12.7 mm of it
+    pytest.param("arc_over_short_straight", marks=pytest.mark.xfail(
+        strict=True, reason="open: an arc of radius 452 over a 17 mm straight part")),
 ])
 def test_saved_lines_and_fillets_give_lines(name):
     """Lines-and-fillets curves hypothesis once found failing (points, straight parts)."""
@@ -675,13 +688,13 @@ def fallback_everywhere(monkeypatch):
 
     orig_run = arcfit.Fitter.run
 
-    def run(self, a, b, loop, allow_forced, t_start=None):
+    def run(self, a, b, loop, allow_forced, t_start=None, resume=None):
         if not allow_forced:
             raise arcfit.Stuck
         self._expand = lambda level, b: []
         self.use_bridge = False
         self.one_piece_runs = False
-        return orig_run(self, a, b, loop, allow_forced, t_start)
+        return orig_run(self, a, b, loop, allow_forced, t_start, resume)
 
     monkeypatch.setattr(arcfit.Fitter, "run", run)
 

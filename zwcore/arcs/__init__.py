@@ -11,7 +11,8 @@
   runs), ``_pieces`` (the tolerance band: feasible curvatures, reach, verification,
   biarcs) with ``_kernels`` (its compiled scans and two-sided bounds), ``_biarc`` (the
   compiled biarc), ``_select`` (a beam level's candidates, compiled), ``_dense`` (the
-  compiled dense deviation of :mod:`zwcore.arcs.verify`),
+  compiled dense deviation of :mod:`zwcore.arcs.verify`) with ``_jumps`` (how far it may
+  jump),
   ``_lines`` (refits along straight runs) with ``_straight`` (finding them) and
   ``_anchors`` (following them), ``_fallback`` (the filleted polyline, valid by
   construction), ``_geometry`` (arc primitives).

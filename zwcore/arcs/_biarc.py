@@ -13,7 +13,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from zwcore.arcs._kernels import foot_positions, local1, verify_piece
+from zwcore.arcs._kernels import _TWO_PI, _pymod, local1, verify_piece
 
 FloatArray = NDArray[np.float64]
 
@@ -63,16 +63,34 @@ def _biarc_junction(p0x: float, p0y: float, t0x: float, t0y: float, p1x: float, 
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def _last_on_first_arc(uu: FloatArray, vv: FloatArray, k1: float, s1: float, k: int,
-                       b: int, sg: FloatArray) -> int:
+                       b: int) -> int:
     """The last sample (in ``k..b-1``) whose foot point lies on the first arc of a biarc
-    (``uu, vv``: samples ``k..b`` in its start frame; ``sg``: scratch of ``len(uu)``)."""
-    if k1 != 0.0:
-        foot_positions(uu, vv, k1, sg)
-    else:
-        sg[:] = uu
+    (``uu, vv``: samples ``k..b`` in its start frame): the foot positions of
+    :func:`zwcore.arcs._kernels.foot_positions` (angles unwrapped as :func:`numpy.unwrap`
+    does, a correction at each step of pi or more), computed only up to the first one
+    past the arc's end ``s1`` (each depends on the earlier ones only)."""
     m = b - 1
-    for i in range(len(sg)):
-        if sg[i] > s1:
+    if k1 == 0.0:
+        for i in range(len(uu)):
+            if uu[i] > s1:
+                m = k + i - 1
+                break
+        return min(max(m, k), b - 1)
+    prev = 0.0
+    corr = 0.0
+    for i in range(len(uu)):
+        val = 0.0
+        if i:
+            raw = math.atan2(k1 * uu[i], 1.0 - k1 * vv[i])
+            dd = raw - prev
+            prev = raw
+            if not abs(dd) < math.pi:
+                ddmod = _pymod(dd + math.pi, _TWO_PI) - math.pi
+                if ddmod == -math.pi and dd > 0.0:
+                    ddmod = math.pi
+                corr += ddmod - dd
+            val = raw + corr
+        if val / k1 > s1:
             m = k + i - 1
             break
     return min(max(m, k), b - 1)
@@ -118,7 +136,6 @@ def biarc(samples: FloatArray, p0: FloatArray, t0: FloatArray, k: int, e: float,
             up = min(up, 2.0 * (vv[i] + wt) / den)
         lo_t[i - 1] = lo
         up_t[i - 1] = up
-    sg = np.empty(n)
     for si in range(len(splits)):
         ok, jx, jy = _biarc_junction(p0[0], p0[1], t0[0], t0[1], p1[0], p1[1], t1[0], t1[1],
                                      splits[si])
@@ -137,7 +154,7 @@ def biarc(samples: FloatArray, p0: FloatArray, t0: FloatArray, k: int, e: float,
         tex, tey = c * tjx - s * tjy, s * tjx + c * tjy
         if abs(tex * t1[1] - tey * t1[0]) > 1e-9 or tex * t1[0] + tey * t1[1] < 0.0:
             continue
-        m = _last_on_first_arc(uu, vv, k1, s1, k, b, sg)
+        m = _last_on_first_arc(uu, vv, k1, s1, k, b)
         if m > k and not lo_t[m - k - 1] <= k1 <= up_t[m - k - 1]:
             continue
         r1 = verify_piece(samples, p0[0], p0[1], t0[0], t0[1], k1, k, m, e, s1, True, False,

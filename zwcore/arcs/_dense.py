@@ -15,6 +15,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+from zwcore.arcs._jumps import SLACK, piece_growth, safe_move, segment_growth
 from zwcore.arcs._kernels import arc_xy, circle_gap1, foot_positions, local1, seg_dist
 
 FloatArray = NDArray[np.float64]
@@ -103,69 +104,72 @@ def _nearest_piece(geo: FloatArray, qs: IntArray, x: float, y: float) -> tuple[f
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _piece_growth(geo: FloatArray, q: int, x: float, y: float, ux: float,
-                  uy: float) -> tuple[float, float, float]:
-    """How the distance of a point moving from ``(x, y)`` along the unit direction
-    ``(ux, uy)`` to piece ``q`` can grow: ``(slope, curv, reach)``, the distance after a
-    move ``h <= reach`` is at most ``d + slope h + curv h^2 / 2``.
-
-    Valid while the point's foot stays inside the piece (``reach``: 0 when it is not
-    inside): the distance is then the line's ``|v|`` (linear in ``h``) or the circle's
-    ``|rho - R|``, ``rho`` the distance to the centre, convex along a line with
-    ``rho'' <= 1 / rho`` (``rho >= rho0 / 2`` within the reach).
-    """
-    px, py, tx, ty, kappa, length = geo[q, 0], geo[q, 1], geo[q, 2], geo[q, 3], \
-        geo[q, 4], geo[q, 5]
-    u, v = local1(x, y, px, py, tx, ty)
-    du = ux * tx + uy * ty
-    dv = uy * tx - ux * ty
-    if kappa == 0.0:
-        if not 0.0 <= u <= length:
-            return 1.0, 0.0, 0.0
-        # the foot moves along the line at the rate du
-        if du > 0.0:
-            return abs(dv), 0.0, (length - u) / du
-        if du < 0.0:
-            return abs(dv), 0.0, u / -du
-        return abs(dv), 0.0, np.inf
-    # the radial direction in the piece's frame, scaled by |kappa| (stable for tiny ones)
-    gu = kappa * u
-    gv = kappa * v - 1.0
-    n = math.hypot(gu, gv)
-    if not n > 0.0:
-        return 1.0, 0.0, 0.0
-    rho = n / abs(kappa)
-    phi = math.atan2(gu, -gv)
+def _arc_angle(u: float, v: float, kappa: float) -> float:
+    """Angle (in ``[0, 2 pi)``, along the piece's turn) of a local point's foot on the
+    circle of curvature ``kappa`` from the piece's start."""
+    phi = math.atan2(kappa * u, 1.0 - kappa * v)
     ang = phi if kappa > 0.0 else -phi
-    if ang < 0.0:
-        ang += 2.0 * math.pi
-    # the cosine between the move and the arc's direction at the foot: while the foot
-    # turns by less than asin(|cos|) it keeps turning the same way, towards the end
-    # (cos > 0) or the start of the arc
-    cos = (dv * gu - du * gv) / n
-    margin = abs(kappa * length) - ang if cos > 0.0 else ang
-    margin = min(margin, math.asin(min(abs(cos), 1.0)))
-    if not margin > 0.0:
-        return 1.0, 0.0, 0.0
-    # the foot turns by at most h / (rho - h) <= 2 h / rho about the centre
-    return abs(du * gu + dv * gv) / n, 2.0 / rho, 0.5 * rho * min(margin, 1.0)
+    return ang + 2.0 * math.pi if ang < 0.0 else ang
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _safe_move(d: float, worst: float, slope: float, curv: float, reach: float) -> float:
-    """How far a point measured at distance ``d`` can move before its distance may
-    exceed ``worst``: 1-Lipschitz, and within ``reach`` the bound ``d + slope h +
-    curv h^2 / 2`` (:func:`_piece_growth`, :func:`_segment_growth`); a hair short of it
-    (rounding of the dense points' positions)."""
-    room = worst - d
-    if not room > 0.0:
-        return 0.0
-    h = room
-    if reach > h:
-        # the root of curv h^2 / 2 + slope h = room (the stable form)
-        h2 = 2.0 * room / (slope + math.sqrt(slope * slope + 2.0 * curv * room))
-        h = max(h, min(h2, reach))
-    return h * (1.0 - 1e-9)
+def _segment_max(samples: FloatArray, off: IntArray, s: int, hi: int, geo: FloatArray,
+                 qs: IntArray, q: int, tol: float) -> float:
+    """The largest distance of the dense points ``off[s]..hi-1`` of segment ``s`` to the
+    pieces ``qs``, exactly, when every point's foot lies inside piece ``q`` and ``q`` is
+    the nearest piece where that distance peaks; else -1 (walk the points).
+
+    Along a line the offset ``e`` from the piece (a line's ``v``, a circle's ``rho - R``)
+    is linear or convex (``rho`` is), so over the evenly spaced points ``|e| = max(e,
+    -e)`` peaks at the first or last point or, ``-e`` being concave, at the two points
+    about the line's closest approach to the centre: at most four points to measure.
+    The distance to the pieces is at most ``|e|`` at every point and equal to it where
+    ``q`` is the nearest, so where that holds at the peak the peak is the maximum.
+    """
+    i0 = off[s]
+    i1 = hi - 1
+    if i1 <= i0 + 3:
+        return -1.0
+    px, py, tx, ty, kappa, length = geo[q, 0], geo[q, 1], geo[q, 2], geo[q, 3], \
+        geo[q, 4], geo[q, 5]
+    x0, y0 = _dense_point(samples, off, s, i0)
+    x1, y1 = _dense_point(samples, off, s, i1)
+    u0, v0 = local1(x0, y0, px, py, tx, ty)
+    u1, v1 = local1(x1, y1, px, py, tx, ty)
+    c2 = i0
+    if kappa == 0.0:
+        if not (0.0 <= u0 <= length and 0.0 <= u1 <= length):
+            return -1.0
+    else:
+        a0 = _arc_angle(u0, v0, kappa)
+        a1 = _arc_angle(u1, v1, kappa)
+        sweep = abs(kappa * length)
+        # (the foot turns monotonically, by less than pi, along a line)
+        if not (a0 <= sweep and a1 <= sweep and abs(a1 - a0) < math.pi):
+            return -1.0
+        # the dense point before the line's closest approach to the centre
+        cx = px - ty / kappa
+        cy = py + tx / kappa
+        dx = x1 - x0
+        dy = y1 - y0
+        span = math.hypot(dx, dy)
+        if not span > 0.0:
+            return -1.0
+        h = ((cx - x0) * dx + (cy - y0) * dy) / span
+        f = h / span * (i1 - i0)
+        c2 = i0 + int(min(max(f, 0.0), float(i1 - i0)))
+    best_q = -1.0
+    best_d = -1.0
+    for c in (i0, i1, c2, min(c2 + 1, i1)):
+        x, y = _dense_point(samples, off, s, c)
+        dq = point_arc_distance(x, y, px, py, tx, ty, kappa, length, geo[q, 6], geo[q, 7],
+                                np.inf)
+        d = _nearest_piece(geo, qs, x, y)[0]
+        if not d <= tol:
+            return -1.0
+        if dq > best_q:
+            best_q, best_d = dq, d
+    return best_q if best_d == best_q else -1.0
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -176,9 +180,11 @@ def _polyline_to_chain(samples: FloatArray, geo: FloatArray, ks: IntArray, js: I
 
     Points that cannot raise the maximum are skipped: along one segment the distance to
     a fixed set of pieces changes no faster than the position (1-Lipschitz), and no
-    faster than the distance to the nearest piece grows (:func:`_piece_growth`: nearly
-    parallel curves drift apart slowly), so a point whose bound from the last measured
-    one is within ``worst`` is no farther than ``worst``.
+    faster than the distance to the nearest piece grows
+    (:func:`~zwcore.arcs._jumps.piece_growth`: nearly parallel curves drift apart
+    slowly), so a point whose bound from the last measured one is within ``worst`` is no
+    farther than ``worst``; a segment the walk would not cross in one jump is measured
+    at a few points where that gives its maximum exactly (:func:`_segment_max`).
     """
     nseg = len(samples) - 1
     total = off[nseg] + 1
@@ -199,16 +205,23 @@ def _polyline_to_chain(samples: FloatArray, geo: FloatArray, ks: IntArray, js: I
         while i < hi:
             x, y = _dense_point(samples, off, s, i)
             d, q = _nearest_piece(geo, qs, x, y)
-            slope, curv, reach = 1.0, 0.0, 0.0
+            e0, rate, curv, reach = 0.0, 1.0, 0.0, 0.0
             if q >= 0 and d <= tol:
-                slope, curv, reach = _piece_growth(geo, q, x, y, ux, uy)
+                e0, rate, curv, reach = piece_growth(geo, q, x, y, ux, uy)
             if not d <= tol:
                 d = _nearest_piece(geo, every, x, y)[0]
             worst = max(worst, d)
             # the next points within the safe move cannot raise the maximum
             skip = 0
             if dl > 0.0:
-                skip = int(min(_safe_move(d, worst, slope, curv, reach) / dl, hi))
+                skip = int(min(safe_move(d, worst + SLACK * tol, e0, rate, curv, reach) / dl,
+                               hi))
+            if i == off[s] and i + 1 + skip < hi and q >= 0 and d <= tol:
+                # the whole segment from a few points, where the closed form holds
+                top = _segment_max(samples, off, s, hi, geo, qs, q, tol)
+                if top >= 0.0:
+                    worst = max(worst, top)
+                    break
             i += 1 + skip
     if nseg == 0:
         worst = _nearest_piece(geo, every, samples[0, 0], samples[0, 1])[0]
@@ -242,45 +255,52 @@ def _segments_near(samples: FloatArray, x: float, y: float, m: int) -> tuple[flo
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _segment_growth(samples: FloatArray, s: int, x: float, y: float, tx: float, ty: float,
-                    kappa: float, sg: float) -> tuple[float, float]:
-    """``(slope, reach)`` of the distance of a point moving along the piece from ``(x,
-    y)`` (arc length ``sg``; start tangent ``t``, curvature ``kappa``) to segment ``s``:
-    while its foot stays inside the segment (a move of at most ``reach``) the distance
-    is ``|w|``, ``w`` the offset from the segment's line, with ``|w'| <= slope`` at the
-    start and ``|w''| <= |kappa|``."""
-    ax, ay = samples[s, 0], samples[s, 1]
-    ex = samples[s + 1, 0] - ax
-    ey = samples[s + 1, 1] - ay
-    sl = math.hypot(ex, ey)
-    if not sl > 0.0:
-        return 1.0, 0.0
-    ex /= sl
-    ey /= sl
-    lam = (x - ax) * ex + (y - ay) * ey
-    if not 0.0 <= lam <= sl:
-        return 1.0, 0.0
-    a = kappa * sg
-    c, sn = math.cos(a), math.sin(a)
-    # the piece's tangent at sg
-    qx = tx * c - ty * sn
-    qy = tx * sn + ty * c
-    # the foot moves along the segment at the rate cos (the tangent's component along
-    # it), which keeps its sign while the tangent turns by less than asin(|cos|)
-    cos = ex * qx + ey * qy
-    reach = sl - lam if cos > 0.0 else lam
-    if kappa != 0.0:
-        reach = min(reach, math.asin(min(abs(cos), 1.0)) / abs(kappa))
-    return abs(ex * qy - ey * qx), reach
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
 def _all_segments(samples: FloatArray, x: float, y: float) -> float:
     d = np.inf
     for s in range(len(samples) - 1):
         d = min(d, seg_dist(x, y, samples[s, 0], samples[s, 1], samples[s + 1, 0],
                             samples[s + 1, 1]))
     return d
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _portion_max(samples: FloatArray, foot: FloatArray, k: int, px: float, py: float,
+                 tx: float, ty: float, kappa: float, ds: float, i: int, i_r: int,
+                 lseg: int, tol: float) -> float:
+    """The largest distance to the polyline of the dense points ``i..i_r`` of a piece
+    (start ``p``, tangent ``t``, curvature ``kappa``, spacing ``ds``; ``foot``: the foot
+    positions of its samples from ``k`` on), exactly, when their feet all lie inside
+    segment ``lseg``, each one's window holds it and ``lseg`` is the nearest where the
+    distance peaks; else -1 (walk the points).
+
+    The offset ``w`` from the segment's line has a second derivative of one sign over
+    the points (see :func:`~zwcore.arcs._jumps.segment_growth`), so ``|w| = max(w, -w)``
+    peaks at the first or last point or at the two points about where the piece runs parallel to the
+    segment: at most four points to measure (each against its window, as the walk
+    does, which is at most ``|w|`` and equal to it where ``lseg`` is the nearest).
+    """
+    c2 = i
+    if kappa != 0.0:
+        ax, ay = samples[lseg, 0], samples[lseg, 1]
+        phi = math.atan2(samples[lseg + 1, 1] - ay, samples[lseg + 1, 0] - ax)
+        rel = math.atan2(ty, tx) + kappa * i * ds - phi
+        rel -= math.pi * np.rint(rel / math.pi)
+        s_par = i * ds - rel / kappa
+        if i * ds < s_par < i_r * ds:
+            c2 = min(int(s_par / ds), i_r)
+    best_w = -1.0
+    best_d = -1.0
+    for c in (i, i_r, c2, min(c2 + 1, i_r)):
+        x, y = arc_xy(px, py, tx, ty, kappa, c * ds)
+        m = k + int(np.searchsorted(foot, c * ds, side="right")) - 1
+        d = _segments_near(samples, x, y, m)[0]
+        if not d <= tol:
+            return -1.0
+        w = seg_dist(x, y, samples[lseg, 0], samples[lseg, 1], samples[lseg + 1, 0],
+                     samples[lseg + 1, 1])
+        if w > best_w:
+            best_w, best_d = w, d
+    return best_w if best_d == best_w else -1.0
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -328,19 +348,32 @@ def _chain_to_polyline(samples: FloatArray, geo: FloatArray, ks: IntArray, js: I
                 i += 1
                 continue
             d, lseg = _segments_near(samples, x, y, m)
-            slope, reach = _segment_growth(samples, lseg, x, y, tx, ty, kappa, sg)
+            e0, rate, reach = segment_growth(samples, lseg, x, y, tx, ty, kappa, sg)
             if not d <= tol:
                 d = _all_segments(samples, x, y)
             worst = max(worst, d)
             # skip the points within the safe move whose window (segments m-3..m+3 of
             # their foot) still holds lseg; the last point is always measured
-            lim = sg + _safe_move(d, worst, slope, abs(kappa), reach)
+            lim = sg + safe_move(d, worst + SLACK * tol, e0, rate, abs(kappa), reach)
             pf = lseg + 4 - k  # from this foot on, m > lseg + 3
             if 0 <= pf < nf:
                 lim = min(lim, np.nextafter(foot[pf], -np.inf))
             nxt = i + 1
             if ds > 0.0 and lim > sg:
                 nxt = max(nxt, min(int(lim / ds) + 1, n - 1))
+            if d <= tol and reach > 0.0 and ds > 0.0 and pf >= 0 and i < n - 1:
+                # the points while the foot stays on lseg and their windows hold it (not
+                # the last one) from a few points, where the walk would not cross them
+                far = sg + reach
+                if pf < nf:
+                    far = min(far, np.nextafter(foot[pf], -np.inf))
+                i_r = min(int(far / ds), n - 2)
+                if nxt < i_r - 2:
+                    top = _portion_max(samples, foot, k, px, py, tx, ty, kappa, ds, i, i_r,
+                                       lseg, tol)
+                    if top >= 0.0:
+                        worst = max(worst, top)
+                        nxt = i_r + 1
             i = nxt
     return worst
 

@@ -22,17 +22,13 @@ FloatArray = NDArray[np.float64]
 __all__ = [
     "arc_point",
     "arc_points",
-    "circle_gap",
-    "kappa_bounds",
     "line_fit",
     "local_uv",
-    "point_to_arc_distance",
     "points_to_segments_distance",
     "rotate",
     "rotate1",
     "sagitta",
     "sagitta1",
-    "unwrap",
 ]
 
 
@@ -64,31 +60,6 @@ def local_uv(p: FloatArray, t: FloatArray, pts: FloatArray) -> tuple[FloatArray,
     return u, v
 
 
-def circle_gap(u: FloatArray, v: FloatArray, kappa: float | FloatArray) -> FloatArray:
-    """Signed distance of local points to the circle (or line) of curvature ``kappa``.
-
-    Positive means right of the travel direction. The magnitude is the exact
-    Euclidean distance to the full circle; the sign convention makes the value
-    increase monotonically with ``kappa``, which is what turns each point into an
-    interval of admissible curvatures (see :func:`kappa_bounds`).
-    """
-    w = kappa * (u * u + v * v) - 2.0 * v
-    # 1 + kappa*w = (1 - kappa v)^2 + (kappa u)^2 >= 0; the clip only guards rounding.
-    return w / (1.0 + np.sqrt(np.maximum(1.0 + kappa * w, 0.0)))
-
-
-def kappa_bounds(u: FloatArray, v: FloatArray, tol: float) -> tuple[FloatArray, FloatArray]:
-    """Curvature interval ``[lo, hi]`` that keeps each point within ``tol`` of the circle.
-
-    Points closer than ``tol`` to the start point impose nothing (the start point
-    is on every candidate circle), and get ``(-inf, inf)``.
-    """
-    den = u * u + v * v - tol * tol
-    ok = den > 0.0
-    safe = np.where(ok, den, 1.0)
-    lo = np.where(ok, 2.0 * (v - tol) / safe, -np.inf)
-    hi = np.where(ok, 2.0 * (v + tol) / safe, np.inf)
-    return lo, hi
 
 
 def arc_points(
@@ -124,15 +95,6 @@ def _sinc(x: float) -> float:
     return math.sin(y) / y
 
 
-def unwrap(phi: FloatArray) -> FloatArray:
-    """``numpy.unwrap(phi)`` (1-D), without its overhead when no step reaches pi."""
-    dd = np.diff(phi)
-    if dd.size and not float(np.abs(dd).max()) < math.pi:
-        return np.unwrap(phi)
-    out = np.array(phi, dtype=np.float64, copy=True)
-    out[1:] += 0.0  # (as numpy.unwrap adds its zero corrections: -0.0 becomes 0.0)
-    return out
-
 
 def sagitta(kappa: float | FloatArray, length: FloatArray) -> FloatArray:
     """Largest distance between an arc of ``length`` and its chord (0 for lines)."""
@@ -167,24 +129,6 @@ def line_fit(
     off = y[:, 1] * d[0] - y[:, 0] * d[1]
     return c, d, float(np.abs(off).max()) if len(off) else 0.0
 
-
-def point_to_arc_distance(
-    pts: FloatArray, p: FloatArray, t: FloatArray, kappa: float, length: float
-) -> FloatArray:
-    """Exact distance of ``pts`` ``(M, 2)`` to the piece of arc length ``length`` from ``p``."""
-    u, v = local_uv(p, t, pts)
-    end = arc_points(p, t, kappa, np.array([length]))[0]
-    d_ends = np.minimum(np.hypot(u, v), np.hypot(pts[:, 0] - end[0], pts[:, 1] - end[1]))
-    if kappa == 0.0:
-        inside = (u >= 0.0) & (u <= length)
-        return np.where(inside, np.abs(v), d_ends)
-    phi = np.arctan2(kappa * u, 1.0 - kappa * v)
-    sweep = abs(kappa * length)
-    ang = np.mod(phi * np.sign(kappa), 2.0 * np.pi)
-    # points at the centre itself: every arc point is at the radius
-    inside = ang <= sweep
-    gap = np.abs(circle_gap(u, v, kappa))
-    return np.where(inside, np.minimum(gap, d_ends), d_ends)
 
 
 def points_to_segments_distance(pts: FloatArray, a: FloatArray, b: FloatArray) -> FloatArray:

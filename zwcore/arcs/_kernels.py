@@ -40,7 +40,8 @@ def sinc(x: float) -> float:
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def circle_gap1(u: float, v: float, kappa: float) -> float:
-    """:func:`zwcore.arcs._geometry.circle_gap` of one point."""
+    """The signed distance of one local point ``(u, v)`` to the circle (or line) of
+    curvature ``kappa`` (``circle_gap`` of ``tests/arc_reference.py``)."""
     w = kappa * (u * u + v * v) - 2.0 * v
     return w / (1.0 + math.sqrt(max(1.0 + kappa * w, 0.0)))
 
@@ -57,7 +58,7 @@ def local1(x: float, y: float, px: float, py: float, tx: float,
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def kappa_interval1(u: float, v: float, wt: float) -> tuple[float, float]:
-    """:func:`zwcore.arcs._geometry.kappa_bounds` of one local point: the curvatures of
+    """``kappa_bounds`` (``tests/arc_reference.py``) of one local point: the curvatures of
     the circles through it within ``wt`` (``(-inf, inf)`` for a point that close)."""
     den = u * u + v * v - wt * wt
     if den > 0.0:

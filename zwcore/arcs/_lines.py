@@ -72,7 +72,8 @@ def refit_along_straight_runs(
     """
     got = _merge_lines(fit([]))
     pins = {"pin_start": pin_start, "pin_end": pin_end}
-    bad = arcs_over_straight(got[0], samples, a, b, tol, **pins)
+    cum = None if band is None else band.cum
+    bad = arcs_over_straight(got[0], samples, a, b, tol, **pins, cum=cum)
     best, best_key = got, (len(bad), 0)
     tried: list[list[tuple[float, ...]]] = []
     # the refit with the fewest arcs over straight runs that still has some (its new
@@ -93,7 +94,7 @@ def refit_along_straight_runs(
                 if not forced:
                     alts.extend((ch, []) for ch in shorter_ends(base, band, b, ends, land))
         for alt in alts:
-            alt_bad = arcs_over_straight(alt[0], samples, a, b, tol, **pins)
+            alt_bad = arcs_over_straight(alt[0], samples, a, b, tol, **pins, cum=cum)
             n_bad = len(alt_bad)
             extra = len(alt[0]) - len(got[0])
             if n_bad < len(bad) and extra <= len(bad) - n_bad and (n_bad, extra) < best_key:

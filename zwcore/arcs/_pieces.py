@@ -67,10 +67,13 @@ class ToleranceBand:
         Share of ``tol`` the feasibility scans use (room for conservative bounds).
     max_radius : float or None
         Largest arc radius allowed (larger ones must be lines); None: no limit.
+    cum : ndarray, shape (M,), optional
+        The cumulative polyline length at each sample, when known.
     """
 
     def __init__(
-        self, samples: FloatArray, tol: float, work: float, max_radius: float | None
+        self, samples: FloatArray, tol: float, work: float, max_radius: float | None,
+        cum: FloatArray | None = None,
     ) -> None:
         self.samples = samples
         self.tol = tol
@@ -80,9 +83,10 @@ class ToleranceBand:
         self.kmin = 0.0 if max_radius is None else 1.0 / max_radius
         #: curvature cap: radius >= tol / 200 (tighter arcs are within tol of their centre)
         self.kcap = 200.0 / tol
-        seg = np.hypot(*(np.diff(samples, axis=0).T))
-        #: cumulative polyline length at each sample
-        self.cum = np.concatenate([[0.0], np.cumsum(seg)])
+        #: cumulative polyline length at each sample (given: another band's, of the same
+        #: samples)
+        self.cum = cum if cum is not None else np.concatenate(
+            [[0.0], np.cumsum(np.hypot(*(np.diff(samples, axis=0).T)))])
         #: arc-length step of the dense checks
         self.dense_step = 0.1 * tol
         n_seg = max(len(samples) - 1, 1)

@@ -23,13 +23,17 @@ FloatArray = NDArray[np.float64]
 __all__ = ["LOOP_START_TURNS", "LOOP_SWEEP_MAX_SAMPLES", "assemble", "sweep_loop_start"]
 
 #: Turns (radians) of the start tangent tried for a corner-free closed curve.
-LOOP_START_TURNS = (-0.01, 0.01, -0.02, 0.02, -0.03, 0.03, -0.05, 0.05, -0.07, 0.07)
+LOOP_START_TURNS = (-0.01, 0.01, -0.02, 0.02, -0.03, 0.03)
 #: A sweep fit is dropped once every state of its beam is this many pieces behind the
 #: first fit at the same sample (its start costs one piece it wins back, if at all, at
 #: the closure: a chain two behind has never come out shorter on the benchmarks).
 LOOP_SWEEP_BEHIND = 2
 #: Loops with more samples than this are fitted from one start tangent only (time).
 LOOP_SWEEP_MAX_SAMPLES = 5_000
+#: A refit along straight runs goes on from the plain fit's last level whose states were
+#: all more than this many single-piece reaches before the first anchor (the levels up
+#: to there are the plain fit's: a landing biarc is tried from 2.2 reaches).
+RESUME_FAR = 3.0
 
 RunFit = tuple[list[Piece], list[int]]
 
@@ -47,10 +51,17 @@ class _RunFitter:
         #: every run so far was fitted in closed form
         self.all_closed_form = True
         self._band: ToleranceBand | None = None
+        #: the levels of the plain fit of each run ``(a, b, work)``: a refit goes on from
+        #: one of them (:func:`_resume_level`)
+        self._levels: dict[tuple[int, int, float], list[list[State]]] = {}
+        #: free run starts per working tolerance, shared by the fitters of each run
+        self._starts: dict[float, dict[tuple[int, int], tuple[FloatArray, int]]] = {}
 
     def fitter(self, work: float, anchors: list[Anchor]) -> Fitter:
-        f = Fitter(self.prep.samples, self.prep.tol, work, self.max_radius)
+        f = Fitter(self.prep.samples, self.prep.tol, work, self.max_radius,
+                   None if self._band is None else self._band.cum)
         f.use_bridge = self.bridge
+        f.starts = self._starts.setdefault(work, {})
         if anchors:
             f.straight = StraightRuns(f.band, anchors)
         return f
@@ -58,9 +69,14 @@ class _RunFitter:
     def beam(self, a: int, b: int, t_start: FloatArray | None, anchors: list[Anchor]) -> RunFit:
         loop = self.prep.loop
         for work in (0.95, 0.8, 0.6, 0.4):
+            f = self.fitter(work, anchors)
+            resume = None
+            if not anchors:
+                f.levels = self._levels[(a, b, work)] = []
+            elif (a, b, work) in self._levels:
+                resume = _resume_level(f, self._levels[(a, b, work)], a, b, loop, t_start)
             try:
-                return self.fitter(work, anchors).run(a, b, loop, allow_forced=False,
-                                                      t_start=t_start)
+                return f.run(a, b, loop, allow_forced=False, t_start=t_start, resume=resume)
             except Stuck:
                 continue
         # the beam with a filleted-polyline fallback wherever it is stuck: never fails
@@ -83,6 +99,65 @@ class _RunFitter:
             lambda anchors: self.beam(a, b, t_start, anchors), self.prep.samples, a, b,
             self.prep.tol, pin_start=t_start is None and not loop, pin_end=not loop,
             band=self._band)
+
+
+def _resume_level(
+    f: Fitter, levels: list[list[State]], a: int, b: int, loop: bool,
+    t_start: FloatArray | None,
+) -> list[State] | None:
+    """The level of the plain fit ``levels`` of samples ``a..b`` that the refit ``f``
+    (with anchors) goes on from, copied, or None (from the start).
+
+    Far before the first anchor a refit proposes what the plain fit did: anchor pieces
+    are tried only within :attr:`StraightRuns.LANDING_SPAN` single-piece reaches of an
+    anchor (a landing arc from further away would span several reaches: it fails its
+    check), and only arcs over straight runs rank otherwise. So the refit takes the
+    plain fit's levels as long as every state of a level is :data:`RESUME_FAR` reaches
+    before the first anchor and none of the pieces of the next level is over a straight
+    run, and goes on from the last such next level.
+    """
+    sr = f.straight
+    if sr is None or len(levels) < 2 or (
+            t_start is None and not loop and sr.start_direction(a, f.samples[a]) is not None):
+        return None
+    cum = f.cum
+    first = min(an.i0 for an in sr.anchors)
+    at = 0
+    for lv in range(len(levels) - 1):
+        far = True
+        for st in levels[lv]:
+            assert st.t is not None
+            lo, _up = st.bounds if st.bounds is not None else f.band.longest_piece_bounds(
+                st.p, st.t, st.k, b)
+            reach = cum[min(st.k + len(lo), b)] - cum[st.k]
+            if not cum[first] - cum[st.k] > RESUME_FAR * reach:
+                far = False
+                break
+        if not far or any(
+                st.piece is None
+                or sr.is_over(st.piece.k, st.piece.j, st.piece.kappa, st.piece.length)
+                for st in levels[lv + 1]):
+            break
+        at = lv + 1
+    if at == 0:
+        return None
+    return [_copy_chain(st) for st in levels[at]]
+
+
+def _copy_chain(st: State) -> State:
+    """``st`` and its ancestors as new states (their counts of arcs over straight runs
+    belong to another set of anchors: not copied)."""
+    chain: list[State] = []
+    node: State | None = st
+    while node is not None:
+        chain.append(node)
+        node = node.parent
+    par: State | None = None
+    for nd in reversed(chain):
+        par = State(nd.p, nd.t, nd.k, nd.e, par, nd.piece, nd.t_first, nd.depth, nd.fresh,
+                    None, nd.bounds)
+    assert par is not None
+    return par
 
 
 def assemble(
@@ -148,7 +223,7 @@ def sweep_loop_start(
 
     for d in LOOP_START_TURNS:
         tt = rotate(t0, d)
-        fit = Fitter(samples, tol, 0.95, max_radius)
+        fit = Fitter(samples, tol, 0.95, max_radius, fz.band.cum)
         fit.cutoff = behind
         # (the first fit found no full circle; the samples and the band are the same)
         fit.one_piece_runs = False

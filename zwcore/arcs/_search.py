@@ -32,15 +32,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 from zwcore.arcs._anchors import StraightRuns
-from zwcore.arcs._geometry import (
-    arc_points,
-    local_uv,
-    rotate,
-)
+from zwcore.arcs._geometry import arc_points, local_uv, rotate
 from zwcore.arcs._pieces import Piece, ToleranceBand
-from zwcore.arcs._select import candidates, select_verified
+from zwcore.arcs._select import candidates, candidates_level, select_verified
 from zwcore.arcs._start import free_start, free_start_tangents, full_circle, one_piece_to_end
-from zwcore.arcs._states import Cands, State, approx_lengths, unwind
+from zwcore.arcs._states import Cands, State, approx_lengths, level_arrays, unwind
 from zwcore.arcs._unstick import bridge, fallback
 
 FloatArray = NDArray[np.float64]
@@ -65,6 +61,8 @@ class Fitter:
         Share of ``tol`` the feasibility scans use (see :class:`ToleranceBand`).
     max_radius : float or None
         Largest arc radius allowed; None: no limit.
+    cum : ndarray, shape (M,), optional
+        The samples' cumulative polyline length, when known (:class:`ToleranceBand`).
     """
 
     #: ends of candidate pieces, as shares of the longest feasible piece's length: dense
@@ -84,10 +82,9 @@ class Fitter:
     #: a closing biarc is tried when the rest is within this many single-piece reaches
     CLOSE_SPAN = 2.2
 
-    def __init__(
-        self, samples: FloatArray, tol: float, work: float, max_radius: float | None
-    ) -> None:
-        self.band = ToleranceBand(samples, tol, work, max_radius)
+    def __init__(self, samples: FloatArray, tol: float, work: float,
+                 max_radius: float | None, cum: FloatArray | None = None) -> None:
+        self.band = ToleranceBand(samples, tol, work, max_radius, cum)
         self.samples = samples
         self.tol = tol
         self.cum = self.band.cum
@@ -101,30 +98,40 @@ class Fitter:
         #: given a new level, True when the chains it continues cannot be worth
         #: finishing (the run then raises :class:`Stuck`; the loop start sweep)
         self.cutoff: Callable[[list[State]], bool] | None = None
+        #: the levels of the last :meth:`run`, first to last, when recording (a list)
+        self.levels: list[list[State]] | None = None
+        #: free run starts found so far (:func:`zwcore.arcs._start.free_start`)
+        self.starts: dict[tuple[int, int], tuple[FloatArray, int]] = {}
 
     # -- the beam ---------------------------------------------------------------
 
     def run(
-        self, a: int, b: int, loop: bool, allow_forced: bool, t_start: FloatArray | None = None
+        self, a: int, b: int, loop: bool, allow_forced: bool, t_start: FloatArray | None = None,
+        resume: list[State] | None = None,
     ) -> tuple[list[Piece], list[int]]:
         """Fit samples ``a..b``.
 
         ``loop``: the run is a whole closed curve (C1 closure onto the first
         tangent). ``allow_forced``: where the beam is stuck, cover a stretch by a
         filleted polyline instead of raising :class:`Stuck`. ``t_start``: the
-        tangent the first piece must start with (free when None).
+        tangent the first piece must start with (free when None). ``resume``: a level
+        of an earlier run of the same samples to go on from (see
+        :func:`resume_level`) instead of the run's start.
 
         Returns the pieces and the piece indices after which a forced corner sits
         (empty in practice: the fallback joins C1).
         """
-        fin = self._one_piece(a, b, loop, t_start)
-        if fin is not None:
-            return [fin], []
-        level = self._start_level(a, b, loop, t_start)
+        if resume is None:
+            fin = self._one_piece(a, b, loop, t_start)
+            if fin is not None:
+                return [fin], []
+        level = self._start_level(a, b, loop, t_start) if resume is None else resume
         forced_at: list[int] = []
         # (chain, levels left, its arcs over straight runs)
         flat_fin: tuple[list[Piece], int, int] | None = None
         while True:
+            if self.levels is not None:
+                self.levels.append(level)
             if flat_fin is not None:
                 if flat_fin[1] == 0:
                     return flat_fin[0], forced_at
@@ -154,7 +161,7 @@ class Fitter:
                 return circ
         if not loop and t_start is None:
             p0 = self.samples[a].copy()
-            t0, r0 = free_start(self.band, p0, a, b)
+            t0, r0 = free_start(self.band, p0, a, b, self.starts)
             if r0 >= b and self.one_piece_runs:
                 return one_piece_to_end(self.band, p0, a, b, math.atan2(t0[1], t0[0]))
         return None
@@ -164,7 +171,8 @@ class Fitter:
     ) -> list[State]:
         """The first level: the run's start with the given tangent, else a few free ones."""
         p0 = self.samples[a].copy()
-        starts = [t_start] if t_start is not None else free_start_tangents(self.band, p0, a, b)
+        starts = [t_start] if t_start is not None else free_start_tangents(self.band, p0, a,
+                                                                           b, self.starts)
         sr = self.straight
         if t_start is None and not loop and sr is not None:
             d0 = sr.start_direction(a, p0)
@@ -277,12 +285,26 @@ class Fitter:
         if self.straight is not None:
             extra = self.straight.candidates(p, t, k, b)
             if extra:
-                m = len(extra)
-                out.append(Cands(
-                    np.full(m, si, dtype=np.int64), np.array([c[0] for c in extra]),
-                    np.array([c[1] for c in extra]), np.array([c[2] for c in extra]),
-                    np.array([c[3] for c in extra]), np.zeros(m),
-                    np.array([c[4] for c in extra]), np.ones(m, dtype=bool)))
+                out.append(Cands.anchored(si, extra))
+        return out
+
+    def _level_candidates(self, level: list[State], b: int) -> list[Cands]:
+        """:meth:`_candidates` of all of ``level`` (no radius cap) in one kernel call, the
+        pieces onto straight runs after them (the ranking keeps them apart: same order)."""
+        sp, stt, sk, sjm, lo_all, up_all, b_off = level_arrays(level, b, self._bounds)
+        si, jj, kk, ends, tends, bonus = candidates_level(
+            self.samples, self.cum, sp, stt, sk, sjm, lo_all, up_all, b_off,
+            self._j_fractions, self._k_fractions, self.band.kcap)
+        n = len(jj)
+        out = [Cands(si, jj, kk, ends, tends, bonus, np.full(n, np.nan),
+                     np.zeros(n, dtype=bool))] if n else []
+        if self.straight is not None:
+            for i, st in enumerate(level):
+                if sjm[i] > st.k:
+                    assert st.t is not None
+                    extra = self.straight.candidates(st.p, st.t, st.k, b)
+                    if extra:
+                        out.append(Cands.anchored(i, extra))
         return out
 
     def _capped_kappas(
@@ -305,8 +327,11 @@ class Fitter:
         then candidates rank by the arcs over straight runs in their chain, and landing
         biarcs (:meth:`StraightRuns.landing_biarc`) join one level later.
         """
-        parts = [c for si, st in enumerate(level) for c in self._candidates(si, st, b)
-                 if len(c)]
+        if self.band.kmin > 0.0:
+            parts = [c for si, st in enumerate(level) for c in self._candidates(si, st, b)
+                     if len(c)]
+        else:
+            parts = self._level_candidates(level, b)
         out: list[State] = self._verified(level, Cands.join(parts), b) if parts else []
         if self.straight is not None:
             out.extend(self._landings(level, b))
@@ -455,8 +480,6 @@ class Fitter:
                 count += sr.is_over(pc.k, pc.j, pc.kappa, pc.length)
             nd.n_over = count
         return count
-
-    # -- ways out of a stuck level ---------------------------------------------
 
     # -- closing a loop ----------------------------------------------------------
 

@@ -19,7 +19,7 @@ from zwcore.arcs._kernels import arc_xy, local1, verify_piece
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 
-__all__ = ["candidates", "select_verified"]
+__all__ = ["candidates", "candidates_level", "select_verified"]
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -132,3 +132,46 @@ def candidates(samples: FloatArray, cum: FloatArray, px: float, py: float, tx: f
         tends[i, 0] = c * tx - s * ty
         tends[i, 1] = s * tx + c * ty
     return jj[:n], kk[:n], ends, tends, bonus
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def candidates_level(samples: FloatArray, cum: FloatArray, sp: FloatArray, stt: FloatArray,
+                     sk: IntArray, sjm: IntArray, lo_all: FloatArray, up_all: FloatArray,
+                     b_off: IntArray, j_fractions: FloatArray, k_fractions: FloatArray,
+                     kcap: float) -> tuple[IntArray, IntArray, FloatArray, FloatArray,
+                                           FloatArray, FloatArray]:
+    """:func:`candidates` from every state of a level at once, in the states' order.
+
+    State ``s`` is the junction ``(sp[s], stt[s])`` at sample ``sk[s]`` whose longest
+    piece reaches sample ``sjm[s]`` (none: ``sjm[s] <= sk[s]``), with running curvature
+    bounds ``lo_all, up_all[b_off[s]:b_off[s + 1]]``. Returns ``(si, j, kappa, end (C, 2),
+    end tangent (C, 2), bonus)``, ``si`` the state of each candidate.
+    """
+    ns = len(sk)
+    cap = 0
+    for s in range(ns):
+        if sjm[s] > sk[s]:
+            cap += len(j_fractions) * (len(k_fractions) + 1)
+    si = np.empty(cap, dtype=np.int64)
+    jj = np.empty(cap, dtype=np.int64)
+    kk = np.empty(cap)
+    ends = np.empty((cap, 2))
+    tends = np.empty((cap, 2))
+    bonus = np.empty(cap)
+    n = 0
+    for s in range(ns):
+        if sjm[s] <= sk[s]:
+            continue
+        j1, k1, e1, t1, b1 = candidates(
+            samples, cum, sp[s, 0], sp[s, 1], stt[s, 0], stt[s, 1], sk[s], sjm[s],
+            lo_all[b_off[s] : b_off[s + 1]], up_all[b_off[s] : b_off[s + 1]], j_fractions,
+            k_fractions, kcap)
+        m = len(j1)
+        si[n : n + m] = s
+        jj[n : n + m] = j1
+        kk[n : n + m] = k1
+        ends[n : n + m] = e1
+        tends[n : n + m] = t1
+        bonus[n : n + m] = b1
+        n += m
+    return si[:n], jj[:n], kk[:n], ends[:n], tends[:n], bonus[:n]

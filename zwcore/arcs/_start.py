@@ -27,12 +27,22 @@ __all__ = [
 ]
 
 
-def free_start(band: ToleranceBand, p: FloatArray, k: int, b: int) -> tuple[FloatArray, int]:
+def free_start(
+    band: ToleranceBand, p: FloatArray, k: int, b: int,
+    cache: dict[tuple[int, int], tuple[FloatArray, int]] | None = None,
+) -> tuple[FloatArray, int]:
     """Tangent at a run start that lets the first piece reach furthest.
 
     Returns the unit tangent and the last sample the first piece can cover
-    from it (interval test).
+    from it (interval test). ``cache``: the answers for ``(k, b)`` so far, for starts
+    ``p`` at sample ``k`` in bands of the same samples and working tolerance (a run's
+    plain fit and its refits ask for the same start several times).
     """
+    if cache is not None:
+        got = cache.get((k, b))
+        if got is None:
+            got = cache[(k, b)] = free_start(band, p, k, b)
+        return got[0].copy(), got[1]
     samples = band.samples
     d = np.hypot(samples[k + 1 : b + 1, 0] - p[0], samples[k + 1 : b + 1, 1] - p[1])
     far = np.flatnonzero(d >= 3.0 * band.tol)
@@ -58,9 +68,13 @@ def free_start(band: ToleranceBand, p: FloatArray, k: int, b: int) -> tuple[Floa
     return np.array([math.cos(best_th), math.sin(best_th)]), best_r
 
 
-def free_start_tangents(band: ToleranceBand, p: FloatArray, k: int, b: int) -> list[FloatArray]:
-    """A few start tangents at a run start (no tangent given), best first."""
-    t0, _r0 = free_start(band, p, k, b)
+def free_start_tangents(
+    band: ToleranceBand, p: FloatArray, k: int, b: int,
+    cache: dict[tuple[int, int], tuple[FloatArray, int]] | None = None,
+) -> list[FloatArray]:
+    """A few start tangents at a run start (no tangent given), best first
+    (``cache``: see :func:`free_start`)."""
+    t0, _r0 = free_start(band, p, k, b, cache)
     out = [t0]
     th0 = math.atan2(t0[1], t0[0])
     for d in (0.04, -0.04, 0.12, -0.12):

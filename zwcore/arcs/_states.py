@@ -3,6 +3,7 @@ pieces proposed from them."""
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, fields
 
 import numpy as np
@@ -12,7 +13,7 @@ from zwcore.arcs._pieces import Piece
 
 FloatArray = NDArray[np.float64]
 
-__all__ = ["Cands", "State", "approx_lengths", "unwind"]
+__all__ = ["Cands", "State", "approx_lengths", "level_arrays", "unwind"]
 
 
 @dataclass
@@ -61,12 +62,58 @@ class Cands:
         return len(self.j)
 
     @staticmethod
+    def anchored(si: int, extra: Sequence[tuple[int, float, FloatArray, FloatArray, float]],
+                 ) -> Cands:
+        """The pieces ``extra`` onto straight runs from state ``si`` (each: end sample,
+        curvature, end point, end tangent, length;
+        :meth:`~zwcore.arcs._anchors.StraightRuns.candidates`)."""
+        m = len(extra)
+        return Cands(np.full(m, si, dtype=np.int64), np.array([c[0] for c in extra]),
+                     np.array([c[1] for c in extra]), np.array([c[2] for c in extra]),
+                     np.array([c[3] for c in extra]), np.zeros(m),
+                     np.array([c[4] for c in extra]), np.ones(m, dtype=bool))
+
+    @staticmethod
     def join(parts: list[Cands]) -> Cands:
         """The candidates of ``parts``, in order."""
         if len(parts) == 1:
             return parts[0]
-        return Cands(**{f.name: np.concatenate([getattr(c, f.name) for c in parts])
-                        for f in fields(Cands)})
+        return Cands(**{name: np.concatenate([getattr(c, name) for c in parts])
+                        for name in _FIELDS})
+
+
+#: the field names of :class:`Cands` (looked up once, not per level)
+_FIELDS = tuple(f.name for f in fields(Cands))
+
+
+def level_arrays(
+    level: list[State], b: int,
+    bounds: Callable[[State, int], tuple[FloatArray, FloatArray]],
+) -> tuple[FloatArray, FloatArray, NDArray[np.int64], NDArray[np.int64], FloatArray,
+           FloatArray, NDArray[np.int64]]:
+    """The states of ``level`` as arrays for :func:`zwcore.arcs._select.candidates_level`:
+    points ``(S, 2)``, tangents ``(S, 2)``, samples ``(S,)``, the last sample their longest
+    piece reaches before ``b`` ``(S,)`` (none: their own), and the running curvature
+    bounds of that piece (``bounds(state, b)``) concatenated with their offsets
+    ``(S + 1,)``."""
+    ns = len(level)
+    sk = np.array([st.k for st in level], dtype=np.int64)
+    sjm = sk.copy()
+    b_off = np.zeros(ns + 1, dtype=np.int64)
+    los: list[FloatArray] = []
+    ups: list[FloatArray] = []
+    for i, st in enumerate(level):
+        b_off[i + 1] = b_off[i]
+        if b - 1 > st.k:
+            lo1, up1 = bounds(st, b)
+            sjm[i] = min(st.k + len(lo1), b - 1)
+            los.append(lo1)
+            ups.append(up1)
+            b_off[i + 1] += len(lo1)
+    empty = np.empty(0)
+    return (np.array([st.p for st in level]), np.array([st.t for st in level], dtype=np.float64),
+            sk, sjm, np.concatenate(los) if los else empty,
+            np.concatenate(ups) if ups else empty, b_off)
 
 
 def approx_lengths(c: Cands, chord: FloatArray) -> FloatArray:

@@ -152,7 +152,7 @@ def straight_run(
 
 def arcs_over_straight(
     pieces: Sequence[Piece], samples: FloatArray, a: int, b: int, tol: float, *,
-    pin_start: bool, pin_end: bool,
+    pin_start: bool, pin_end: bool, cum: FloatArray | None = None,
 ) -> dict[int, Anchor]:
     """The arcs of a run's chain that lie over a straight run of the input, with it.
 
@@ -160,9 +160,10 @@ def arcs_over_straight(
     (or their first, last or middle half) lie within the straight band of a line that
     grows to a run of at least :data:`STRAIGHT_MIN_LEN` tolerances, more than half of
     which the arc covers (a fillet whose end lies in the run's band lands on it).
+    ``cum``: the polyline's length at each sample, when known (else computed here).
     """
     out: dict[int, Anchor] = {}
-    cum_len = None
+    cum_len = cum
     for i, pc in enumerate(pieces):
         if pc.kappa == 0.0 or pc.length < FLAT_MIN_LEN * tol:
             continue

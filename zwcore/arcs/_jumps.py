@@ -1,0 +1,156 @@
+"""How far the dense check (:mod:`zwcore.arcs._dense`) may jump from a measured point:
+bounds of how fast a point's distance to a piece (or to a polyline segment) can grow as
+it moves on, while its foot stays inside that piece (segment).
+
+The signed offset ``e`` from the piece (a line's ``v``, a circle's ``rho - R``; from a
+segment's line for a point moving along a piece) has a second derivative of one sign
+and bounded size there, so after a move ``h`` it lies between ``e0 + rate h`` and
+``e0 + rate h + curv h^2 / 2``: the distance ``|e|`` is at most the larger of the upper
+one and minus the lower one (:func:`safe_move`).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+from numpy.typing import NDArray
+
+from zwcore.arcs._kernels import circle_gap1, local1
+
+FloatArray = NDArray[np.float64]
+
+__all__ = ["SLACK", "piece_growth", "safe_move", "segment_growth"]
+
+#: share of the tolerance the figures may fall short of the maximum over the samples:
+#: a point is jumped over when its distance cannot exceed the maximum so far by more
+SLACK = 1e-12
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def piece_growth(geo: FloatArray, q: int, x: float, y: float, ux: float,
+                  uy: float) -> tuple[float, float, float, float]:
+    """How the distance of a point moving from ``(x, y)`` along the unit direction
+    ``(ux, uy)`` to piece ``q`` can grow: ``(e0, rate, curv, reach)``, its signed offset
+    ``e`` from the piece (the distance is ``|e|``) lies between ``e0 + rate h`` and
+    ``e0 + rate h + curv h^2 / 2`` after a move ``h <= reach``.
+
+    Valid while the point's foot stays inside the piece (``reach``: 0 when it is not
+    inside): the offset is then the line's ``v`` (linear in ``h``) or the circle's
+    ``rho - R``, ``rho`` the distance to the centre, convex along a line with
+    ``0 <= rho'' <= 1 / rho`` (``rho >= rho0 / 2`` within the reach).
+    """
+    px, py, tx, ty, kappa, length = geo[q, 0], geo[q, 1], geo[q, 2], geo[q, 3], \
+        geo[q, 4], geo[q, 5]
+    u, v = local1(x, y, px, py, tx, ty)
+    du = ux * tx + uy * ty
+    dv = uy * tx - ux * ty
+    if kappa == 0.0:
+        if not 0.0 <= u <= length:
+            return 0.0, 1.0, 0.0, 0.0
+        # the foot moves along the line at the rate du
+        if du > 0.0:
+            return v, dv, 0.0, (length - u) / du
+        if du < 0.0:
+            return v, dv, 0.0, u / -du
+        return v, dv, 0.0, np.inf
+    # the radial direction in the piece's frame, scaled by |kappa| (stable for tiny ones)
+    gu = kappa * u
+    gv = kappa * v - 1.0
+    n = math.hypot(gu, gv)
+    if not n > 0.0:
+        return 0.0, 1.0, 0.0, 0.0
+    rho = n / abs(kappa)
+    phi = math.atan2(gu, -gv)
+    ang = phi if kappa > 0.0 else -phi
+    if ang < 0.0:
+        ang += 2.0 * math.pi
+    if not ang <= abs(kappa * length):
+        # the foot is off the arc (the distance is to an end point)
+        return 0.0, 1.0, 0.0, 0.0
+    # the cosine between the move and the arc's direction at the foot: while the foot
+    # turns by less than asin(|cos|) it keeps turning the same way, towards the end
+    # (cos > 0) or the start of the arc
+    cos = (dv * gu - du * gv) / n
+    margin = abs(kappa * length) - ang if cos > 0.0 else ang
+    margin = min(margin, math.asin(min(abs(cos), 1.0)))
+    if not margin > 0.0:
+        return 0.0, 1.0, 0.0, 0.0
+    # rho - R: the signed gap is positive right of the piece, outside for kappa > 0
+    sgn = 1.0 if kappa > 0.0 else -1.0
+    e0 = sgn * circle_gap1(u, v, kappa)
+    # the foot turns by at most h / (rho - h) <= 2 h / rho about the centre
+    return e0, sgn * (du * gu + dv * gv) / n, 2.0 / rho, 0.5 * rho * min(margin, 1.0)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def safe_move(d: float, worst: float, e0: float, rate: float, curv: float,
+               reach: float) -> float:
+    """How far a point measured at distance ``d`` can move before its distance may
+    exceed ``worst`` (the caller's maximum plus :data:`SLACK` of the tolerance, so that
+    offsets of rounding size, 1e-18 mm growing at 1e-17 per mm, do not stop the jumps
+    along a piece that lies on the polyline): 1-Lipschitz, and within ``reach`` the
+    distance ``|e|`` with the signed offset ``e`` between ``e0 + rate h`` and
+    ``e0 + rate h + curv h^2 / 2`` (:func:`piece_growth`, :func:`segment_growth`),
+    so at most the larger of ``e0 + rate h + curv h^2 / 2`` and ``-(e0 + rate h)``; a
+    hair short of it (rounding of the dense points' positions)."""
+    room = worst - d
+    if not room > 0.0:
+        room = 0.0
+    h = room
+    if reach > h:
+        # e0 + rate h + curv h^2 / 2 <= worst: the positive root (the stable forms)
+        up = worst - e0
+        if not up >= 0.0:
+            h_up = 0.0
+        elif curv > 0.0:
+            disc = math.sqrt(rate * rate + 2.0 * curv * up)
+            h_up = 2.0 * up / (rate + disc) if rate > 0.0 else (disc - rate) / curv
+        else:
+            h_up = up / rate if rate > 0.0 else np.inf
+        # -(e0 + rate h) <= worst
+        down = worst + e0
+        if not down >= 0.0:
+            h_down = 0.0
+        else:
+            h_down = down / -rate if rate < 0.0 else np.inf
+        h = max(h, min(h_up, h_down, reach))
+    return h * (1.0 - 1e-9)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def segment_growth(samples: FloatArray, s: int, x: float, y: float, tx: float, ty: float,
+                    kappa: float, sg: float) -> tuple[float, float, float]:
+    """``(e0, rate, reach)`` of the distance of a point moving along the piece from
+    ``(x, y)`` (arc length ``sg``; start tangent ``t``, curvature ``kappa``) to segment
+    ``s``: while its foot stays inside the segment (a move of at most ``reach``) the
+    distance is ``|w|``, ``w`` the offset from the segment's line, with ``w''`` of one
+    sign and at most ``|kappa|``; so ``e = +-w`` (the sign that makes ``e''`` positive)
+    lies between ``e0 + rate h`` and ``e0 + rate h + |kappa| h^2 / 2``."""
+    ax, ay = samples[s, 0], samples[s, 1]
+    ex = samples[s + 1, 0] - ax
+    ey = samples[s + 1, 1] - ay
+    sl = math.hypot(ex, ey)
+    if not sl > 0.0:
+        return 0.0, 1.0, 0.0
+    ex /= sl
+    ey /= sl
+    lam = (x - ax) * ex + (y - ay) * ey
+    if not 0.0 <= lam <= sl:
+        return 0.0, 1.0, 0.0
+    a = kappa * sg
+    c, sn = math.cos(a), math.sin(a)
+    # the piece's tangent at sg
+    qx = tx * c - ty * sn
+    qy = tx * sn + ty * c
+    # the foot moves along the segment at the rate cos (the tangent's component along
+    # it), which keeps its sign while the tangent turns by less than asin(|cos|); so
+    # does w'' = kappa cos
+    cos = ex * qx + ey * qy
+    reach = sl - lam if cos > 0.0 else lam
+    if kappa != 0.0:
+        reach = min(reach, math.asin(min(abs(cos), 1.0)) / abs(kappa))
+    sgn = -1.0 if kappa * cos < 0.0 else 1.0
+    w0 = (y - ay) * ex - (x - ax) * ey
+    return sgn * w0, sgn * (ex * qy - ey * qx), reach
