@@ -17,7 +17,7 @@ from numpy.typing import NDArray
 
 from zwcore.grid.tools import Tool
 from zwcore.grid.zmap import ZMap
-from zwcore.toolpath.sweep import GridFrame, sweep_moves
+from zwcore.toolpath.sweep import BlockBounds, GridFrame, block_size, sweep_moves
 
 F64 = NDArray[np.float64]
 BOOL = NDArray[np.bool_]
@@ -95,6 +95,10 @@ class PartGouge:
         self.part, self.tool, self.block = part, tool, max(1, int(block))
         self.ball = tool.kind == "ball"
         self.frame = GridFrame(part.x0, part.y0, part.dx, part.dy, part.shape)
+        # the exact sweep skips blocks of nodes the move clears (the part is fixed: its
+        # bounds are measured once)
+        self.bounds = BlockBounds(self.frame, part.z, part.z,
+                                  block_size(tool.radius, min(part.dx, part.dy)))
         if self.block > 1:
             b = self.block
             ny, nx = part.shape
@@ -125,7 +129,7 @@ class PartGouge:
 
     def _fine(self, p0: F64, p1: F64) -> F64:
         _, gouge = sweep_moves(self.frame, p0, p1, self.tool.radius, self.ball,
-                               self.part.z, ref=self.part.z, apply=False)
+                               self.part.z, ref=self.part.z, apply=False, bounds=self.bounds)
         return gouge
 
 
