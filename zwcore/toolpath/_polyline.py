@@ -95,10 +95,7 @@ class PartGouge:
         self.part, self.tool, self.block = part, tool, max(1, int(block))
         self.ball = tool.kind == "ball"
         self.frame = GridFrame(part.x0, part.y0, part.dx, part.dy, part.shape)
-        # the exact sweep skips blocks of nodes the move clears (the part is fixed: its
-        # bounds are measured once)
-        self.bounds = BlockBounds(self.frame, part.z, part.z,
-                                  block_size(tool.radius, min(part.dx, part.dy)))
+        self._bounds: BlockBounds | None = None
         if self.block > 1:
             b = self.block
             ny, nx = part.shape
@@ -128,8 +125,14 @@ class PartGouge:
         return out
 
     def _fine(self, p0: F64, p1: F64) -> F64:
+        if self._bounds is None:
+            # the exact sweep skips blocks of nodes the move clears (the part is fixed: its
+            # bounds are measured once, when first needed)
+            self._bounds = BlockBounds(self.frame, self.part.z, self.part.z,
+                                       block_size(self.tool.radius,
+                                                  min(self.part.dx, self.part.dy)))
         _, gouge = sweep_moves(self.frame, p0, p1, self.tool.radius, self.ball,
-                               self.part.z, ref=self.part.z, apply=False, bounds=self.bounds)
+                               self.part.z, ref=self.part.z, apply=False, bounds=self._bounds)
         return gouge
 
 

@@ -88,16 +88,31 @@ def flat_envelope(m: int, wxs: F64, wys: F64, sz: float, ax: float, ay: float, v
 def measure_block(x0: float, y0: float, dx: float, dy: float, b: int, stock: F64, ref: F64,
                   cx: F64, cy: F64, px: F64, py: F64, e: F64, m: F64, bi: int, bk: int
                   ) -> None:
-    """``e`` and ``m`` of block ``(bi, bk)`` over ``max(stock, ref)``."""
+    """Plane slope, ``e`` and ``m`` of block ``(bi, bk)`` over ``U = max(stock, ref)``: the
+    slope from the block's corner nodes (any plane is valid; one along ``U`` is tight, and
+    it follows the stock as moves cut it)."""
     ny, nx = stock.shape
+    i0, i1 = bi * b, min(bi * b + b, ny) - 1
+    k0, k1 = bk * b, min(bk * b + b, nx) - 1
+    pxb = pyb = 0.0
+    if k1 > k0:
+        pxb = 0.5 * ((max(stock[i0, k1], ref[i0, k1]) - max(stock[i0, k0], ref[i0, k0]))
+                     + (max(stock[i1, k1], ref[i1, k1]) - max(stock[i1, k0], ref[i1, k0]))
+                     ) / ((k1 - k0) * dx)
+    if i1 > i0:
+        pyb = 0.5 * ((max(stock[i1, k0], ref[i1, k0]) - max(stock[i0, k0], ref[i0, k0]))
+                     + (max(stock[i1, k1], ref[i1, k1]) - max(stock[i0, k1], ref[i0, k1]))
+                     ) / ((i1 - i0) * dy)
+    if not (math.isfinite(pxb) and math.isfinite(pyb)):
+        pxb = pyb = 0.0
     best_e, best_m = -math.inf, -math.inf
-    pxb, pyb = px[bi, bk], py[bi, bk]
-    for i in range(bi * b, min(bi * b + b, ny)):
+    for i in range(i0, i1 + 1):
         ly = pyb * (y0 + i * dy - cy[bi])
-        for k in range(bk * b, min(bk * b + b, nx)):
+        for k in range(k0, k1 + 1):
             u = max(stock[i, k], ref[i, k])
             best_m = max(best_m, u)
             best_e = max(best_e, u - ly - pxb * (x0 + k * dx - cx[bk]))
+    px[bi, bk], py[bi, bk] = pxb, pyb
     e[bi, bk] = best_e
     m[bi, bk] = best_m
 
@@ -169,6 +184,8 @@ def sweep_kernel(x0: float, y0: float, dx: float, dy: float, p0: F64, p1: F64, r
     wxs, wys, env = np.empty(cap), np.empty(cap), np.empty(cap)
     idx = np.empty(cap, np.int64)
     touched = np.empty((e.shape[0] * e.shape[1], 2), np.int64)
+    owner = np.empty(cap, np.int64)  # per gathered node, its block in ``touched``
+    lowered = np.zeros(e.shape[0] * e.shape[1], np.bool_)
     for s in range(p0.shape[0]):
         sx, sy, sz = p0[s, 0], p0[s, 1], p0[s, 2]
         ax, ay, vz = p1[s, 0] - sx, p1[s, 1] - sy, p1[s, 2] - sz
@@ -184,7 +201,7 @@ def sweep_kernel(x0: float, y0: float, dx: float, dy: float, p0: F64, p1: F64, r
         if box > cap:
             cap = 2 * box
             wxs, wys, env = np.empty(cap), np.empty(cap), np.empty(cap)
-            idx = np.empty(cap, np.int64)
+            idx, owner = np.empty(cap, np.int64), np.empty(cap, np.int64)
         ylo, yhi = min(sy, sy + ay), max(sy, sy + ay)
         a = ax * ax + ay * ay
         vertical = a <= 1e-18
@@ -221,6 +238,7 @@ def sweep_kernel(x0: float, y0: float, dx: float, dy: float, p0: F64, p1: F64, r
                         wxs[mcount] = sx - (x0 + k * dx)
                         wys[mcount] = sy - qy
                         idx[mcount] = i * nx + k
+                        owner[mcount] = nt - 1
                         mcount += 1
         if vertical:
             for j in range(mcount):
@@ -232,18 +250,19 @@ def sweep_kernel(x0: float, y0: float, dx: float, dy: float, p0: F64, p1: F64, r
                           1.0 / math.sqrt(a * (a + vz * vz)), env)
         best_s, best_r = -math.inf, -math.inf
         if apply[s]:
-            cut = False
             for j in range(mcount):
                 q, ev = idx[j], env[j]
                 best_s = max(best_s, sflat[q] - ev)
                 best_r = max(best_r, rflat[q] - ev)
                 if ev < sflat[q]:
                     sflat[q] = ev
-                    cut = True
-            if cut and remeasure:
-                for t in range(nt):
-                    measure_block(x0, y0, dx, dy, b, stock, ref, cx, cy, px, py, e, m,
-                                  touched[t, 0], touched[t, 1])
+                    lowered[owner[j]] = True
+            for t in range(nt):  # only the blocks the move lowered
+                if lowered[t]:
+                    lowered[t] = False
+                    if remeasure:
+                        measure_block(x0, y0, dx, dy, b, stock, ref, cx, cy, px, py, e, m,
+                                      touched[t, 0], touched[t, 1])
         else:
             for j in range(mcount):
                 q, ev = idx[j], env[j]

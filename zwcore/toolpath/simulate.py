@@ -172,8 +172,8 @@ def simulate_stretch(stock: F64, part: ZMap, prog: ParsedProgram, a: int, b: int
     new = np.flatnonzero(src < 0)
     # blocks of nodes a move provably leaves alone are skipped (the same stock, the same
     # figures wherever they are > 0: ``sweep_moves``)
-    bounds = BlockBounds(frame, stock, part.z, block_size(tool.radius, min(part.dx, part.dy)),
-                         slope_from=part.z) if SKIP_BLOCKS else None
+    bounds = (BlockBounds(frame, stock, part.z, block_size(tool.radius, min(part.dx, part.dy)))
+              if SKIP_BLOCKS else None)
     over_stock[new], over_part[new] = sweep_moves(frame, p0[new], p1[new], radius[new],
                                                   tool.kind == "ball", stock, ref=part.z,
                                                   apply=~rapid[new], bounds=bounds)
