@@ -14,6 +14,7 @@ from numba import njit
 from numpy.typing import NDArray
 
 F64 = NDArray[np.float64]
+I64 = NDArray[np.int64]
 
 #: A block is skipped only when its bound is below minus this (mm): float rounding of the
 #: bound is orders of magnitude smaller.
@@ -86,11 +87,10 @@ def flat_envelope(m: int, wxs: F64, wys: F64, sz: float, ax: float, ay: float, v
 
 @njit(cache=True, nogil=True)
 def measure_block(x0: float, y0: float, dx: float, dy: float, b: int, stock: F64, ref: F64,
-                  cx: F64, cy: F64, px: F64, py: F64, e: F64, m: F64, bi: int, bk: int
-                  ) -> None:
-    """Plane slope, ``e`` and ``m`` of block ``(bi, bk)`` over ``U = max(stock, ref)``: the
-    slope from the block's corner nodes (any plane is valid; one along ``U`` is tight, and
-    it follows the stock as moves cut it)."""
+                  cx: F64, cy: F64, st: F64, bi: int, bk: int) -> None:
+    """``st[bi, bk] = (P_x, P_y, e, m)`` of block ``(bi, bk)`` over ``U = max(stock, ref)``:
+    the plane slope from the block's corner nodes (any plane is valid; one along ``U`` is
+    tight, and it follows the stock as moves cut it)."""
     ny, nx = stock.shape
     i0, i1 = bi * b, min(bi * b + b, ny) - 1
     k0, k1 = bk * b, min(bk * b + b, nx) - 1
@@ -112,18 +112,46 @@ def measure_block(x0: float, y0: float, dx: float, dy: float, b: int, stock: F64
             u = max(stock[i, k], ref[i, k])
             best_m = max(best_m, u)
             best_e = max(best_e, u - ly - pxb * (x0 + k * dx - cx[bk]))
-    px[bi, bk], py[bi, bk] = pxb, pyb
-    e[bi, bk] = best_e
-    m[bi, bk] = best_m
+    st[bi, bk, 0], st[bi, bk, 1], st[bi, bk, 2], st[bi, bk, 3] = pxb, pyb, best_e, best_m
 
 
 @njit(cache=True, nogil=True)
-def measure_all(x0: float, y0: float, dx: float, dy: float, b: int, stock: F64, ref: F64,
-                cx: F64, cy: F64, px: F64, py: F64, e: F64, m: F64) -> None:
-    """:func:`measure_block` of every block."""
-    for bi in range(e.shape[0]):
-        for bk in range(e.shape[1]):
-            measure_block(x0, y0, dx, dy, b, stock, ref, cx, cy, px, py, e, m, bi, bk)
+def coarse_block(f: int, cx: F64, cy: F64, hx: F64, hy: F64, st: F64, ccx: F64, ccy: F64,
+                 cst: F64, ci: int, ck: int) -> None:
+    """``cst[ci, ck]`` of the coarse block over ``f x f`` fine blocks from theirs: the mean
+    slope ``P`` and, for a node ``q`` of fine block ``j`` (centre ``c_j``, half extents
+    ``h_j``), ``U(q) - P.(q - c) <= e_j + |P_j - P|.h_j - P.(c_j - c)`` (``m``: the max)."""
+    nby, nbx = st.shape[0], st.shape[1]
+    sx = sy = 0.0
+    n = 0
+    for bi in range(ci * f, min(ci * f + f, nby)):
+        for bk in range(ck * f, min(ck * f + f, nbx)):
+            sx += st[bi, bk, 0]
+            sy += st[bi, bk, 1]
+            n += 1
+    sx /= n
+    sy /= n
+    best_e = best_m = -math.inf
+    for bi in range(ci * f, min(ci * f + f, nby)):
+        for bk in range(ck * f, min(ck * f + f, nbx)):
+            best_e = max(best_e, st[bi, bk, 2] + abs(st[bi, bk, 0] - sx) * hx[bk]
+                         + abs(st[bi, bk, 1] - sy) * hy[bi]
+                         - sx * (cx[bk] - ccx[ck]) - sy * (cy[bi] - ccy[ci]))
+            best_m = max(best_m, st[bi, bk, 3])
+    cst[ci, ck, 0], cst[ci, ck, 1], cst[ci, ck, 2], cst[ci, ck, 3] = sx, sy, best_e, best_m
+
+
+@njit(cache=True, nogil=True)
+def measure_all(x0: float, y0: float, dx: float, dy: float, b: int, f: int, stock: F64,
+                ref: F64, cx: F64, cy: F64, hx: F64, hy: F64, st: F64, ccx: F64, ccy: F64,
+                cst: F64) -> None:
+    """:func:`measure_block` of every block, then :func:`coarse_block` of every coarse one."""
+    for bi in range(st.shape[0]):
+        for bk in range(st.shape[1]):
+            measure_block(x0, y0, dx, dy, b, stock, ref, cx, cy, st, bi, bk)
+    for ci in range(cst.shape[0]):
+        for ck in range(cst.shape[1]):
+            coarse_block(f, cx, cy, hx, hy, st, ccx, ccy, cst, ci, ck)
 
 
 @njit(cache=True, nogil=True, fastmath={"contract", "arcp", "reassoc"})
@@ -165,27 +193,65 @@ def skip_block(bx: float, by: float, hx: float, hy: float, pxb: float, pyb: floa
 
 
 @njit(cache=True, nogil=True, fastmath={"contract", "arcp", "reassoc"})
+def _gather(x0: float, y0: float, dx: float, dy: float, nx: int, b: int, bi: int, bk: int,
+            i0: int, i1: int, k0: int, k1: int, sx: float, sy: float, ax: float, ay: float,
+            ylo: float, yhi: float, rr: float, t: int, wxs: F64, wys: F64, idx: I64,
+            owner: I64, mcount: int) -> int:
+    """Append the nodes of block ``(bi, bk)`` inside the box ``i0..i1, k0..k1`` that lie
+    within ``rr`` of the move's xy shadow; returns the new count."""
+    kk0, kk1 = max(k0, bk * b), min(k1, bk * b + b - 1)
+    for i in range(max(i0, bi * b), min(i1, bi * b + b - 1) + 1):
+        qy = y0 + i * dy
+        # the nodes of this row within R of the move's xy shadow: the part of the move
+        # within R of the row in y, widened by the disc's half-chord at the row
+        dyo = max(0.0, ylo - qy, qy - yhi)
+        if dyo > rr:
+            continue
+        # (clamped: with fused multiply-adds a row exactly R away can come out just below 0)
+        w = math.sqrt(max(rr * rr - dyo * dyo, 0.0))
+        ta, tb = 0.0, 1.0
+        if abs(ay) > 1e-12:
+            ta, tb = (qy - rr - sy) / ay, (qy + rr - sy) / ay
+            ta, tb = max(0.0, min(ta, tb)), min(1.0, max(ta, tb))
+        xa, xb = sx + ax * ta, sx + ax * tb
+        ka = max(kk0, math.ceil((min(xa, xb) - w - x0) / dx))
+        kb = min(kk1, math.floor((max(xa, xb) + w - x0) / dx))
+        if kb < ka:  # never a range from a huge negative bound (it would wrap around)
+            continue
+        for k in range(ka, kb + 1):
+            wxs[mcount] = sx - (x0 + k * dx)
+            wys[mcount] = sy - qy
+            idx[mcount] = i * nx + k
+            owner[mcount] = t
+            mcount += 1
+    return mcount
+
+
+@njit(cache=True, nogil=True, fastmath={"contract", "arcp", "reassoc"})
 def sweep_kernel(x0: float, y0: float, dx: float, dy: float, p0: F64, p1: F64, r: F64,
                  ball: bool, apply: NDArray[np.bool_], stock: F64, ref: F64,
-                 over_stock: F64, over_ref: F64, row_lo: int, row_hi: int, b: int,
-                 cx: F64, cy: F64, hx: F64, hy: F64, px: F64, py: F64, e: F64, m: F64,
-                 remeasure: bool) -> None:
-    """Moves in order over the rows ``row_lo..row_hi - 1`` (a band of whole blocks: bands
-    are independent).
+                 over_stock: F64, over_ref: F64, row_lo: int, row_hi: int, b: int, f: int,
+                 cx: F64, cy: F64, hx: F64, hy: F64, st: F64, ccx: F64, ccy: F64, chx: F64,
+                 chy: F64, cst: F64, remeasure: bool) -> None:
+    """Moves in order over the rows ``row_lo..row_hi - 1`` (a band of whole coarse blocks:
+    bands are independent).
 
-    Per move: the blocks of ``b x b`` nodes in its box that :func:`skip_block` cannot rule
-    out, their nodes within R of the move's xy shadow gathered (row by row), the envelope
-    over all of them in one flat loop, then the stock compared and lowered; with
-    ``remeasure`` the blocks of a move that cut get ``e`` and ``m`` measured again."""
+    Per move: the coarse blocks (``f x f`` blocks) in its box that :func:`skip_block`
+    cannot rule out, in them the blocks of ``b x b`` nodes it cannot rule out, their nodes
+    within R of the move's xy shadow gathered (row by row), the envelope over all of them
+    in one flat loop, then the stock compared and lowered; with ``remeasure`` the blocks
+    the move lowered, and their coarse blocks, are measured again."""
     nx = stock.shape[1]
     sflat = stock.reshape(-1)
     rflat = ref.reshape(-1)
     cap = 1024
     wxs, wys, env = np.empty(cap), np.empty(cap), np.empty(cap)
     idx = np.empty(cap, np.int64)
-    touched = np.empty((e.shape[0] * e.shape[1], 2), np.int64)
+    touched = np.empty((st.shape[0] * st.shape[1], 2), np.int64)
     owner = np.empty(cap, np.int64)  # per gathered node, its block in ``touched``
-    lowered = np.zeros(e.shape[0] * e.shape[1], np.bool_)
+    lowered = np.zeros(st.shape[0] * st.shape[1], np.bool_)
+    dirty = np.zeros((cst.shape[0], cst.shape[1]), np.bool_)
+    big = b * f
     for s in range(p0.shape[0]):
         sx, sy, sz = p0[s, 0], p0[s, 1], p0[s, 2]
         ax, ay, vz = p1[s, 0] - sx, p1[s, 1] - sy, p1[s, 2] - sz
@@ -207,39 +273,23 @@ def sweep_kernel(x0: float, y0: float, dx: float, dy: float, p0: F64, p1: F64, r
         vertical = a <= 1e-18
         mcount = 0
         nt = 0
-        for bi in range(i0 // b, i1 // b + 1):
-            for bk in range(k0 // b, k1 // b + 1):
-                if skip_block(cx[bk], cy[bi], hx[bk], hy[bi], px[bi, bk], py[bi, bk],
-                              e[bi, bk], m[bi, bk], sx, sy, sz, ax, ay, vz, rr, ball):
+        for ci in range(i0 // big, i1 // big + 1):
+            for ck in range(k0 // big, k1 // big + 1):
+                if skip_block(ccx[ck], ccy[ci], chx[ck], chy[ci], cst[ci, ck, 0],
+                              cst[ci, ck, 1], cst[ci, ck, 2], cst[ci, ck, 3], sx, sy, sz, ax,
+                              ay, vz, rr, ball):
                     continue
-                touched[nt, 0], touched[nt, 1] = bi, bk
-                nt += 1
-                kk0, kk1 = max(k0, bk * b), min(k1, bk * b + b - 1)
-                for i in range(max(i0, bi * b), min(i1, bi * b + b - 1) + 1):
-                    qy = y0 + i * dy
-                    # the nodes of this row within R of the move's xy shadow: the part of
-                    # the move within R of the row in y, widened by the disc's half-chord
-                    dyo = max(0.0, ylo - qy, qy - yhi)
-                    if dyo > rr:
-                        continue
-                    # (clamped: with fused multiply-adds a row exactly R away can come out
-                    # just below 0)
-                    w = math.sqrt(max(rr * rr - dyo * dyo, 0.0))
-                    ta, tb = 0.0, 1.0
-                    if abs(ay) > 1e-12:
-                        ta, tb = (qy - rr - sy) / ay, (qy + rr - sy) / ay
-                        ta, tb = max(0.0, min(ta, tb)), min(1.0, max(ta, tb))
-                    xa, xb = sx + ax * ta, sx + ax * tb
-                    ka = max(kk0, math.ceil((min(xa, xb) - w - x0) / dx))
-                    kb = min(kk1, math.floor((max(xa, xb) + w - x0) / dx))
-                    if kb < ka:  # never a range from a huge negative bound (wraps around)
-                        continue
-                    for k in range(ka, kb + 1):
-                        wxs[mcount] = sx - (x0 + k * dx)
-                        wys[mcount] = sy - qy
-                        idx[mcount] = i * nx + k
-                        owner[mcount] = nt - 1
-                        mcount += 1
+                for bi in range(max(i0 // b, ci * f), min(i1 // b, ci * f + f - 1) + 1):
+                    for bk in range(max(k0 // b, ck * f), min(k1 // b, ck * f + f - 1) + 1):
+                        if skip_block(cx[bk], cy[bi], hx[bk], hy[bi], st[bi, bk, 0],
+                                      st[bi, bk, 1], st[bi, bk, 2], st[bi, bk, 3], sx, sy, sz,
+                                      ax, ay, vz, rr, ball):
+                            continue
+                        touched[nt, 0], touched[nt, 1] = bi, bk
+                        nt += 1
+                        mcount = _gather(x0, y0, dx, dy, nx, b, bi, bk, i0, i1, k0, k1, sx,
+                                         sy, ax, ay, ylo, yhi, rr, nt - 1, wxs, wys, idx,
+                                         owner, mcount)
         if vertical:
             for j in range(mcount):
                 env[j] = node_envelope(sx - wxs[j], sy - wys[j], sx, sy, sz, ax, ay, vz, rr,
@@ -261,8 +311,15 @@ def sweep_kernel(x0: float, y0: float, dx: float, dy: float, p0: F64, p1: F64, r
                 if lowered[t]:
                     lowered[t] = False
                     if remeasure:
-                        measure_block(x0, y0, dx, dy, b, stock, ref, cx, cy, px, py, e, m,
+                        measure_block(x0, y0, dx, dy, b, stock, ref, cx, cy, st,
                                       touched[t, 0], touched[t, 1])
+                        dirty[touched[t, 0] // f, touched[t, 1] // f] = True
+            if remeasure:
+                for t in range(nt):
+                    ci, ck = touched[t, 0] // f, touched[t, 1] // f
+                    if dirty[ci, ck]:
+                        dirty[ci, ck] = False
+                        coarse_block(f, cx, cy, hx, hy, st, ccx, ccy, cst, ci, ck)
         else:
             for j in range(mcount):
                 q, ev = idx[j], env[j]

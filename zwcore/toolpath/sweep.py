@@ -40,10 +40,12 @@ and ``m = max U``; a block is skipped when
 Skipped blocks would keep their stock and give negative figures, so the stock is the one
 without ``bounds`` and ``over_stock`` / ``over_ref`` are the same wherever they are ``> 0``
 (elsewhere ``<= 0`` or ``-inf``); a test compares both on random moves. After a move that
-cut, its blocks get ``e`` and ``m`` measured again (the stock only goes down: a stale bound
+cut, the blocks it lowered get ``e`` and ``m`` measured again (the stock only goes down: a stale bound
 stays valid). With ``U``'s own slope as ``P``, near contact the envelope's and the
 surface's slopes agree and the bound is tight to the envelope's curvature over a block: a
-Ø20 ball's finishing chords visit a fraction of the nodes of its disc.
+Ø20 ball's finishing chords visit a fraction of the nodes of its disc. Blocks are grouped
+``f x f`` into coarse blocks, tested first (their ``e`` bounded from their blocks':
+``U(q) - P.(q - c) <= e_j + |P_j - P|.h_j - P.(c_j - c)`` for a node of block ``j``).
 """
 
 from __future__ import annotations
@@ -93,8 +95,9 @@ def block_size(radius: float, spacing: float) -> int:
 
 
 class BlockBounds:
-    """Per block of ``b x b`` nodes: centre, half extents, plane slope, ``e`` and ``m`` of
-    ``max(stock, ref)`` (module docstring); :func:`sweep_moves` keeps them up to date.
+    """Per block of ``b x b`` nodes, and per coarse block of ``f x f`` blocks: centre, half
+    extents and ``(P_x, P_y, e, m)`` of ``max(stock, ref)`` (module docstring);
+    :func:`sweep_moves` keeps them up to date.
 
     Parameters
     ----------
@@ -102,41 +105,50 @@ class BlockBounds:
     stock, ref : (ny, nx) float64
         The surfaces the sweeps compare with (``ref`` may be ``stock``).
     block : int
-        Nodes a side.
+        Nodes a side of a block.
+    coarse : int
+        Blocks a side of a coarse block (tested first: a move's footprint spans some
+        hundred blocks, most of them skipped a coarse block at a time).
     """
 
-    def __init__(self, frame: GridFrame, stock: F64, ref: F64, block: int = 8):
-        b = max(1, int(block))
-        ny, nx = frame.shape
-        self.block = b
-        nby, nbx = -(-ny // b), -(-nx // b)
-        i_first = np.arange(nby) * b
-        i_last = np.minimum(i_first + b - 1, ny - 1)
-        k_first = np.arange(nbx) * b
-        k_last = np.minimum(k_first + b - 1, nx - 1)
-        self.cy: F64 = frame.y0 + 0.5 * (i_first + i_last).astype(np.float64) * frame.dy
-        self.cx: F64 = frame.x0 + 0.5 * (k_first + k_last).astype(np.float64) * frame.dx
-        self.hy = 0.5 * (i_last - i_first) * frame.dy
-        self.hx = 0.5 * (k_last - k_first) * frame.dx
-        self.px, self.py = np.zeros((nby, nbx)), np.zeros((nby, nbx))
-        self.e = np.empty((nby, nbx))
-        self.m = np.empty((nby, nbx))
-        measure_all(frame.x0, frame.y0, frame.dx, frame.dy, b, np.ascontiguousarray(stock),
-                    np.ascontiguousarray(ref), self.cx, self.cy, self.px, self.py, self.e,
-                    self.m)
+    def __init__(self, frame: GridFrame, stock: F64, ref: F64, block: int = 8,
+                 coarse: int = 4):
+        self.block, self.coarse = max(1, int(block)), max(1, int(coarse))
+        b, f = self.block, self.coarse
+        self.cx, self.cy, self.hx, self.hy = _centres(frame, b)
+        self.ccx, self.ccy, self.chx, self.chy = _centres(frame, b * f)
+        self.st = np.empty((len(self.cy), len(self.cx), 4))
+        self.cst = np.empty((len(self.ccy), len(self.ccx), 4))
+        measure_all(frame.x0, frame.y0, frame.dx, frame.dy, b, f, np.ascontiguousarray(stock),
+                    np.ascontiguousarray(ref), self.cx, self.cy, self.hx, self.hy, self.st,
+                    self.ccx, self.ccy, self.cst)
         self.remeasure = True
 
     @classmethod
     def none(cls, frame: GridFrame) -> BlockBounds:
         """One block over the whole grid that is never skipped (the plain sweep)."""
         out = cls.__new__(cls)
-        out.block = max(frame.shape)
+        out.block, out.coarse = max(frame.shape), 1
         out.cx, out.cy = np.full(1, frame.x0), np.full(1, frame.y0)
         out.hx, out.hy = np.full(1, np.inf), np.full(1, np.inf)
-        out.px, out.py = np.zeros((1, 1)), np.zeros((1, 1))
-        out.e, out.m = np.full((1, 1), np.inf), np.full((1, 1), np.inf)
+        out.st = np.full((1, 1, 4), np.inf)
+        out.ccx, out.ccy, out.chx, out.chy, out.cst = out.cx, out.cy, out.hx, out.hy, out.st
         out.remeasure = False
         return out
+
+
+def _centres(frame: GridFrame, b: int) -> tuple[F64, F64, F64, F64]:
+    """Centres ``x`` (per block column), ``y`` (per block row) and half extents of the
+    blocks of ``b x b`` nodes (the last ones cut at the grid's edge), mm."""
+    ny, nx = frame.shape
+    i_first = np.arange(-(-ny // b)) * b
+    i_last = np.minimum(i_first + b - 1, ny - 1)
+    k_first = np.arange(-(-nx // b)) * b
+    k_last = np.minimum(k_first + b - 1, nx - 1)
+    cx = frame.x0 + 0.5 * (k_first + k_last).astype(np.float64) * frame.dx
+    cy = frame.y0 + 0.5 * (i_first + i_last).astype(np.float64) * frame.dy
+    return (cx, cy, 0.5 * (k_last - k_first).astype(np.float64) * frame.dx,
+            0.5 * (i_last - i_first).astype(np.float64) * frame.dy)
 
 
 def sweep_moves(frame: GridFrame, p0: F64, p1: F64, radius: F64 | float, ball: bool,
@@ -188,15 +200,15 @@ def sweep_moves(frame: GridFrame, p0: F64, p1: F64, radius: F64 | float, ball: b
     if not n:
         return over_s, over_r
     bb = BlockBounds.none(frame) if bounds is None else bounds
-    b, ny = bb.block, frame.shape[0]
+    big, ny = bb.block * bb.coarse, frame.shape[0]
     # one signature for every caller: numba's disk cache is shared by processes (xdist
     # workers, service workers), and two processes adding different signatures at once
     # can leave an index pointing at the other's machine code
     args = (float(frame.x0), float(frame.y0), float(frame.dx), float(frame.dy))
-    tail: tuple[Any, ...] = (int(b), bb.cx, bb.cy, bb.hx, bb.hy, bb.px, bb.py, bb.e, bb.m,
-                             bool(bb.remeasure))
+    tail: tuple[Any, ...] = (int(bb.block), int(bb.coarse), bb.cx, bb.cy, bb.hx, bb.hy, bb.st,
+                             bb.ccx, bb.ccy, bb.chx, bb.chy, bb.cst, bool(bb.remeasure))
     ball = bool(ball)
-    rows = ny if bounds is None else -(-ny // b)  # bands of whole blocks
+    rows = ny if bounds is None else -(-ny // big)  # bands of whole coarse blocks
     threads = min(SWEEP_THREADS, max(1, n // MIN_MOVES_PER_THREAD), rows)
     if threads == 1:
         sweep_kernel(*args, p0, p1, r, ball, app, stock, refg, over_s, over_r, 0, ny, *tail)
@@ -206,7 +218,7 @@ def sweep_moves(frame: GridFrame, p0: F64, p1: F64, radius: F64 | float, ball: b
         jobs = [(p0[a:c], p1[a:c], r[a:c], app[a:c], over_s[a:c], over_r[a:c], 0, ny)
                 for a, c in itertools.pairwise(cut)]
     else:  # every band of rows sees all the moves in order; per move, the max over bands
-        unit = 1 if bounds is None else b
+        unit = 1 if bounds is None else big
         cut = np.minimum(np.linspace(0, rows, threads + 1).astype(np.int64) * unit, ny)
         outs = np.full((threads, 2, n), -np.inf)
         jobs = [(p0, p1, r, app, outs[t, 0], outs[t, 1], int(a), int(c))
