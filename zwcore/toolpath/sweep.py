@@ -40,10 +40,11 @@ and ``m = max U``; a block is skipped when
 Skipped blocks would keep their stock and give negative figures, so the stock is the one
 without ``bounds`` and ``over_stock`` / ``over_ref`` are the same wherever they are ``> 0``
 (elsewhere ``<= 0`` or ``-inf``); a test compares both on random moves. After a move that
-cut, the blocks it lowered get ``e`` and ``m`` measured again (the stock only goes down: a stale bound
-stays valid). With ``U``'s own slope as ``P``, near contact the envelope's and the
-surface's slopes agree and the bound is tight to the envelope's curvature over a block: a
-Ø20 ball's finishing chords visit a fraction of the nodes of its disc. Blocks are grouped
+cut, the blocks it lowered get ``P``, ``e`` and ``m`` measured again (the stock only goes
+down: a stale bound stays valid). With ``U``'s own slope as ``P``, near contact the
+envelope's and the surface's slopes agree and the bound is tight to the envelope's
+curvature over a block: a Ø20 ball's finishing chords visit a fraction of the nodes of its
+disc. Blocks are grouped
 ``f x f`` into coarse blocks, tested first (their ``e`` bounded from their blocks':
 ``U(q) - P.(q - c) <= e_j + |P_j - P|.h_j - P.(c_j - c)`` for a node of block ``j``).
 """
