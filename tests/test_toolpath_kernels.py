@@ -61,10 +61,11 @@ def test_the_coarse_gouge_look_changes_no_value_that_matters(seed, block, ball):
 @given(st.integers(0, 10_000), st.sampled_from([1, 2, 3, 5, 8, 16]), st.booleans(),
        st.sampled_from(["cut", "measure", "threads"]), st.floats(0.3, 4.0))
 def test_skipped_blocks_change_no_stock_and_no_positive_figure(seed, block, ball, mode, radius):
-    """The sweep with :class:`BlockBounds` against the plain sweep over every node in
-    reach: the same stock bit for bit, ``over_stock`` and ``over_ref`` the same wherever
-    they are positive and ``<= 0`` elsewhere; moves of every kind (along, across, steep,
-    vertical, high above, grazing the part)."""
+    """The sweep with :class:`BlockBounds` against the same kernel skipping nothing
+    (``BlockBounds.none``): the same stock bit for bit, ``over_stock`` and ``over_ref`` the
+    same wherever they are positive and ``<= 0`` elsewhere; and against the plain kernel to
+    1e-12 mm; moves of every kind (along, across, steep, vertical, high above, grazing the
+    part)."""
     part = wavy_part(71, 0.2, seed)
     frame = GridFrame(part.x0, part.y0, part.dx, part.dy, part.shape)
     rng = np.random.default_rng(seed)
@@ -84,7 +85,11 @@ def test_skipped_blocks_change_no_stock_and_no_positive_figure(seed, block, ball
         if mode == "threads":
             mp.setattr(sweep_mod, "MIN_MOVES_PER_THREAD", 50)
             mp.setattr(sweep_mod, "SWEEP_THREADS", 3)
-        a_s, a_r = sweep_moves(frame, p0, p1, radius, ball, plain, ref=part.z, apply=flags)
+        # the same kernel without skipping (bit for bit), and the plain kernel
+        base = plain.copy()
+        a_s, a_r = sweep_moves(frame, p0, p1, radius, ball, plain, ref=part.z, apply=flags,
+                               bounds=BlockBounds.none(frame))
+        c_s, c_r = sweep_moves(frame, p0, p1, radius, ball, base, ref=part.z, apply=flags)
         bounds = BlockBounds(frame, skip, part.z, block)
         b_s, b_r = sweep_moves(frame, p0, p1, radius, ball, skip, ref=part.z, apply=flags,
                                bounds=bounds)
@@ -93,6 +98,10 @@ def test_skipped_blocks_change_no_stock_and_no_positive_figure(seed, block, ball
         pos = a > 0
         np.testing.assert_array_equal(a[pos], b[pos])
         assert np.all(b[~pos] <= 0)
+    # the plain kernel is compiled apart (float contraction may differ in the last bit)
+    np.testing.assert_allclose(base, plain, rtol=0, atol=1e-12)
+    for a, c in ((a_s, c_s), (a_r, c_r)):
+        np.testing.assert_allclose(a, c, rtol=0, atol=1e-12)
 
 
 @pytest.mark.parametrize("apply", [True, False])

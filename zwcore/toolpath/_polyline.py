@@ -17,6 +17,7 @@ from numpy.typing import NDArray
 
 from zwcore.grid.tools import Tool
 from zwcore.grid.zmap import ZMap
+from zwcore.toolpath import sweep as sweep_mod
 from zwcore.toolpath.sweep import BlockBounds, GridFrame, block_size, sweep_moves
 
 F64 = NDArray[np.float64]
@@ -125,7 +126,8 @@ class PartGouge:
         return out
 
     def _fine(self, p0: F64, p1: F64) -> F64:
-        if self._bounds is None:
+        if self._bounds is None and self.tool.radius >= sweep_mod.MIN_BLOCK_RADIUS * min(
+                self.part.dx, self.part.dy):
             # the exact sweep skips blocks of nodes the move clears (the part is fixed: its
             # bounds are measured once, when first needed)
             self._bounds = BlockBounds(self.frame, self.part.z, self.part.z,

@@ -232,7 +232,7 @@ def sweep_kernel(x0: float, y0: float, dx: float, dy: float, p0: F64, p1: F64, r
                  ball: bool, apply: NDArray[np.bool_], stock: F64, ref: F64,
                  over_stock: F64, over_ref: F64, row_lo: int, row_hi: int, b: int, f: int,
                  cx: F64, cy: F64, hx: F64, hy: F64, st: F64, ccx: F64, ccy: F64, chx: F64,
-                 chy: F64, cst: F64, remeasure: bool) -> None:
+                 chy: F64, cst: F64, remeasure: bool, test: bool) -> None:
     """Moves in order over the rows ``row_lo..row_hi - 1`` (a band of whole coarse blocks:
     bands are independent).
 
@@ -240,7 +240,8 @@ def sweep_kernel(x0: float, y0: float, dx: float, dy: float, p0: F64, p1: F64, r
     cannot rule out, in them the blocks of ``b x b`` nodes it cannot rule out, their nodes
     within R of the move's xy shadow gathered (row by row), the envelope over all of them
     in one flat loop, then the stock compared and lowered; with ``remeasure`` the blocks
-    the move lowered, and their coarse blocks, are measured again."""
+    the move lowered, and their coarse blocks, are measured again. Without ``test`` no
+    block is tested (one block over the whole grid: the plain sweep)."""
     nx = stock.shape[1]
     sflat = stock.reshape(-1)
     rflat = ref.reshape(-1)
@@ -275,15 +276,16 @@ def sweep_kernel(x0: float, y0: float, dx: float, dy: float, p0: F64, p1: F64, r
         nt = 0
         for ci in range(i0 // big, i1 // big + 1):
             for ck in range(k0 // big, k1 // big + 1):
-                if skip_block(ccx[ck], ccy[ci], chx[ck], chy[ci], cst[ci, ck, 0],
-                              cst[ci, ck, 1], cst[ci, ck, 2], cst[ci, ck, 3], sx, sy, sz, ax,
-                              ay, vz, rr, ball):
+                if test and skip_block(ccx[ck], ccy[ci], chx[ck], chy[ci], cst[ci, ck, 0],
+                                       cst[ci, ck, 1], cst[ci, ck, 2], cst[ci, ck, 3], sx, sy,
+                                       sz, ax, ay, vz, rr, ball):
                     continue
                 for bi in range(max(i0 // b, ci * f), min(i1 // b, ci * f + f - 1) + 1):
                     for bk in range(max(k0 // b, ck * f), min(k1 // b, ck * f + f - 1) + 1):
-                        if skip_block(cx[bk], cy[bi], hx[bk], hy[bi], st[bi, bk, 0],
-                                      st[bi, bk, 1], st[bi, bk, 2], st[bi, bk, 3], sx, sy, sz,
-                                      ax, ay, vz, rr, ball):
+                        if test and skip_block(cx[bk], cy[bi], hx[bk], hy[bi],
+                                               st[bi, bk, 0], st[bi, bk, 1], st[bi, bk, 2],
+                                               st[bi, bk, 3], sx, sy, sz, ax, ay, vz, rr,
+                                               ball):
                             continue
                         touched[nt, 0], touched[nt, 1] = bi, bk
                         nt += 1
@@ -325,5 +327,86 @@ def sweep_kernel(x0: float, y0: float, dx: float, dy: float, p0: F64, p1: F64, r
                 q, ev = idx[j], env[j]
                 best_s = max(best_s, sflat[q] - ev)
                 best_r = max(best_r, rflat[q] - ev)
+        over_stock[s] = best_s
+        over_ref[s] = best_r
+
+
+@njit(cache=True, nogil=True, fastmath={"contract", "arcp", "reassoc"})
+def plain_kernel(x0: float, y0: float, dx: float, dy: float, p0: F64, p1: F64, r: F64,
+                 ball: bool, apply: NDArray[np.bool_], stock: F64, ref: F64,
+                 over_stock: F64, over_ref: F64, row_lo: int, row_hi: int) -> None:
+    """Moves in order over the rows ``row_lo..row_hi - 1`` (a band: bands are independent).
+
+    Per move: gather the nodes within R of its xy shadow (row by row), evaluate the
+    envelope over all of them in one flat loop, then compare with and lower the stock."""
+    nx = stock.shape[1]
+    sflat = stock.reshape(-1)
+    rflat = ref.reshape(-1)
+    cap = 1024
+    wxs, wys, env = np.empty(cap), np.empty(cap), np.empty(cap)
+    idx = np.empty(cap, np.int64)
+    for s in range(p0.shape[0]):
+        sx, sy, sz = p0[s, 0], p0[s, 1], p0[s, 2]
+        ax, ay, vz = p1[s, 0] - sx, p1[s, 1] - sy, p1[s, 2] - sz
+        rr = r[s]
+        k0 = max(0, math.ceil((min(sx, sx + ax) - rr - x0) / dx))
+        k1 = min(nx - 1, math.floor((max(sx, sx + ax) + rr - x0) / dx))
+        i0 = max(row_lo, math.ceil((min(sy, sy + ay) - rr - y0) / dy))
+        i1 = min(row_hi - 1, math.floor((max(sy, sy + ay) + rr - y0) / dy))
+        over_stock[s] = over_ref[s] = -math.inf
+        if k1 < k0 or i1 < i0:
+            continue
+        box = (k1 - k0 + 1) * (i1 - i0 + 1)
+        if box > cap:
+            cap = 2 * box
+            wxs, wys, env = np.empty(cap), np.empty(cap), np.empty(cap)
+            idx = np.empty(cap, np.int64)
+        ylo, yhi = min(sy, sy + ay), max(sy, sy + ay)
+        a = ax * ax + ay * ay
+        vertical = a <= 1e-18
+        m = 0
+        for i in range(i0, i1 + 1):
+            qy = y0 + i * dy
+            # the nodes of this row within R of the move's xy shadow: the part of the move
+            # within R of the row in y, widened by the disc's half-chord at the row
+            dyo = max(0.0, ylo - qy, qy - yhi)
+            if dyo > rr:
+                continue
+            # (clamped: with fused multiply-adds a row exactly R away can come out just below 0)
+            w = math.sqrt(max(rr * rr - dyo * dyo, 0.0))
+            ta, tb = 0.0, 1.0
+            if abs(ay) > 1e-12:
+                ta, tb = (qy - rr - sy) / ay, (qy + rr - sy) / ay
+                ta, tb = max(0.0, min(ta, tb)), min(1.0, max(ta, tb))
+            xa, xb = sx + ax * ta, sx + ax * tb
+            ka = max(k0, math.ceil((min(xa, xb) - w - x0) / dx))
+            kb = min(k1, math.floor((max(xa, xb) + w - x0) / dx))
+            if kb < ka:  # never a range from a huge negative bound (it would wrap around)
+                continue
+            for k in range(ka, kb + 1):
+                wxs[m] = sx - (x0 + k * dx)
+                wys[m] = sy - qy
+                idx[m] = i * nx + k
+                m += 1
+        if vertical:
+            for j in range(m):
+                env[j] = node_envelope(sx - wxs[j], sy - wys[j], sx, sy, sz, ax, ay, vz, rr,
+                                       ball)
+        else:
+            inv_a = 1.0 / a
+            flat_envelope(m, wxs, wys, sz, ax, ay, vz, rr, ball, inv_a, math.sqrt(inv_a),
+                          1.0 / math.sqrt(a * (a + vz * vz)), env)
+        best_s, best_r = -math.inf, -math.inf
+        if apply[s]:
+            for j in range(m):
+                q, e = idx[j], env[j]
+                best_s = max(best_s, sflat[q] - e)
+                best_r = max(best_r, rflat[q] - e)
+                sflat[q] = min(sflat[q], e)
+        else:
+            for j in range(m):
+                q, e = idx[j], env[j]
+                best_s = max(best_s, sflat[q] - e)
+                best_r = max(best_r, rflat[q] - e)
         over_stock[s] = best_s
         over_ref[s] = best_r

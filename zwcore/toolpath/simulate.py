@@ -21,6 +21,7 @@ from numpy.typing import NDArray
 from zwcore.errors import InvalidInputError
 from zwcore.grid.tools import Tool
 from zwcore.grid.zmap import ZMap
+from zwcore.toolpath import sweep as sweep_mod
 from zwcore.toolpath._repeats import repeat_of
 from zwcore.toolpath.parse import ParsedProgram
 from zwcore.toolpath.sweep import BlockBounds, GridFrame, arc_chords, block_size, sweep_moves
@@ -172,8 +173,9 @@ def simulate_stretch(stock: F64, part: ZMap, prog: ParsedProgram, a: int, b: int
     new = np.flatnonzero(src < 0)
     # blocks of nodes a move provably leaves alone are skipped (the same stock, the same
     # figures wherever they are > 0: ``sweep_moves``)
-    bounds = (BlockBounds(frame, stock, part.z, block_size(tool.radius, min(part.dx, part.dy)))
-              if SKIP_BLOCKS else None)
+    spacing = min(part.dx, part.dy)
+    bounds = (BlockBounds(frame, stock, part.z, block_size(tool.radius, spacing))
+              if SKIP_BLOCKS and tool.radius >= sweep_mod.MIN_BLOCK_RADIUS * spacing else None)
     over_stock[new], over_part[new] = sweep_moves(frame, p0[new], p1[new], radius[new],
                                                   tool.kind == "ball", stock, ref=part.z,
                                                   apply=~rapid[new], bounds=bounds)
