@@ -111,6 +111,29 @@ def main() -> None:
         work = simulation_work(zm.shape, Tool("b", "ball", 6.0, 1), DX, DX)
         print(f"{n:>5}² " + " ".join(f"{s:8.3f}" for s in row)
               + f"   {row[1] / work * 1e9:.3f}")
+    pruned_against_dilation()
+
+
+def pruned_against_dilation() -> None:
+    """Large balls: the branch and bound (``method="pruned"``) against the dilation on the
+    1025² bench part of ``bench_scanline_core`` (0.098 mm), CPU seconds of all threads and
+    the largest difference, in the same run."""
+    from bench.bench_scanline_core import synthetic
+
+    part = synthetic(1025)
+    print(f"\npruned drop-cutter against the dilation, 1025² bench part at {part.dx:g} mm "
+          "(CPU s, all threads; dilation - pruned mm)")
+    for dd in (8.0, 12.0, 20.0):
+        tool = Tool("b", "ball", dd, 1)
+        drop_cutter(ZMap(part.z[:64, :64], dx=part.dx, dy=part.dy), tool, method="pruned")
+        c = time.process_time()
+        a = drop_cutter(part, tool, method="pruned")
+        tp = time.process_time() - c
+        c = time.process_time()
+        b = drop_cutter(part, tool)
+        td = time.process_time() - c
+        print(f"Ø{dd:g}: pruned {tp:.2f} s, dilation {td:.2f} s ({td / tp:.1f}x); difference "
+              f"{(b - a).min():.1e} .. {(b - a).max():.1e}")
 
 
 if __name__ == "__main__":

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from hypothesis import given
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from zwcore import Tool, ZMap, bilinear_at_fine_nodes
@@ -272,3 +272,67 @@ def test_cl_against_opencamlib_on_a_surface_both_represent_exactly() -> None:
     ours = np.array([cl[i, k] for i, k in nodes])
     assert (ours - oracle).min() >= -1e-6
     assert (ours - oracle).max() <= 0.03  # the bound's gap at a 56° wall, dx = R / 15
+
+
+def _dilation_brute(z: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """``min over v of max over offsets of z + s[v]`` in float64 by plain shifts (-inf off
+    the grid): the exact value of the structuring functions, without ``_morph``."""
+    nv, na, nb = s.shape
+    A, B = na // 2, nb // 2
+    ny, nx = z.shape
+    zp = np.full((ny + 2 * A, nx + 2 * B), -np.inf)
+    zp[A:A + ny, B:B + nx] = z
+    out = np.full((nv, ny, nx), -np.inf)
+    for v in range(nv):
+        for a, b in zip(*np.nonzero(np.isfinite(s[v])), strict=True):
+            np.maximum(out[v], zp[a:a + ny, b:b + nx] + s[v, a, b], out=out[v])
+    return out.min(axis=0)
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.integers(12, 48), st.sampled_from([0.1, 0.2, 0.35]),
+       st.floats(0.5, 4.0), st.sampled_from(["smooth", "rough", "plateau", "steps"]),
+       st.sampled_from(["ball", "flat"]))
+def test_pruned_drop_cutter_is_the_exact_dilation(seed: int, n: int, dx: float, radius: float,
+                                                  shape: str, kind: str) -> None:
+    """The branch and bound (``method="pruned"``) against the plain float64 dilation by the
+    same structuring functions: never below it (so never below the true drop-cutter
+    height, which the functions bound), above it by float64 rounding only; and never below
+    the dense sampling of the bilinear surface."""
+    from zwcore.sim._profiles import drop_profile
+
+    rng = np.random.default_rng(seed)
+    y, x = np.mgrid[0:n, 0:n] * dx
+    z = 2.0 * np.sin(x * rng.uniform(0.2, 2)) * np.cos(y * rng.uniform(0.2, 2)) + rng.uniform(
+        -1, 1) * x
+    if shape == "rough":
+        z = z + 0.3 * rng.standard_normal(z.shape)
+    elif shape == "plateau":
+        z = np.maximum(z, np.quantile(z, 0.5))
+    elif shape == "steps":
+        z = np.round(z)
+    tool = Tool("t", kind, 2 * radius, 10.0)
+    part = ZMap(z, dx=dx, dy=dx)
+    cl = drop_cutter(part, tool, method="pruned")
+    s = np.asarray(drop_profile(tool, dx, dx, "bilinear"))
+    exact = _dilation_brute(z, s if s.ndim == 3 else s[None])
+    assert (cl - exact).min() >= 0.0
+    assert (cl - exact).max() <= 1e-9
+    if n <= 16:
+        assert (cl - reference_cl(z, dx, radius, kind, m=3)).min() >= 0.0
+
+
+def test_drop_cutter_methods_agree_and_a_bad_method_names_the_field() -> None:
+    rng = np.random.default_rng(5)
+    z = np.cumsum(rng.standard_normal((40, 40)), axis=1) * 0.05
+    part = ZMap(z, dx=0.1, dy=0.1)
+    tool = Tool("b", "ball", 5.0, 10.0)
+    dil = drop_cutter(part, tool)
+    # the dilation rounds up (float32 where the span allows): the pruned float64 result
+    # lies under it by at most that rounding, never above it by more than float64 rounding
+    for method in ("pruned", "auto"):
+        cl = drop_cutter(part, tool, method=method)
+        assert -1e-9 <= (dil - cl).min() and (dil - cl).max() <= 5e-5
+    with pytest.raises(InvalidInputError) as e:
+        drop_cutter(part, tool, method="fast")
+    assert e.value.field == "method"

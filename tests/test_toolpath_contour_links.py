@@ -128,3 +128,19 @@ def test_link_check_agrees_with_brute_force(seed):
     if abs(brute - clear) < 1e-9:
         return
     assert link_is_clear(cKDTree(q), a, b, clear) == (brute >= clear)
+
+
+def test_rings_of_one_offset_are_each_cut_once():
+    """Two rings of the same offset in one part: both come out, each once (a ring was once
+    removed from the queue by ``==``, which compares the loops' arrays and raised)."""
+    from zwcore.toolpath.contour_paths import order_rings
+
+    part = ZMap(np.zeros((41, 41)), dx=0.5, dy=0.5)
+    labels = np.ones(part.shape, np.int32)
+    t = np.linspace(0, 2 * np.pi, 40, endpoint=False)
+    ring = np.column_stack([np.cos(t), np.sin(t)])
+    far, near, mid = ring + np.full(2, 15.0), ring + np.full(2, 5.0), ring + np.full(2, 10.0)
+    out = order_rings(part, labels, [(2, far), (2, near), (1, mid)], np.array([0.0, 0.0]))
+    assert len(out) == 3
+    centres = [tuple(np.round(o.mean(axis=0))) for o in out]
+    assert centres == [(5.0, 5.0), (15.0, 15.0), (10.0, 10.0)]

@@ -20,7 +20,7 @@ from zwcore.grid.tools import Tool
 from zwcore.toolpath import parse_program, scanline_toolpaths, simulate_program
 from zwcore.toolpath._polyline import PartGouge, thin
 from zwcore.toolpath._scan_links import link_heights, merge_stretches, region_stretches
-from zwcore.toolpath.sweep import GridFrame, sweep_moves
+from zwcore.toolpath.sweep import BlockBounds, GridFrame, sweep_moves
 
 
 @settings(max_examples=40, deadline=None)
@@ -55,6 +55,53 @@ def test_the_coarse_gouge_look_changes_no_value_that_matters(seed, block, ball):
     hit = fine > 0
     np.testing.assert_array_equal(look[hit], fine[hit])
     assert np.all(look[~hit] <= 0) and np.all((look > 0) == hit)
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.integers(0, 10_000), st.sampled_from([1, 2, 3, 5, 8, 16]), st.booleans(),
+       st.sampled_from(["cut", "measure", "threads"]), st.floats(0.3, 4.0))
+def test_skipped_blocks_change_no_stock_and_no_positive_figure(seed, block, ball, mode, radius):
+    """The sweep with :class:`BlockBounds` against the same kernel skipping nothing
+    (``BlockBounds.none``): the same stock bit for bit, ``over_stock`` and ``over_ref`` the
+    same wherever they are positive and ``<= 0`` elsewhere; and against the plain kernel to
+    1e-12 mm; moves of every kind (along, across, steep, vertical, high above, grazing the
+    part)."""
+    part = wavy_part(71, 0.2, seed)
+    frame = GridFrame(part.x0, part.y0, part.dx, part.dy, part.shape)
+    rng = np.random.default_rng(seed)
+    n = 600
+    lo = np.array([part.x0 - 1, part.y0 - 1, part.z.min() - 0.5])
+    hi = np.array([part.x0 + 15, part.y0 + 15, part.z.max() + 1.5])
+    p0 = rng.uniform(lo, hi, (n, 3))
+    step = rng.normal(0, rng.choice([0.2, 1.0, 4.0]), (n, 3))
+    step[rng.random(n) < 0.1, :2] = 0.0  # vertical moves
+    step[rng.random(n) < 0.3, 2] = 0.0  # level moves
+    p1 = p0 + step
+    flags = (rng.random(n) < 0.8) if mode != "measure" else False
+    top = part.z.max() + rng.uniform(0.0, 1.0)
+    plain = np.full(part.shape, top) if mode != "measure" else part.z.copy()
+    skip = plain.copy()
+    with pytest.MonkeyPatch.context() as mp:
+        if mode == "threads":
+            mp.setattr(sweep_mod, "MIN_MOVES_PER_THREAD", 50)
+            mp.setattr(sweep_mod, "SWEEP_THREADS", 3)
+        # the same kernel without skipping (bit for bit), and the plain kernel
+        base = plain.copy()
+        a_s, a_r = sweep_moves(frame, p0, p1, radius, ball, plain, ref=part.z, apply=flags,
+                               bounds=BlockBounds.none(frame))
+        c_s, c_r = sweep_moves(frame, p0, p1, radius, ball, base, ref=part.z, apply=flags)
+        bounds = BlockBounds(frame, skip, part.z, block)
+        b_s, b_r = sweep_moves(frame, p0, p1, radius, ball, skip, ref=part.z, apply=flags,
+                               bounds=bounds)
+    np.testing.assert_array_equal(plain, skip)
+    for a, b in ((a_s, b_s), (a_r, b_r)):
+        pos = a > 0
+        np.testing.assert_array_equal(a[pos], b[pos])
+        assert np.all(b[~pos] <= 0)
+    # the plain kernel is compiled apart (float contraction may differ in the last bit)
+    np.testing.assert_allclose(base, plain, rtol=0, atol=1e-12)
+    for a, c in ((a_s, c_s), (a_r, c_r)):
+        np.testing.assert_allclose(a, c, rtol=0, atol=1e-12)
 
 
 @pytest.mark.parametrize("apply", [True, False])

@@ -6,8 +6,10 @@
 - :mod:`zwcore.sim.figures`: one pass simulated over a stock, and the figures a
   planner needs (gouge, rest material, rest regions, real depth of cut);
 - private: ``_profiles`` (structuring functions), ``_morph`` (the symmetric
-  dilation, linear in the grid), ``_nodal`` (reach against the nodes: drop cutter
-  and closing by branch and bound, balls between nodes; exported below).
+  dilation, linear in the grid), ``_drop_bb`` (the same drop-cutter by branch and
+  bound over tiles of offsets, for large tools: ``drop_cutter(method="pruned")``),
+  ``_nodal`` (reach against the nodes: drop cutter and closing by branch and bound,
+  balls between nodes; exported below).
 """
 
 from zwcore.sim._nodal import nodal_closing, nodal_drop_cutter, refine_rest

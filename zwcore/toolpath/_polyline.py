@@ -17,7 +17,8 @@ from numpy.typing import NDArray
 
 from zwcore.grid.tools import Tool
 from zwcore.grid.zmap import ZMap
-from zwcore.toolpath.sweep import GridFrame, sweep_moves
+from zwcore.toolpath import sweep as sweep_mod
+from zwcore.toolpath.sweep import BlockBounds, GridFrame, block_size, sweep_moves
 
 F64 = NDArray[np.float64]
 BOOL = NDArray[np.bool_]
@@ -95,6 +96,7 @@ class PartGouge:
         self.part, self.tool, self.block = part, tool, max(1, int(block))
         self.ball = tool.kind == "ball"
         self.frame = GridFrame(part.x0, part.y0, part.dx, part.dy, part.shape)
+        self._bounds: BlockBounds | None = None
         if self.block > 1:
             b = self.block
             ny, nx = part.shape
@@ -124,8 +126,15 @@ class PartGouge:
         return out
 
     def _fine(self, p0: F64, p1: F64) -> F64:
+        if self._bounds is None and self.tool.radius >= sweep_mod.MIN_BLOCK_RADIUS * min(
+                self.part.dx, self.part.dy):
+            # the exact sweep skips blocks of nodes the move clears (the part is fixed: its
+            # bounds are measured once, when first needed)
+            self._bounds = BlockBounds(self.frame, self.part.z, self.part.z,
+                                       block_size(self.tool.radius,
+                                                  min(self.part.dx, self.part.dy)))
         _, gouge = sweep_moves(self.frame, p0, p1, self.tool.radius, self.ball,
-                               self.part.z, ref=self.part.z, apply=False)
+                               self.part.z, ref=self.part.z, apply=False, bounds=self._bounds)
         return gouge
 
 

@@ -218,7 +218,9 @@ def order_rings(part: ZMap, labels: NDArray[np.int32], items: list[tuple[int, F6
             cand = [it for it in rest if it[0] == top]
             n, j, _ = nearest(cand)
             loop = np.roll(cand[n][1], -j, axis=0)
-            rest.remove(cand[n])
+            # by identity: ``list.remove`` compares with ``==``, and two rings of the same
+            # offset compare their arrays (an ambiguous truth value)
+            rest.pop(next(i for i, it in enumerate(rest) if it is cand[n]))
             out.append(loop)
             pos = loop[0]
     return out

@@ -55,6 +55,9 @@ class Toolpaths:
         The program parsed back and simulated (``None`` when not verified).
     timings : tuple of (str, float)
         Seconds per phase (paths, program, parse, simulate).
+    cpu_timings : tuple of (str, float)
+        CPU seconds per phase, all threads of the process (on a shared machine the wall
+        times swing with the load; these less so).
     """
 
     stages: tuple[StagePath, ...]
@@ -62,6 +65,7 @@ class Toolpaths:
     program: str = field(repr=False)
     check: ProgramCheck | None
     timings: tuple[tuple[str, float], ...]
+    cpu_timings: tuple[tuple[str, float], ...] = ()
 
     def stage_figures(self) -> list[dict[str, float]]:
         """Per stage: path lengths by kind, the time estimate (min) and the path's figures."""
@@ -118,8 +122,10 @@ def _clearance(clearance: float | None, stock_top: float) -> float:
 
 def _finish(part: ZMap, stages: list[StagePath], settings: ProgramSettings, stock_top: float,
             tolerance: float, models: list[F64 | None], verify: bool, max_bytes: int | None,
-            reach: NDArray[np.bool_] | None, timings: list[tuple[str, float]]) -> Toolpaths:
-    t = time.perf_counter()
+            reach: NDArray[np.bool_] | None, timings: list[tuple[str, float]],
+            cpu: list[tuple[str, float]] | None = None) -> Toolpaths:
+    cpu = [] if cpu is None else cpu
+    t, c = time.perf_counter(), time.process_time()
     chunks, size = [], 0
     for chunk in iter_program(stages, settings):
         size += len(chunk)
@@ -128,17 +134,20 @@ def _finish(part: ZMap, stages: list[StagePath], settings: ProgramSettings, stoc
         chunks.append(chunk)
     text = "".join(chunks)
     timings.append(("program", time.perf_counter() - t))
+    cpu.append(("program", time.process_time() - c))
     check = None
     if verify:
-        t = time.perf_counter()
+        t, c = time.perf_counter(), time.process_time()
         prog = parse_program(text)
         timings.append(("parse", time.perf_counter() - t))
-        t = time.perf_counter()
+        cpu.append(("parse", time.process_time() - c))
+        t, c = time.perf_counter(), time.process_time()
         table = {p.cutting.tool_number: p.tool for p in stages}
         check = simulate_program(prog, table, part, stock_top, tolerance=tolerance,
                                  stage_models=models, reach=reach)
         timings.append(("simulate", time.perf_counter() - t))
-    return Toolpaths(tuple(stages), settings, text, check, tuple(timings))
+        cpu.append(("simulate", time.process_time() - c))
+    return Toolpaths(tuple(stages), settings, text, check, tuple(timings), tuple(cpu))
 
 
 def scanline_toolpaths(part: ZMap, plan: ScanlinePlan, cl_heights: CLHeights = sim_cl_heights,
@@ -180,7 +189,7 @@ def scanline_toolpaths(part: ZMap, plan: ScanlinePlan, cl_heights: CLHeights = s
     if len(regions) != len(plan.stages):
         raise InvalidInputError("regions", f"one per stage ({len(plan.stages)}), got "
                                 f"{len(regions)}")
-    t = time.perf_counter()
+    t, c = time.perf_counter(), time.process_time()
     stages = [scanline_stage_path(part, st, i, data[st.tool.id], cl_heights, clearance=clear,
                                   chord_tolerance=CHORD_FRACTION * plan.tolerance,
                                   stock_top=plan.stock_top,
@@ -197,6 +206,7 @@ def scanline_toolpaths(part: ZMap, plan: ScanlinePlan, cl_heights: CLHeights = s
                                                      and st.level == plan.depth else None))
               for i, st in enumerate(plan.stages)]
     timings = [("paths", time.perf_counter() - t)]
+    cpu = [("paths", time.process_time() - c)]
 
     def model(i: int) -> F64:
         st = plan.stages[i]
@@ -204,7 +214,7 @@ def scanline_toolpaths(part: ZMap, plan: ScanlinePlan, cl_heights: CLHeights = s
 
     return _finish(part, stages, settings, plan.stock_top, plan.tolerance,
                    _merge_models(stages, model) if verify else [], verify, max_bytes, reach,
-                   timings)
+                   timings, cpu)
 
 
 def _merge_models(stages: list[StagePath], model: Callable[[int], F64]) -> list[F64 | None]:

@@ -50,8 +50,9 @@ CLHeights = Callable[[ZMap, Tool], F64]
 
 def sim_cl_heights(model: ZMap, tool: Tool) -> F64:
     """The default :data:`CLHeights`: :func:`zwcore.sim.drop_cutter` on the bilinear model
-    (never below the true drop-cutter height)."""
-    return drop_cutter(model, tool, "bilinear")
+    (never below the true drop-cutter height), by branch and bound for large tools
+    (``method="auto"``: a Ø20 ball at the input's 0.1 mm spans 43,000 nodes)."""
+    return drop_cutter(model, tool, "bilinear", method="auto")
 
 
 def _raster(cl: F64, rows: F64) -> F64:

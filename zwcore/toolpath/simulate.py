@@ -21,9 +21,10 @@ from numpy.typing import NDArray
 from zwcore.errors import InvalidInputError
 from zwcore.grid.tools import Tool
 from zwcore.grid.zmap import ZMap
+from zwcore.toolpath import sweep as sweep_mod
 from zwcore.toolpath._repeats import repeat_of
 from zwcore.toolpath.parse import ParsedProgram
-from zwcore.toolpath.sweep import GridFrame, arc_chords, sweep_moves
+from zwcore.toolpath.sweep import BlockBounds, GridFrame, arc_chords, block_size, sweep_moves
 
 __all__ = ["ProgramCheck", "StageCheck", "simulate_program", "simulate_stretch", "stock_grid",
            "tool_spans"]
@@ -38,6 +39,9 @@ CUT_EPS = 1e-9
 #: stretch that cut before (:mod:`~zwcore.toolpath._repeats`): they remove nothing, their
 #: gouge is that move's (a test checks every figure is the same without the skip).
 SKIP_REPEATS = True
+#: Skip blocks of nodes a move provably leaves alone (:class:`~zwcore.toolpath.sweep.
+#: BlockBounds`): the stock and every figure are the same (a test compares).
+SKIP_BLOCKS = True
 #: A rapid touching the stock by less than this (mm) is a tie (a retract from the position
 #: that just cut there), not a rapid through material.
 TIE_EPS = 1e-6
@@ -167,9 +171,14 @@ def simulate_stretch(stock: F64, part: ZMap, prog: ParsedProgram, a: int, b: int
     src = (repeat_of(p0, p1, radius, ~rapid) if SKIP_REPEATS
            else np.full(len(p0), -1, np.int64))
     new = np.flatnonzero(src < 0)
+    # blocks of nodes a move provably leaves alone are skipped (the same stock, the same
+    # figures wherever they are > 0: ``sweep_moves``)
+    spacing = min(part.dx, part.dy)
+    bounds = (BlockBounds(frame, stock, part.z, block_size(tool.radius, spacing))
+              if SKIP_BLOCKS and tool.radius >= sweep_mod.MIN_BLOCK_RADIUS * spacing else None)
     over_stock[new], over_part[new] = sweep_moves(frame, p0[new], p1[new], radius[new],
                                                   tool.kind == "ball", stock, ref=part.z,
-                                                  apply=~rapid[new])
+                                                  apply=~rapid[new], bounds=bounds)
     rep = np.flatnonzero(src >= 0)
     over_part[rep] = over_part[src[rep]]
     met = np.zeros(b - a, bool)

@@ -1,0 +1,412 @@
+"""Numba kernels of :mod:`zwcore.toolpath.sweep`: the closed-form envelope of a ball or flat
+end mill over a node during one straight move, the test that skips a block of nodes a move
+provably leaves alone, and the sweep of moves in order over a band of rows.
+
+The reasoning (exactness, the convexity bound) is in :mod:`zwcore.toolpath.sweep`.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+from numpy.typing import NDArray
+
+F64 = NDArray[np.float64]
+I64 = NDArray[np.int64]
+
+#: A block is skipped only when its bound is below minus this (mm): float rounding of the
+#: bound is orders of magnitude smaller.
+MARGIN = 1e-9
+#: The tangent plane is not used where the ball meets the block centre this close to its
+#: rim (``sqrt(R² - d²) < RIM * R``: a steep, badly conditioned gradient).
+RIM = 1e-3
+
+
+@njit(cache=True, nogil=True, fastmath={"contract", "arcp", "reassoc"})
+def node_envelope(qx: float, qy: float, x0: float, y0: float, z0: float, ax: float,
+                  ay: float, vz: float, r: float, ball: bool) -> float:
+    """Lowest tool height over node ``(qx, qy)`` during one move; ``inf`` if not reached."""
+    wx, wy = x0 - qx, y0 - qy
+    a = ax * ax + ay * ay
+    c = wx * wx + wy * wy
+    # a node exactly R away only touches the tool's side (a tie): it counts as not reached,
+    # the same way for every move, so a retract never "meets" a node its cut left alone
+    reach2 = r * r * (1.0 - 1e-10)
+    if a <= 1e-18:  # vertical (or no) move
+        if c >= reach2:
+            return math.inf
+        low = z0 + min(vz, 0.0)
+        return low + r - math.sqrt(r * r - c) if ball else low
+    b = ax * wx + ay * wy
+    t0 = -b / a
+    dmin2 = max(c - b * b / a, 0.0)
+    w2 = reach2 - dmin2
+    if w2 <= 0.0:
+        return math.inf
+    half = math.sqrt(w2 / a)
+    lo, hi = max(0.0, t0 - half), min(1.0, t0 + half)
+    if lo > hi:
+        return math.inf
+    if ball:
+        ts = t0 - vz * math.sqrt(w2) / math.sqrt(a * (a + vz * vz))
+        ts = min(max(ts, lo), hi)
+        d2 = a * (ts - t0) ** 2 + dmin2
+        return z0 + vz * ts + r - math.sqrt(max(r * r - d2, 0.0))
+    return z0 + vz * (lo if vz >= 0.0 else hi)
+
+
+@njit(cache=True, nogil=True, fastmath={"contract", "arcp", "reassoc", "nsz"})
+def flat_envelope(m: int, wxs: F64, wys: F64, sz: float, ax: float, ay: float, vz: float,
+                  r: float, ball: bool, inv_a: float, inv_sa: float, kz: float, env: F64
+                  ) -> None:
+    """``env[j]`` over the ``m`` gathered nodes (offsets ``wxs, wys`` from the move's start)
+    of one (not vertical) move: the closed form of :func:`node_envelope` without branches
+    (unreached nodes get ``inf``), one flat loop so that it vectorises."""
+    a = 1.0 / inv_a
+    reach2 = r * r * (1.0 - 1e-10)
+    for j in range(m):
+        wx, wy = wxs[j], wys[j]
+        c = wx * wx + wy * wy
+        b = ax * wx + ay * wy
+        t0 = -b * inv_a
+        dmin2 = max(c + b * t0, 0.0)
+        w2 = reach2 - dmin2
+        sw = math.sqrt(max(w2, 0.0))
+        half = sw * inv_sa
+        lo, hi = max(0.0, t0 - half), min(1.0, t0 + half)
+        if ball:
+            ts = min(max(t0 - vz * sw * kz, lo), hi)
+            d2 = a * (ts - t0) ** 2 + dmin2
+            e = sz + vz * ts + r - math.sqrt(max(r * r - d2, 0.0))
+        else:
+            e = sz + vz * (lo if vz >= 0.0 else hi)
+        env[j] = e if (w2 > 0.0 and lo <= hi) else math.inf
+
+
+@njit(cache=True, nogil=True)
+def measure_block(x0: float, y0: float, dx: float, dy: float, b: int, stock: F64, ref: F64,
+                  cx: F64, cy: F64, st: F64, bi: int, bk: int) -> None:
+    """``st[bi, bk] = (P_x, P_y, e, m)`` of block ``(bi, bk)`` over ``U = max(stock, ref)``:
+    the plane slope from the block's corner nodes (any plane is valid; one along ``U`` is
+    tight, and it follows the stock as moves cut it)."""
+    ny, nx = stock.shape
+    i0, i1 = bi * b, min(bi * b + b, ny) - 1
+    k0, k1 = bk * b, min(bk * b + b, nx) - 1
+    pxb = pyb = 0.0
+    if k1 > k0:
+        pxb = 0.5 * ((max(stock[i0, k1], ref[i0, k1]) - max(stock[i0, k0], ref[i0, k0]))
+                     + (max(stock[i1, k1], ref[i1, k1]) - max(stock[i1, k0], ref[i1, k0]))
+                     ) / ((k1 - k0) * dx)
+    if i1 > i0:
+        pyb = 0.5 * ((max(stock[i1, k0], ref[i1, k0]) - max(stock[i0, k0], ref[i0, k0]))
+                     + (max(stock[i1, k1], ref[i1, k1]) - max(stock[i0, k1], ref[i0, k1]))
+                     ) / ((i1 - i0) * dy)
+    if not (math.isfinite(pxb) and math.isfinite(pyb)):
+        pxb = pyb = 0.0
+    best_e, best_m = -math.inf, -math.inf
+    for i in range(i0, i1 + 1):
+        ly = pyb * (y0 + i * dy - cy[bi])
+        for k in range(k0, k1 + 1):
+            u = max(stock[i, k], ref[i, k])
+            best_m = max(best_m, u)
+            best_e = max(best_e, u - ly - pxb * (x0 + k * dx - cx[bk]))
+    st[bi, bk, 0], st[bi, bk, 1], st[bi, bk, 2], st[bi, bk, 3] = pxb, pyb, best_e, best_m
+
+
+@njit(cache=True, nogil=True)
+def coarse_block(f: int, cx: F64, cy: F64, hx: F64, hy: F64, st: F64, ccx: F64, ccy: F64,
+                 cst: F64, ci: int, ck: int) -> None:
+    """``cst[ci, ck]`` of the coarse block over ``f x f`` fine blocks from theirs: the mean
+    slope ``P`` and, for a node ``q`` of fine block ``j`` (centre ``c_j``, half extents
+    ``h_j``), ``U(q) - P.(q - c) <= e_j + |P_j - P|.h_j - P.(c_j - c)`` (``m``: the max)."""
+    nby, nbx = st.shape[0], st.shape[1]
+    sx = sy = 0.0
+    n = 0
+    for bi in range(ci * f, min(ci * f + f, nby)):
+        for bk in range(ck * f, min(ck * f + f, nbx)):
+            sx += st[bi, bk, 0]
+            sy += st[bi, bk, 1]
+            n += 1
+    sx /= n
+    sy /= n
+    best_e = best_m = -math.inf
+    for bi in range(ci * f, min(ci * f + f, nby)):
+        for bk in range(ck * f, min(ck * f + f, nbx)):
+            best_e = max(best_e, st[bi, bk, 2] + abs(st[bi, bk, 0] - sx) * hx[bk]
+                         + abs(st[bi, bk, 1] - sy) * hy[bi]
+                         - sx * (cx[bk] - ccx[ck]) - sy * (cy[bi] - ccy[ci]))
+            best_m = max(best_m, st[bi, bk, 3])
+    cst[ci, ck, 0], cst[ci, ck, 1], cst[ci, ck, 2], cst[ci, ck, 3] = sx, sy, best_e, best_m
+
+
+@njit(cache=True, nogil=True)
+def measure_all(x0: float, y0: float, dx: float, dy: float, b: int, f: int, stock: F64,
+                ref: F64, cx: F64, cy: F64, hx: F64, hy: F64, st: F64, ccx: F64, ccy: F64,
+                cst: F64) -> None:
+    """:func:`measure_block` of every block, then :func:`coarse_block` of every coarse one."""
+    for bi in range(st.shape[0]):
+        for bk in range(st.shape[1]):
+            measure_block(x0, y0, dx, dy, b, stock, ref, cx, cy, st, bi, bk)
+    for ci in range(cst.shape[0]):
+        for ck in range(cst.shape[1]):
+            coarse_block(f, cx, cy, hx, hy, st, ccx, ccy, cst, ci, ck)
+
+
+@njit(cache=True, nogil=True, fastmath={"contract", "arcp", "reassoc"})
+def skip_block(bx: float, by: float, hx: float, hy: float, pxb: float, pyb: float,
+               e: float, m: float, sx: float, sy: float, sz: float, ax: float, ay: float,
+               vz: float, r: float, ball: bool) -> bool:
+    """True when no node of the block (centre ``bx, by``, half extents ``hx, hy``, plane
+    slope ``pxb, pyb``, ``e`` and ``m`` of ``U = max(stock, ref)``) can have
+    ``U - env > -MARGIN`` for the move from ``(sx, sy, sz)`` by ``(ax, ay, vz)``."""
+    if m < min(sz, sz + vz) - MARGIN:  # the tip never comes down to the block's top
+        return True
+    a = ax * ax + ay * ay
+    if not ball or a <= 1e-18:
+        return False
+    wx, wy = sx - bx, sy - by
+    c = wx * wx + wy * wy
+    bb = ax * wx + ay * wy
+    t0 = -bb / a
+    dmin2 = max(c - bb * bb / a, 0.0)
+    if dmin2 > (r + hx + hy) ** 2:  # the footprint misses the block: no node reached
+        return True
+    w2 = r * r * (1.0 - 1e-10) - dmin2
+    if w2 <= 0.0:
+        return False
+    half = math.sqrt(w2 / a)
+    lo, hi = max(0.0, t0 - half), min(1.0, t0 + half)
+    if lo > hi:
+        return False
+    ts = t0 - vz * math.sqrt(w2) / math.sqrt(a * (a + vz * vz))
+    ts = min(max(ts, lo), hi)
+    d2 = a * (ts - t0) ** 2 + dmin2
+    root = math.sqrt(max(r * r - d2, 0.0))
+    if root < RIM * r:
+        return False
+    env = sz + vz * ts + r - root
+    gx = (bx - (sx + ax * ts)) / root
+    gy = (by - (sy + ay * ts)) / root
+    return e - env + abs(pxb - gx) * hx + abs(pyb - gy) * hy < -MARGIN
+
+
+@njit(cache=True, nogil=True, fastmath={"contract", "arcp", "reassoc"})
+def _gather(x0: float, y0: float, dx: float, dy: float, nx: int, b: int, bi: int, bk: int,
+            i0: int, i1: int, k0: int, k1: int, sx: float, sy: float, ax: float, ay: float,
+            ylo: float, yhi: float, rr: float, t: int, wxs: F64, wys: F64, idx: I64,
+            owner: I64, mcount: int) -> int:
+    """Append the nodes of block ``(bi, bk)`` inside the box ``i0..i1, k0..k1`` that lie
+    within ``rr`` of the move's xy shadow; returns the new count."""
+    kk0, kk1 = max(k0, bk * b), min(k1, bk * b + b - 1)
+    for i in range(max(i0, bi * b), min(i1, bi * b + b - 1) + 1):
+        qy = y0 + i * dy
+        # the nodes of this row within R of the move's xy shadow: the part of the move
+        # within R of the row in y, widened by the disc's half-chord at the row
+        dyo = max(0.0, ylo - qy, qy - yhi)
+        if dyo > rr:
+            continue
+        # (clamped: with fused multiply-adds a row exactly R away can come out just below 0)
+        w = math.sqrt(max(rr * rr - dyo * dyo, 0.0))
+        ta, tb = 0.0, 1.0
+        if abs(ay) > 1e-12:
+            ta, tb = (qy - rr - sy) / ay, (qy + rr - sy) / ay
+            ta, tb = max(0.0, min(ta, tb)), min(1.0, max(ta, tb))
+        xa, xb = sx + ax * ta, sx + ax * tb
+        ka = max(kk0, math.ceil((min(xa, xb) - w - x0) / dx))
+        kb = min(kk1, math.floor((max(xa, xb) + w - x0) / dx))
+        if kb < ka:  # never a range from a huge negative bound (it would wrap around)
+            continue
+        for k in range(ka, kb + 1):
+            wxs[mcount] = sx - (x0 + k * dx)
+            wys[mcount] = sy - qy
+            idx[mcount] = i * nx + k
+            owner[mcount] = t
+            mcount += 1
+    return mcount
+
+
+@njit(cache=True, nogil=True, fastmath={"contract", "arcp", "reassoc"})
+def sweep_kernel(x0: float, y0: float, dx: float, dy: float, p0: F64, p1: F64, r: F64,
+                 ball: bool, apply: NDArray[np.bool_], stock: F64, ref: F64,
+                 over_stock: F64, over_ref: F64, row_lo: int, row_hi: int, b: int, f: int,
+                 cx: F64, cy: F64, hx: F64, hy: F64, st: F64, ccx: F64, ccy: F64, chx: F64,
+                 chy: F64, cst: F64, remeasure: bool, test: bool) -> None:
+    """Moves in order over the rows ``row_lo..row_hi - 1`` (a band of whole coarse blocks:
+    bands are independent).
+
+    Per move: the coarse blocks (``f x f`` blocks) in its box that :func:`skip_block`
+    cannot rule out, in them the blocks of ``b x b`` nodes it cannot rule out, their nodes
+    within R of the move's xy shadow gathered (row by row), the envelope over all of them
+    in one flat loop, then the stock compared and lowered; with ``remeasure`` the blocks
+    the move lowered, and their coarse blocks, are measured again. Without ``test`` no
+    block is tested (one block over the whole grid: the plain sweep)."""
+    nx = stock.shape[1]
+    sflat = stock.reshape(-1)
+    rflat = ref.reshape(-1)
+    cap = 1024
+    wxs, wys, env = np.empty(cap), np.empty(cap), np.empty(cap)
+    idx = np.empty(cap, np.int64)
+    touched = np.empty((st.shape[0] * st.shape[1], 2), np.int64)
+    owner = np.empty(cap, np.int64)  # per gathered node, its block in ``touched``
+    lowered = np.zeros(st.shape[0] * st.shape[1], np.bool_)
+    dirty = np.zeros((cst.shape[0], cst.shape[1]), np.bool_)
+    big = b * f
+    for s in range(p0.shape[0]):
+        sx, sy, sz = p0[s, 0], p0[s, 1], p0[s, 2]
+        ax, ay, vz = p1[s, 0] - sx, p1[s, 1] - sy, p1[s, 2] - sz
+        rr = r[s]
+        k0 = max(0, math.ceil((min(sx, sx + ax) - rr - x0) / dx))
+        k1 = min(nx - 1, math.floor((max(sx, sx + ax) + rr - x0) / dx))
+        i0 = max(row_lo, math.ceil((min(sy, sy + ay) - rr - y0) / dy))
+        i1 = min(row_hi - 1, math.floor((max(sy, sy + ay) + rr - y0) / dy))
+        over_stock[s] = over_ref[s] = -math.inf
+        if k1 < k0 or i1 < i0:
+            continue
+        box = (k1 - k0 + 1) * (i1 - i0 + 1)
+        if box > cap:
+            cap = 2 * box
+            wxs, wys, env = np.empty(cap), np.empty(cap), np.empty(cap)
+            idx, owner = np.empty(cap, np.int64), np.empty(cap, np.int64)
+        ylo, yhi = min(sy, sy + ay), max(sy, sy + ay)
+        a = ax * ax + ay * ay
+        vertical = a <= 1e-18
+        mcount = 0
+        nt = 0
+        for ci in range(i0 // big, i1 // big + 1):
+            for ck in range(k0 // big, k1 // big + 1):
+                if test and skip_block(ccx[ck], ccy[ci], chx[ck], chy[ci], cst[ci, ck, 0],
+                                       cst[ci, ck, 1], cst[ci, ck, 2], cst[ci, ck, 3], sx, sy,
+                                       sz, ax, ay, vz, rr, ball):
+                    continue
+                for bi in range(max(i0 // b, ci * f), min(i1 // b, ci * f + f - 1) + 1):
+                    for bk in range(max(k0 // b, ck * f), min(k1 // b, ck * f + f - 1) + 1):
+                        if test and skip_block(cx[bk], cy[bi], hx[bk], hy[bi],
+                                               st[bi, bk, 0], st[bi, bk, 1], st[bi, bk, 2],
+                                               st[bi, bk, 3], sx, sy, sz, ax, ay, vz, rr,
+                                               ball):
+                            continue
+                        touched[nt, 0], touched[nt, 1] = bi, bk
+                        nt += 1
+                        mcount = _gather(x0, y0, dx, dy, nx, b, bi, bk, i0, i1, k0, k1, sx,
+                                         sy, ax, ay, ylo, yhi, rr, nt - 1, wxs, wys, idx,
+                                         owner, mcount)
+        if vertical:
+            for j in range(mcount):
+                env[j] = node_envelope(sx - wxs[j], sy - wys[j], sx, sy, sz, ax, ay, vz, rr,
+                                       ball)
+        elif mcount:
+            inv_a = 1.0 / a
+            flat_envelope(mcount, wxs, wys, sz, ax, ay, vz, rr, ball, inv_a, math.sqrt(inv_a),
+                          1.0 / math.sqrt(a * (a + vz * vz)), env)
+        best_s, best_r = -math.inf, -math.inf
+        if apply[s]:
+            for j in range(mcount):
+                q, ev = idx[j], env[j]
+                best_s = max(best_s, sflat[q] - ev)
+                best_r = max(best_r, rflat[q] - ev)
+                if ev < sflat[q]:
+                    sflat[q] = ev
+                    lowered[owner[j]] = True
+            for t in range(nt):  # only the blocks the move lowered
+                if lowered[t]:
+                    lowered[t] = False
+                    if remeasure:
+                        measure_block(x0, y0, dx, dy, b, stock, ref, cx, cy, st,
+                                      touched[t, 0], touched[t, 1])
+                        dirty[touched[t, 0] // f, touched[t, 1] // f] = True
+            if remeasure:
+                for t in range(nt):
+                    ci, ck = touched[t, 0] // f, touched[t, 1] // f
+                    if dirty[ci, ck]:
+                        dirty[ci, ck] = False
+                        coarse_block(f, cx, cy, hx, hy, st, ccx, ccy, cst, ci, ck)
+        else:
+            for j in range(mcount):
+                q, ev = idx[j], env[j]
+                best_s = max(best_s, sflat[q] - ev)
+                best_r = max(best_r, rflat[q] - ev)
+        over_stock[s] = best_s
+        over_ref[s] = best_r
+
+
+@njit(cache=True, nogil=True, fastmath={"contract", "arcp", "reassoc"})
+def plain_kernel(x0: float, y0: float, dx: float, dy: float, p0: F64, p1: F64, r: F64,
+                 ball: bool, apply: NDArray[np.bool_], stock: F64, ref: F64,
+                 over_stock: F64, over_ref: F64, row_lo: int, row_hi: int) -> None:
+    """Moves in order over the rows ``row_lo..row_hi - 1`` (a band: bands are independent).
+
+    Per move: gather the nodes within R of its xy shadow (row by row), evaluate the
+    envelope over all of them in one flat loop, then compare with and lower the stock."""
+    nx = stock.shape[1]
+    sflat = stock.reshape(-1)
+    rflat = ref.reshape(-1)
+    cap = 1024
+    wxs, wys, env = np.empty(cap), np.empty(cap), np.empty(cap)
+    idx = np.empty(cap, np.int64)
+    for s in range(p0.shape[0]):
+        sx, sy, sz = p0[s, 0], p0[s, 1], p0[s, 2]
+        ax, ay, vz = p1[s, 0] - sx, p1[s, 1] - sy, p1[s, 2] - sz
+        rr = r[s]
+        k0 = max(0, math.ceil((min(sx, sx + ax) - rr - x0) / dx))
+        k1 = min(nx - 1, math.floor((max(sx, sx + ax) + rr - x0) / dx))
+        i0 = max(row_lo, math.ceil((min(sy, sy + ay) - rr - y0) / dy))
+        i1 = min(row_hi - 1, math.floor((max(sy, sy + ay) + rr - y0) / dy))
+        over_stock[s] = over_ref[s] = -math.inf
+        if k1 < k0 or i1 < i0:
+            continue
+        box = (k1 - k0 + 1) * (i1 - i0 + 1)
+        if box > cap:
+            cap = 2 * box
+            wxs, wys, env = np.empty(cap), np.empty(cap), np.empty(cap)
+            idx = np.empty(cap, np.int64)
+        ylo, yhi = min(sy, sy + ay), max(sy, sy + ay)
+        a = ax * ax + ay * ay
+        vertical = a <= 1e-18
+        m = 0
+        for i in range(i0, i1 + 1):
+            qy = y0 + i * dy
+            # the nodes of this row within R of the move's xy shadow: the part of the move
+            # within R of the row in y, widened by the disc's half-chord at the row
+            dyo = max(0.0, ylo - qy, qy - yhi)
+            if dyo > rr:
+                continue
+            # (clamped: with fused multiply-adds a row exactly R away can come out just below 0)
+            w = math.sqrt(max(rr * rr - dyo * dyo, 0.0))
+            ta, tb = 0.0, 1.0
+            if abs(ay) > 1e-12:
+                ta, tb = (qy - rr - sy) / ay, (qy + rr - sy) / ay
+                ta, tb = max(0.0, min(ta, tb)), min(1.0, max(ta, tb))
+            xa, xb = sx + ax * ta, sx + ax * tb
+            ka = max(k0, math.ceil((min(xa, xb) - w - x0) / dx))
+            kb = min(k1, math.floor((max(xa, xb) + w - x0) / dx))
+            if kb < ka:  # never a range from a huge negative bound (it would wrap around)
+                continue
+            for k in range(ka, kb + 1):
+                wxs[m] = sx - (x0 + k * dx)
+                wys[m] = sy - qy
+                idx[m] = i * nx + k
+                m += 1
+        if vertical:
+            for j in range(m):
+                env[j] = node_envelope(sx - wxs[j], sy - wys[j], sx, sy, sz, ax, ay, vz, rr,
+                                       ball)
+        else:
+            inv_a = 1.0 / a
+            flat_envelope(m, wxs, wys, sz, ax, ay, vz, rr, ball, inv_a, math.sqrt(inv_a),
+                          1.0 / math.sqrt(a * (a + vz * vz)), env)
+        best_s, best_r = -math.inf, -math.inf
+        if apply[s]:
+            for j in range(m):
+                q, e = idx[j], env[j]
+                best_s = max(best_s, sflat[q] - e)
+                best_r = max(best_r, rflat[q] - e)
+                sflat[q] = min(sflat[q], e)
+        else:
+            for j in range(m):
+                q, e = idx[j], env[j]
+                best_s = max(best_s, sflat[q] - e)
+                best_r = max(best_r, rflat[q] - e)
+        over_stock[s] = best_s
+        over_ref[s] = best_r
