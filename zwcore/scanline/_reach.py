@@ -153,8 +153,14 @@ def _near_kernel(seed: B8, sy: float, sx: float, reach: float, out: B8) -> None:
             if last - k < gap[i, k]:
                 gap[i, k] = last - k
     rows = int(reach / sy) if sy > 0.0 else 0
+    seeded = np.zeros(ny + 1, dtype=np.int64)  # rows with a seed node before row i
+    for i in range(ny):
+        seeded[i + 1] = seeded[i] + (1 if gap[i, 0] <= nx else 0)
     for i in range(ny):
         a0, a1 = max(0, i - rows), min(ny - 1, i + rows)
+        if seeded[a1 + 1] == seeded[a0]:  # no seed row within reach: a sparse seed's
+            out[i, :] = False             # usual case, one row write
+            continue
         for k in range(nx):
             hit = False
             for a in range(a0, a1 + 1):

@@ -64,7 +64,7 @@ CUT_WORK = 1 << 28
 MINE_WORK = 1 << 30
 
 #: The cutting test's work is first judged on every this-many-th row and column.
-SAMPLE = 4
+SAMPLE = 8
 
 #: Most windows (connected parts of a mask) a closing or CL is taken on one by one;
 #: beyond, or when their area exceeds the bounding box's, on the bounding box.
@@ -89,8 +89,9 @@ class RestShared:
         plan passes the estimate's; computed on first use when None.
     closings : dict
         Closings minus the part and drop-cutter CLs, windows ``(h, w)``, by (tool,
-        window) while the stock stays the same (the ball before is compared with every
-        smaller candidate on it).
+        window): they depend on the part alone, so a ball's closing taken for its own
+        seed serves again when it is the ball before (windows are block-aligned, so
+        they often coincide).
     """
 
     ran: list[Tool]
@@ -167,7 +168,6 @@ class RestRegion:
         self.region = self._cutting(stock, grown) if self.grown_nodes else grown
         if self.region.any():
             self.shared.ran.append(self.tool)
-            self.shared.closings.clear()  # the stock changes: closings of a new ball before
         return self.region
 
     def _better(self, seed: B8, rest: F64) -> B8:
@@ -283,29 +283,36 @@ class RestRegion:
 
     def _windows(self, nodes: B8, reach: float
                  ) -> list[tuple[tuple[slice, slice], B8]]:
-        """Windows over the connected parts of ``nodes`` grown by ``reach`` and two cells,
-        each with the mask of its own nodes (the nodes at least that far inside it)."""
+        """Windows over the clusters of ``nodes`` grown by ``reach`` and two cells, each
+        with the mask of its own nodes (the nodes at least that far inside it).
+
+        Clusters: connected parts of blocks of ``reach`` (one block apart: one window),
+        so a speckled seed along a wall is one strip, not one box over the grid."""
         if not nodes.any():
             return []
         ga = math.ceil(reach / self.part.dy) + 2
         gb = math.ceil(reach / self.part.dx) + 2
         ny, nx = nodes.shape
-        labels, count = ndimage.label(nodes, structure=np.ones((3, 3), dtype=bool))
-        boxes = ndimage.find_objects(labels)
+        my, mx = -(-ny // ga), -(-nx // gb)
+        pad = np.zeros((my * ga, mx * gb), dtype=bool)
+        pad[:ny, :nx] = nodes
+        blocks: B8 = np.asarray(pad.reshape(my, ga, mx, gb).any(axis=(1, 3)))
+        labels, count = ndimage.label(blocks, structure=np.ones((3, 3), dtype=bool))
 
         def grow(sy: slice, sx: slice) -> tuple[slice, slice]:
-            return (slice(max(0, sy.start - ga), min(ny, sy.stop + ga)),
-                    slice(max(0, sx.start - gb), min(nx, sx.stop + gb)))
+            return (slice(max(0, sy.start * ga - ga), min(ny, sy.stop * ga + ga)),
+                    slice(max(0, sx.start * gb - gb), min(nx, sx.stop * gb + gb)))
 
-        wins = [grow(*b) for b in boxes]
-        rows = np.flatnonzero(nodes.any(axis=1))
-        cols = np.flatnonzero(nodes.any(axis=0))
-        whole = grow(slice(rows[0], rows[-1] + 1), slice(cols[0], cols[-1] + 1))
+        wins = [grow(*b) for b in ndimage.find_objects(labels)]
         area = sum((w[0].stop - w[0].start) * (w[1].stop - w[1].start) for w in wins)
+        rows = np.flatnonzero(blocks.any(axis=1))
+        cols = np.flatnonzero(blocks.any(axis=0))
+        whole = grow(slice(rows[0], rows[-1] + 1), slice(cols[0], cols[-1] + 1))
         if count > MAX_WINDOWS or area >= (whole[0].stop - whole[0].start) * (
                 whole[1].stop - whole[1].start):
             return [(whole, nodes[whole])]
-        return [(w, labels[w] == n + 1) for n, w in enumerate(wins)]
+        fine = np.repeat(np.repeat(labels, ga, axis=0), gb, axis=1)[:ny, :nx]
+        return [(w, nodes[w] & (fine[w] == n + 1)) for n, w in enumerate(wins)]
 
     def _padded(self, win: tuple[slice, slice], tool: Tool
                 ) -> tuple[F64, tuple[slice, slice]]:
