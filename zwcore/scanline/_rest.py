@@ -130,7 +130,8 @@ class RestRegion:
         the seed grown by the radius.
     band_only : bool
         After the call: this ball's closing was over :data:`MINE_WORK` and was taken
-        only near nodes where the part bends about as sharply as the ball.
+        only near nodes where the part bends about as sharply as the ball (not at all
+        when that too was over :data:`REST_CLOSING_WORK`).
     """
 
     part: ZMap
@@ -192,18 +193,24 @@ class RestRegion:
         else:  # too large a closing: compared with what the stock shows (more nodes)
             self.against_stock = True
             theirs = rest
-        wins = self._windows(seed, 2.0 * self.tool.radius)
-        work = sum(simulation_work((w[0].stop - w[0].start, w[1].stop - w[1].start),
-                                   self.tool, self.part.dx, self.part.dy) for w, _ in wins)
-        self.band_only = work > MINE_WORK
+        nodes = seed
+        self.band_only = self._windows_work(nodes) > MINE_WORK
         if self.band_only:
             # this ball's closing exceeds the part mostly within 2R of where the part
             # bends about as sharply as it (same bound): there only; elsewhere 0, a
-            # lower bound (more seed, never less)
-            mine = self._closing_near(seed & self._near_tight(self.tool), self.tool)
-        else:
-            mine = self._closing_near(seed, self.tool)
+            # lower bound (more seed, never less); not at all when even that is over
+            # the bound of the ball before's closing (the seed is then the stock's)
+            nodes = seed & self._near_tight(self.tool)
+            if self._windows_work(nodes) > REST_CLOSING_WORK:
+                nodes = np.zeros(seed.shape, dtype=bool)
+        mine = self._closing_near(nodes, self.tool)
         return seed & (mine < theirs - self.tolerance)
+
+    def _windows_work(self, nodes: B8) -> int:
+        """Node-offset pairs of this ball's closing on the windows of ``nodes``."""
+        return sum(simulation_work((w[0].stop - w[0].start, w[1].stop - w[1].start),
+                                   self.tool, self.part.dx, self.part.dy)
+                   for w, _ in self._windows(nodes, 2.0 * self.tool.radius))
 
     def _cutting(self, stock: F64, grown: B8) -> B8:
         """Nodes of ``grown`` (``(ny, nx)`` bool) whose ball, at its drop-cutter CL on the
