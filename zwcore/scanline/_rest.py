@@ -20,9 +20,11 @@ it really left (:mod:`zwcore.scanline._stock`), not from an estimate:
   what all positions within the radius would; they are those whose ball rests on the part
   above the material (beside a crease, on the far side of a wall).
 
-The closings are computed on the seed's bounding box grown by ``2R`` and two cells (a
-node's closing depends on the part within ``2R`` of it), so a few corners cost a few
-windows, not the grid.
+The closings are computed on windows over block clusters of the seed, grown by ``2R``
+and two cells (a node's closing depends on the part within ``2R`` of it), so a few
+corners cost a few windows, not the grid; past work bounds the rule takes cheaper
+supersets (this ball's closing on its tight band or not at all, the cutting test
+skipped), never smaller regions.
 """
 
 from __future__ import annotations
