@@ -467,3 +467,44 @@ def test_rest_region_stays_near_the_material_left(seed: int, small: float, left:
         d = np.min(np.hypot(*(nodes[:, None, :] - above[None, :, :]).transpose(2, 0, 1)),
                    axis=1)
         assert d.max() <= small * (1 + 2**0.5 / 2) + 2 * h + 1e-9
+
+
+@settings(max_examples=20, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), small=st.sampled_from([0.5, 1.0, 1.5]),
+       left=st.floats(0.05, 2.0))
+def test_rest_region_work_bounds_only_grow_it(seed: int, small: float, left: float) -> None:
+    """The rest rule's cost cuts never shrink a region: closings on clustered windows give
+    the same region as on one box over the seed; this ball's closing on its tight band
+    only (``MINE_WORK`` 0) or not at all (``REST_CLOSING_WORK`` 0 too) and the cutting
+    test skipped on its sampled bound (``CUT_WORK`` 0) give supersets of it."""
+    from zwcore.scanline import _rest
+    from zwcore.scanline._rest import RestRegion, RestShared
+
+    rng = np.random.default_rng(seed)
+    n, h = 61, 0.25
+    y, x = np.mgrid[0:n, 0:n] * h
+    z = 0.02 * (x - 7.5) ** 2
+    for _ in range(4):  # separate pits and grooves: several windows
+        cx, cy, r = rng.uniform(0, 15, 3)
+        z -= rng.uniform(0.5, 3.0) * (np.hypot(x - cx, y - cy) < 0.5 + r / 3)
+    part = ZMap(z, dx=h, dy=h)
+    big, tool = Tool("big", "ball", 6.0, 16.0), Tool("s", "ball", 2 * small, 8.0)
+    # a stock the big ball could have left: never below its closing (as the rule's, over
+    # the part continued by odd reflection), so the stock bounds that closing's rest
+    g = math.ceil(2 * big.radius / h) + 2
+    padded = ZMap(np.pad(z, g, mode="reflect", reflect_type="odd"), dx=h, dy=h)
+    closed = envelope(drop_cutter(padded, big, "bilinear"), big, h, h, "bilinear")[g:-g, g:-g]
+    stock = np.maximum(z + left * (rng.random(z.shape) < 0.4), closed)
+
+    def region(**bounds: int) -> np.ndarray:
+        with pytest.MonkeyPatch.context() as mp:
+            for name, value in bounds.items():
+                mp.setattr(_rest, name, value)
+            return RestRegion(part, tool, 0.01, RestShared([big]), last=True)(stock)
+
+    exact = region()
+    np.testing.assert_array_equal(region(MAX_WINDOWS=0), exact)
+    for bounds in ({"MINE_WORK": 0}, {"MINE_WORK": 0, "REST_CLOSING_WORK": 0},
+                   {"CUT_WORK": 0}):
+        wider = region(**bounds)
+        assert (wider | ~exact).all(), bounds

@@ -29,7 +29,6 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 from numpy.typing import NDArray
-from scipy import ndimage
 
 from zwcore.sim import nodal_closing, nodal_drop_cutter, refine_rest
 
@@ -132,6 +131,50 @@ def within_distance(seed: B8, distance: float, dx: float, dy: float) -> B8:
     return out
 
 
+@njit("void(b1[:, :], f8, f8, f8, b1[:, :])", cache=True, nogil=True)
+def _near_kernel(seed: B8, sy: float, sx: float, reach: float, out: B8) -> None:
+    """``out = distance to the nearest seed node <= reach`` (what
+    ``ndimage.distance_transform_edt(~seed, sampling=(sy, sx)) <= reach`` gives, without
+    its full-grid index arrays): per row the column gap to the nearest seed node in that
+    row, then the least ``sqrt((gap sx)² + (rows sy)²)`` over the rows within ``reach``."""
+    ny, nx = seed.shape
+    big = nx + 1  # no seed node in the row
+    gap = np.empty((ny, nx), dtype=np.int64)
+    for i in range(ny):
+        last = -big
+        for k in range(nx):
+            if seed[i, k]:
+                last = k
+            gap[i, k] = k - last
+        last = nx + big
+        for k in range(nx - 1, -1, -1):
+            if seed[i, k]:
+                last = k
+            if last - k < gap[i, k]:
+                gap[i, k] = last - k
+    rows = int(reach / sy) if sy > 0.0 else 0
+    seeded = np.zeros(ny + 1, dtype=np.int64)  # rows with a seed node before row i
+    for i in range(ny):
+        seeded[i + 1] = seeded[i] + (1 if gap[i, 0] <= nx else 0)
+    for i in range(ny):
+        a0, a1 = max(0, i - rows), min(ny - 1, i + rows)
+        if seeded[a1 + 1] == seeded[a0]:  # no seed row within reach: a sparse seed's
+            out[i, :] = False             # usual case, one row write
+            continue
+        for k in range(nx):
+            hit = False
+            for a in range(a0, a1 + 1):
+                g = gap[a, k]
+                if g > nx:
+                    continue
+                u = g * sx
+                v = (a - i) * sy
+                if math.sqrt(u * u + v * v) <= reach:
+                    hit = True
+                    break
+            out[i, k] = hit
+
+
 def _within_box(seed: B8, distance: float, dx: float, dy: float) -> B8:
     ny, nx = seed.shape
     k = max(1, int(distance / (4.0 * max(dx, dy))))
@@ -143,8 +186,9 @@ def _within_box(seed: B8, distance: float, dx: float, dy: float) -> B8:
     else:
         coarse = seed
     reach = distance + (k * math.hypot(dx, dy) if k > 1 else 0.0)
-    dist = ndimage.distance_transform_edt(~coarse, sampling=(k * dy, k * dx))
-    near = dist <= reach
+    near = np.empty(coarse.shape, dtype=bool)
+    _near_kernel(np.ascontiguousarray(coarse), float(k * dy), float(k * dx), float(reach),
+                 near)
     if k > 1:
         near = np.repeat(np.repeat(near, k, axis=0), k, axis=1)[:ny, :nx]
     return near

@@ -33,6 +33,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 from numpy.typing import NDArray
 from scipy import ndimage
 
@@ -200,8 +201,7 @@ class _Reach:
             key = (kp, kn)
             if key not in self._pooled:  # the fine safety nodes, on the lattice
                 fine = self.safety(kp)
-                self._pooled[key] = (ndimage.maximum_filter(fine, size=kn)[::kn, ::kn]
-                                     if kn > 1 else fine)
+                self._pooled[key] = _pool_any(fine, kn) if kn > 1 else fine
             better = better | self._pooled[key]
         if not better.any():
             return None
@@ -210,35 +210,48 @@ class _Reach:
         return float(passes.sum()) * kn * kn * self.dx * self.dy
 
 
-def _weights(f: int, n: int, m: int) -> tuple[NDArray[np.intp], NDArray[np.intp], F64]:
-    idx = np.arange(n)
-    lo = idx // f
-    return lo, np.minimum(lo + 1, m - 1), (idx % f) / f
+def _pool_any(fine: B8, k: int) -> B8:
+    """``ndimage.maximum_filter(fine, size=k)[::k, ::k]`` for an even ``k`` (the window
+    ``[i - k/2, i + k/2 - 1]`` about every ``k``-th node; the filter's reflected edges add
+    nothing outside it), by blocks instead of a full-size filter: ``(ny, nx)`` bool to
+    ``(ceil(ny / k), ceil(nx / k))``."""
+    ny, nx = fine.shape
+    h = k // 2
+    my, mx = -(-ny // k), -(-nx // k)
+    pad = np.zeros(((my + 1) * k, (mx + 1) * k), dtype=bool)
+    pad[h:h + ny, h:h + nx] = fine
+    blocks: B8 = np.asarray(pad.reshape(my + 1, k, mx + 1, k).any(axis=(1, 3)))
+    return blocks[:my, :mx]
+
+
+@njit("void(f8[:, :], i8, f8, f8[:, :])", cache=True, nogil=True)
+def _upsample_kernel(coarse: F64, f: int, tol: float, out: F64) -> None:
+    my, mx = coarse.shape
+    ny, nx = out.shape
+    for i in range(ny):
+        a0 = min(i // f, my - 1)
+        a1 = min(a0 + 1, my - 1)
+        wa = (i % f) / f
+        for k in range(nx):
+            b0 = min(k // f, mx - 1)
+            b1 = min(b0 + 1, mx - 1)
+            wb = (k % f) / f
+            c00, c01 = coarse[a0, b0], coarse[a0, b1]
+            c10, c11 = coarse[a1, b0], coarse[a1, b1]
+            if c00 > tol or c01 > tol or c10 > tol or c11 > tol:
+                top = c00 * (1.0 - wb) + c01 * wb
+                low = c10 * (1.0 - wb) + c11 * wb
+                out[i, k] = top * (1.0 - wa) + low * wa
+            else:
+                out[i, k] = 0.0
 
 
 def _upsample_where(coarse: F64, f: int, shape: tuple[int, int], tol: float) -> F64:
     """``bilinear_at_fine_nodes(coarse, f, shape)`` where a cell corner exceeds ``tol``,
-    0 elsewhere (there the interpolant is at most ``tol`` anyway): a large ball's rest
-    usually covers a small part of the grid."""
-    big = coarse > tol
-    if not big.any():
-        return np.zeros(shape)
-    cells = big.copy()  # cells (by their lower corner) with a corner above tol
-    cells[:-1] |= big[1:]
-    cells[:, :-1] |= cells[:, 1:].copy()
-    rows = np.minimum(np.arange(shape[0]) // f, coarse.shape[0] - 1)
-    cols = np.minimum(np.arange(shape[1]) // f, coarse.shape[1] - 1)
-    ii, kk = np.nonzero(cells[np.ix_(rows, cols)])
-    out = np.zeros(shape)
-    if ii.size == 0:
-        return out
-    (lo_y, hi_y, ty), (lo_x, hi_x, tx) = (_weights(f, shape[0], coarse.shape[0]),
-                                          _weights(f, shape[1], coarse.shape[1]))
-    a0, a1, wa = lo_y[ii], hi_y[ii], ty[ii]
-    b0, b1, wb = lo_x[kk], hi_x[kk], tx[kk]
-    top = coarse[a0, b0] * (1.0 - wb) + coarse[a0, b1] * wb
-    low = coarse[a1, b0] * (1.0 - wb) + coarse[a1, b1] * wb
-    out[ii, kk] = top * (1.0 - wa) + low * wa
+    0 elsewhere (there the interpolant is at most ``tol`` anyway): ``(my, mx)`` lattice
+    rest to ``shape``, in one compiled pass without index temporaries."""
+    out = np.empty(shape)
+    _upsample_kernel(np.ascontiguousarray(coarse, dtype=np.float64), int(f), float(tol), out)
     return out
 
 
