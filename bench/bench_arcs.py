@@ -156,8 +156,6 @@ def glyphs(quick: bool, arcwelder: str | None) -> None:
     from _arcwelder import merge_straight_runs, run_arcwelder
     from glyphs import GLYPHS, QUICK_GLYPHS, glyph_contours
 
-    from zwcore.arcs.fit import chain_tangents
-
     chars = QUICK_GLYPHS if quick else GLYPHS
     sets = glyph_contours(chars)
     _warm_up()
@@ -197,7 +195,6 @@ def glyphs(quick: bool, arcwelder: str | None) -> None:
                     n_str += merge_straight_runs(aw, pts, True, tol)
                 else:
                     n_ref += greedy_min_pieces(pts, tol, True)
-            _ = chain_tangents
             print(f"{name:8s} {tol:5.2f} {n_pts:6d} {seg:5d} {arcs:5d} {lines:5d} {dev:8.5f}"
                   f" {kink:8.1e} {kept:4d}/{n_corner:<4d} {t_all:7.2f}"
                   f" {1e3 * t_all / max(seg, 1):6.2f} {c_all:6.2f}"
@@ -374,7 +371,6 @@ def main() -> None:
         pts, closed = ellipse(0.02)
         aw, adt = run_arcwelder(args.arcwelder, pts, tol, closed)
         print(f"ArcWelder here on it: {len(aw)} segments, {adt:.1f} s wall")
-    _ = math.pi
 
 
 if __name__ == "__main__":

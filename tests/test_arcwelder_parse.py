@@ -39,12 +39,17 @@ def test_parse_moves_reads_arcs_relative_to_their_start() -> None:
 def test_program_extrudes_at_a_constant_rate() -> None:
     rng = np.random.default_rng(3)
     pts = rng.uniform(-20, 20, (30, 2))
-    segs = parse_moves(_program(pts, closed=True))
+    text = _program(pts, closed=True)
+    segs = parse_moves(text)
     assert len(segs) == 30
-    # every move's E is its rounded length to 1e-6
-    path = np.round(np.vstack([pts, pts[:1]]), 4)
-    e = [float(r.split("E")[1]) for r in _program(pts, True).splitlines() if r.startswith("G1")]
-    np.testing.assert_allclose(e, np.hypot(*np.diff(path, axis=0).T), atol=6e-7)
+    # the moves as read back follow the input rounded to 4 decimals, closed
+    path = np.vstack([pts, pts[:1]])
+    np.testing.assert_allclose([s[1] for s in segs], path[:-1], atol=5e-5 + 1e-12)
+    np.testing.assert_allclose([s[2] for s in segs], path[1:], atol=5e-5 + 1e-12)
+    # every move's E is the length of the move as written (what ArcWelder reads), to 1e-6
+    e = [float(r.split("E")[1]) for r in text.splitlines() if r.startswith("G1")]
+    written = [math.dist(s[1], s[2]) for s in segs]
+    np.testing.assert_allclose(e, written, rtol=0.0, atol=6e-7)
 
 
 def test_g1_runs_merge_within_tolerance_but_not_round_a_corner() -> None:

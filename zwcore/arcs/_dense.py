@@ -16,7 +16,14 @@ from numba import njit
 from numpy.typing import NDArray
 
 from zwcore.arcs._jumps import SLACK, piece_growth, safe_move, segment_growth
-from zwcore.arcs._kernels import arc_xy, circle_gap1, foot_positions, local1, seg_dist
+from zwcore.arcs._kernels import (
+    arc_angle1,
+    arc_xy,
+    circle_gap1,
+    foot_positions,
+    local1,
+    seg_dist,
+)
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -40,11 +47,7 @@ def point_arc_distance(x: float, y: float, px: float, py: float, tx: float, ty: 
     if gap >= known:
         return gap  # (no closer than the circle: the arc cannot beat ``known``)
     d_ends = min(math.hypot(u, v), math.hypot(x - ex, y - ey))
-    phi = math.atan2(kappa * u, 1.0 - kappa * v)
-    ang = phi if kappa > 0.0 else -phi
-    if ang < 0.0:
-        ang += 2.0 * math.pi
-    if ang <= abs(kappa * length):
+    if arc_angle1(u, v, kappa) <= abs(kappa * length):
         return min(gap, d_ends)
     return d_ends
 
@@ -104,15 +107,6 @@ def _nearest_piece(geo: FloatArray, qs: IntArray, x: float, y: float) -> tuple[f
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _arc_angle(u: float, v: float, kappa: float) -> float:
-    """Angle (in ``[0, 2 pi)``, along the piece's turn) of a local point's foot on the
-    circle of curvature ``kappa`` from the piece's start."""
-    phi = math.atan2(kappa * u, 1.0 - kappa * v)
-    ang = phi if kappa > 0.0 else -phi
-    return ang + 2.0 * math.pi if ang < 0.0 else ang
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
 def _segment_max(samples: FloatArray, off: IntArray, s: int, hi: int, geo: FloatArray,
                  qs: IntArray, q: int, tol: float) -> float:
     """The largest distance of the dense points ``off[s]..hi-1`` of segment ``s`` to the
@@ -141,8 +135,8 @@ def _segment_max(samples: FloatArray, off: IntArray, s: int, hi: int, geo: Float
         if not (0.0 <= u0 <= length and 0.0 <= u1 <= length):
             return -1.0
     else:
-        a0 = _arc_angle(u0, v0, kappa)
-        a1 = _arc_angle(u1, v1, kappa)
+        a0 = arc_angle1(u0, v0, kappa)
+        a1 = arc_angle1(u1, v1, kappa)
         sweep = abs(kappa * length)
         # (the foot turns monotonically, by less than pi, along a line)
         if not (a0 <= sweep and a1 <= sweep and abs(a1 - a0) < math.pi):

@@ -17,7 +17,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from zwcore.arcs._kernels import circle_gap1, local1
+from zwcore.arcs._kernels import arc_angle1, circle_gap1, local1
 
 FloatArray = NDArray[np.float64]
 
@@ -62,10 +62,7 @@ def piece_growth(geo: FloatArray, q: int, x: float, y: float, ux: float,
     if not n > 0.0:
         return 0.0, 1.0, 0.0, 0.0
     rho = n / abs(kappa)
-    phi = math.atan2(gu, -gv)
-    ang = phi if kappa > 0.0 else -phi
-    if ang < 0.0:
-        ang += 2.0 * math.pi
+    ang = arc_angle1(u, v, kappa)
     if not ang <= abs(kappa * length):
         # the foot is off the arc (the distance is to an end point)
         return 0.0, 1.0, 0.0, 0.0

@@ -57,6 +57,15 @@ def local1(x: float, y: float, px: float, py: float, tx: float,
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
+def arc_angle1(u: float, v: float, kappa: float) -> float:
+    """Angle (in ``[0, 2 pi)``, along the turn of curvature ``kappa != 0``) of a local
+    point's foot on the circle from the piece's start."""
+    phi = math.atan2(kappa * u, 1.0 - kappa * v)
+    ang = phi if kappa > 0.0 else -phi
+    return ang + _TWO_PI if ang < 0.0 else ang
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
 def kappa_interval1(u: float, v: float, wt: float) -> tuple[float, float]:
     """``kappa_bounds`` (``tests/arc_reference.py``) of one local point: the curvatures of
     the circles through it within ``wt`` (``(-inf, inf)`` for a point that close)."""
