@@ -19,10 +19,11 @@ from numpy.typing import NDArray
 
 from zwcore.grid.tools import Tool
 from zwcore.grid.zmap import ZMap
-from zwcore.scanline._regions import TOOL_CHANGE_MM, Box, Chain, flat_pick_feed, region_boxes
+from zwcore.scanline._regions import TOOL_CHANGE_MM, Chain, flat_pick_feed, region_boxes
 from zwcore.scanline._rest import RestRegion
 from zwcore.scanline._tool_choice import Stage
 from zwcore.scanline.results import ReachSummary, ScanlineChecks, ScanlineStage
+from zwcore.sim import RegionBox
 
 __all__ = ["with_reach"]
 
@@ -82,7 +83,7 @@ def with_reach(zmap: ZMap, stages: list[ScanlineStage], checks: ScanlineChecks,
     out = []
     finishing: list[tuple[str, float, float]] = []  # (tool id, area, pick-feed), per ball
     # a stage's passes share its region: its share and boxes once (labelling is full-grid)
-    of_region: dict[int, tuple[float, int, tuple[Box, ...]]] = {}
+    of_region: dict[int, tuple[float, int, tuple[RegionBox, ...]]] = {}
     for s_ in stages:
         c = info[(s_.level, s_.tool.id)]
         rule = c.region if isinstance(c.region, RestRegion) else None
@@ -90,7 +91,7 @@ def with_reach(zmap: ZMap, stages: list[ScanlineStage], checks: ScanlineChecks,
             out.append(s_)
             continue
         region = s_.region
-        boxes: tuple[Box, ...]
+        boxes: tuple[RegionBox, ...]
         if region is None:
             frac, count, boxes = 1.0, 1, ()
         else:

@@ -39,6 +39,7 @@ from scipy import ndimage
 
 from zwcore.grid.tools import Tool
 from zwcore.scanline._reach import ball_reach, concave_radii, within_distance
+from zwcore.sim import RegionBox
 
 __all__ = ["TOOL_CHANGE_MM", "Chain", "MainBall", "finishing_chain", "flat_pick_feed",
            "region_boxes"]
@@ -66,17 +67,6 @@ def flat_pick_feed(radius: float, tolerance: float) -> float:
     if tolerance >= radius:
         return 2.0 * radius
     return 2.0 * math.sqrt(2.0 * radius * tolerance - tolerance * tolerance)
-
-
-@dataclass(frozen=True)
-class Box:
-    """Bounding box of one connected region (node positions, mm) and its area, mm²."""
-
-    x_min: float
-    y_min: float
-    x_max: float
-    y_max: float
-    area: float
 
 
 @dataclass(frozen=True)
@@ -255,7 +245,9 @@ def _upsample_where(coarse: F64, f: int, shape: tuple[int, int], tol: float) -> 
     return out
 
 
-def region_boxes(region: B8, dx: float, dy: float) -> tuple[int, tuple[Box, ...]]:
+def region_boxes(region: B8, dx: float, dy: float) -> tuple[int, tuple[RegionBox, ...]]:
+    """Region count and the largest :data:`MAX_BOXES` regions' boxes (node positions from
+    the grid's origin, mm), largest first."""
     labels, count = ndimage.label(region, structure=np.ones((3, 3), dtype=bool))
     if count == 0:
         return 0, ()
@@ -265,8 +257,8 @@ def region_boxes(region: B8, dx: float, dy: float) -> tuple[int, tuple[Box, ...]
     out = []
     for n in order:
         sy, sx = slices[n]
-        out.append(Box(sx.start * dx, sy.start * dy, (sx.stop - 1) * dx, (sy.stop - 1) * dy,
-                       float(sizes[n]) * dx * dy))
+        out.append(RegionBox(sx.start * dx, sy.start * dy, (sx.stop - 1) * dx,
+                             (sy.stop - 1) * dy, float(sizes[n]) * dx * dy))
     return int(count), tuple(out)
 
 

@@ -35,7 +35,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from zwcore.scanline._stock_kernels import RIM
+from zwcore.scanline._stock_kernels import RIM, _span
 
 __all__ = ["cl_lines", "cut_lines", "line_starts", "sweep_work"]
 
@@ -73,13 +73,6 @@ def _cross(u1: float, c1: float, u2: float, c2: float, w: float, rho2: float) ->
     if _arc(u2, c2, b, rho2) >= _arc(u1, c1, b, rho2):
         return b
     return min(max(0.5 * (u1 + u2) + dz * math.sqrt(max(q, 0.0)), a), b)
-
-
-@njit(cache=True, nogil=True)
-def _span(p: float, w: float, d: float, n: int) -> tuple[int, int]:
-    lo = max(0, math.ceil((p - w) / d - 1e-9))
-    hi = min(n - 1, math.floor((p + w) / d + 1e-9))
-    return lo, hi
 
 
 @njit(cache=True, nogil=True)

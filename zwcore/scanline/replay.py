@@ -135,11 +135,10 @@ def replay_passes(part: ZMap, plan: ScanlinePlan) -> PlanReplay:
     for i, (s, target) in enumerate(zip(stages, _targets(plan), strict=True)):
         along = part.dx if s.lines.direction == "x" else part.dy
         stride = max(1, round(s.sim_position_spacing / along))
-        region = getattr(s, "region", None)  # rest regions: model nodes the pass may cut
         before = sim.stock.copy()
-        done = run_pass(sim, target.copy(), s.spacing, s.tool, s.lines, stride,
-                        region if isinstance(region, np.ndarray) else None, guard,
-                        lift=s.sim_flute_rule_ok)
+        # s.region (rest regions): the model nodes the pass may cut, None for all
+        done = run_pass(sim, target.copy(), s.spacing, s.tool, s.lines, stride, s.region,
+                        guard, lift=s.sim_flute_rule_ok)
         nxt = part.z if i + 1 == len(stages) else _model_at_nodes(stages[i + 1], part)
         on_next, on_part = left_over(sim.stock, nxt), left_over(sim.stock, part.z)
         cut = done.cut
