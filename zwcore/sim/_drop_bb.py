@@ -133,12 +133,12 @@ def _bound(w: F64, wa: int, wb: int, g: F64, err: F64, smax: F64, v: int, ua: in
 
 
 @njit(cache=True, nogil=True)
-def _exact(zp: F64, s: F64, v: int, pi: int, pk: int, a0: int, b0: int, t: int, best: float,
-           arg: I64) -> float:
-    """Max of ``zp[pi + a, pk + b] + s[v, a, b]`` over the sub-tile at ``(a0, b0)`` and
-    ``best``; ``arg`` gets the offset of a new maximum."""
-    for a in range(a0, a0 + t):
-        for b in range(b0, b0 + t):
+def _exact(zp: F64, s: F64, v: int, pi: int, pk: int, a0: int, a1: int, b0: int, b1: int,
+           best: float, arg: I64) -> float:
+    """Max of ``zp[pi + a, pk + b] + s[v, a, b]`` over the offsets ``a0..a1 - 1, b0..b1 - 1``
+    and ``best``; ``arg`` gets the offset of a new maximum."""
+    for a in range(a0, a1):
+        for b in range(b0, b1):
             sv = s[v, a, b]
             if sv > -math.inf:
                 val = zp[pi + a, pk + b] + sv
@@ -175,15 +175,8 @@ def _rows(zp: F64, s: F64, w1: F64, w2: F64, g1: F64, err1: F64, max1: F64, g2: 
                 ca = last[v, 0]
                 cb = min(max(last[v, 1] - 1, 0), s.shape[2] - 1)
                 arg[0], arg[1] = ca, cb
-                best = -math.inf
-                for a in range(max(0, ca - 2), min(s.shape[1], ca + 3)):
-                    for b in range(max(0, cb - 2), min(s.shape[2], cb + 3)):
-                        sv = s[v, a, b]
-                        if sv > -math.inf:
-                            val = zp[i + a, k + b] + sv
-                            if val > best:
-                                best = val
-                                arg[0], arg[1] = a, b
+                best = _exact(zp, s, v, i, k, max(0, ca - 2), min(s.shape[1], ca + 3),
+                              max(0, cb - 2), min(s.shape[2], cb + 3), -math.inf, arg)
                 if best < least:
                     for ta in range(n1a):
                         for tb in range(n1b):
@@ -198,7 +191,8 @@ def _rows(zp: F64, s: F64, w1: F64, w2: F64, g1: F64, err1: F64, max1: F64, g2: 
                                     a0, b0 = ta * T1 + sa * T2, tb * T1 + sb * T2
                                     if _bound(w2, i + a0, k + b0, g2, err2, max2, v,
                                               ta * r + sa, tb * r + sb, h2[0], h2[1]) > best:
-                                        best = _exact(zp, s, v, i, k, a0, b0, T2, best, arg)
+                                        best = _exact(zp, s, v, i, k, a0, a0 + T2, b0, b0 + T2,
+                                                      best, arg)
                             if best >= least:  # this function cannot lower the minimum
                                 break
                         if best >= least:

@@ -193,6 +193,55 @@ def skip_block(bx: float, by: float, hx: float, hy: float, pxb: float, pyb: floa
 
 
 @njit(cache=True, nogil=True, fastmath={"contract", "arcp", "reassoc"})
+def _move_box(x0: float, y0: float, dx: float, dy: float, nx: int, row_lo: int, row_hi: int,
+              sx: float, sy: float, ax: float, ay: float, rr: float
+              ) -> tuple[int, int, int, int]:
+    """``k0, k1, i0, i1``: the columns and the rows (within ``row_lo..row_hi - 1``) of the
+    nodes within ``rr`` of the move's xy box (empty when ``k1 < k0`` or ``i1 < i0``)."""
+    k0 = max(0, math.ceil((min(sx, sx + ax) - rr - x0) / dx))
+    k1 = min(nx - 1, math.floor((max(sx, sx + ax) + rr - x0) / dx))
+    i0 = max(row_lo, math.ceil((min(sy, sy + ay) - rr - y0) / dy))
+    i1 = min(row_hi - 1, math.floor((max(sy, sy + ay) + rr - y0) / dy))
+    return k0, k1, i0, i1
+
+
+@njit(cache=True, nogil=True, fastmath={"contract", "arcp", "reassoc"})
+def _row_span(qy: float, x0: float, dx: float, ka0: int, kb1: int, sx: float, sy: float,
+              ax: float, ay: float, ylo: float, yhi: float, rr: float) -> tuple[int, int]:
+    """``ka, kb``: the columns (within ``ka0..kb1``) of the nodes of the row at ``qy`` within
+    ``rr`` of the move's xy shadow (none when ``kb < ka``)."""
+    # the part of the move within R of the row in y, widened by the disc's half-chord there
+    dyo = max(0.0, ylo - qy, qy - yhi)
+    if dyo > rr:
+        return 0, -1
+    # (clamped: with fused multiply-adds a row exactly R away can come out just below 0)
+    w = math.sqrt(max(rr * rr - dyo * dyo, 0.0))
+    ta, tb = 0.0, 1.0
+    if abs(ay) > 1e-12:
+        ta, tb = (qy - rr - sy) / ay, (qy + rr - sy) / ay
+        ta, tb = max(0.0, min(ta, tb)), min(1.0, max(ta, tb))
+    xa, xb = sx + ax * ta, sx + ax * tb
+    ka = max(ka0, math.ceil((min(xa, xb) - w - x0) / dx))
+    kb = min(kb1, math.floor((max(xa, xb) + w - x0) / dx))
+    return ka, kb
+
+
+@njit(cache=True, nogil=True, fastmath={"contract", "arcp", "reassoc"})
+def _envelopes(m: int, wxs: F64, wys: F64, sx: float, sy: float, sz: float, ax: float,
+               ay: float, vz: float, rr: float, ball: bool, env: F64) -> None:
+    """``env[j]`` of the ``m`` gathered nodes for one move: :func:`node_envelope` per node
+    for a vertical move, else :func:`flat_envelope`."""
+    a = ax * ax + ay * ay
+    if a <= 1e-18:
+        for j in range(m):
+            env[j] = node_envelope(sx - wxs[j], sy - wys[j], sx, sy, sz, ax, ay, vz, rr, ball)
+    elif m:
+        inv_a = 1.0 / a
+        flat_envelope(m, wxs, wys, sz, ax, ay, vz, rr, ball, inv_a, math.sqrt(inv_a),
+                      1.0 / math.sqrt(a * (a + vz * vz)), env)
+
+
+@njit(cache=True, nogil=True, fastmath={"contract", "arcp", "reassoc"})
 def _gather(x0: float, y0: float, dx: float, dy: float, nx: int, b: int, bi: int, bk: int,
             i0: int, i1: int, k0: int, k1: int, sx: float, sy: float, ax: float, ay: float,
             ylo: float, yhi: float, rr: float, t: int, wxs: F64, wys: F64, idx: I64,
@@ -202,20 +251,7 @@ def _gather(x0: float, y0: float, dx: float, dy: float, nx: int, b: int, bi: int
     kk0, kk1 = max(k0, bk * b), min(k1, bk * b + b - 1)
     for i in range(max(i0, bi * b), min(i1, bi * b + b - 1) + 1):
         qy = y0 + i * dy
-        # the nodes of this row within R of the move's xy shadow: the part of the move
-        # within R of the row in y, widened by the disc's half-chord at the row
-        dyo = max(0.0, ylo - qy, qy - yhi)
-        if dyo > rr:
-            continue
-        # (clamped: with fused multiply-adds a row exactly R away can come out just below 0)
-        w = math.sqrt(max(rr * rr - dyo * dyo, 0.0))
-        ta, tb = 0.0, 1.0
-        if abs(ay) > 1e-12:
-            ta, tb = (qy - rr - sy) / ay, (qy + rr - sy) / ay
-            ta, tb = max(0.0, min(ta, tb)), min(1.0, max(ta, tb))
-        xa, xb = sx + ax * ta, sx + ax * tb
-        ka = max(kk0, math.ceil((min(xa, xb) - w - x0) / dx))
-        kb = min(kk1, math.floor((max(xa, xb) + w - x0) / dx))
+        ka, kb = _row_span(qy, x0, dx, kk0, kk1, sx, sy, ax, ay, ylo, yhi, rr)
         if kb < ka:  # never a range from a huge negative bound (it would wrap around)
             continue
         for k in range(ka, kb + 1):
@@ -257,10 +293,7 @@ def sweep_kernel(x0: float, y0: float, dx: float, dy: float, p0: F64, p1: F64, r
         sx, sy, sz = p0[s, 0], p0[s, 1], p0[s, 2]
         ax, ay, vz = p1[s, 0] - sx, p1[s, 1] - sy, p1[s, 2] - sz
         rr = r[s]
-        k0 = max(0, math.ceil((min(sx, sx + ax) - rr - x0) / dx))
-        k1 = min(nx - 1, math.floor((max(sx, sx + ax) + rr - x0) / dx))
-        i0 = max(row_lo, math.ceil((min(sy, sy + ay) - rr - y0) / dy))
-        i1 = min(row_hi - 1, math.floor((max(sy, sy + ay) + rr - y0) / dy))
+        k0, k1, i0, i1 = _move_box(x0, y0, dx, dy, nx, row_lo, row_hi, sx, sy, ax, ay, rr)
         over_stock[s] = over_ref[s] = -math.inf
         if k1 < k0 or i1 < i0:
             continue
@@ -270,8 +303,6 @@ def sweep_kernel(x0: float, y0: float, dx: float, dy: float, p0: F64, p1: F64, r
             wxs, wys, env = np.empty(cap), np.empty(cap), np.empty(cap)
             idx, owner = np.empty(cap, np.int64), np.empty(cap, np.int64)
         ylo, yhi = min(sy, sy + ay), max(sy, sy + ay)
-        a = ax * ax + ay * ay
-        vertical = a <= 1e-18
         mcount = 0
         nt = 0
         for ci in range(i0 // big, i1 // big + 1):
@@ -292,14 +323,7 @@ def sweep_kernel(x0: float, y0: float, dx: float, dy: float, p0: F64, p1: F64, r
                         mcount = _gather(x0, y0, dx, dy, nx, b, bi, bk, i0, i1, k0, k1, sx,
                                          sy, ax, ay, ylo, yhi, rr, nt - 1, wxs, wys, idx,
                                          owner, mcount)
-        if vertical:
-            for j in range(mcount):
-                env[j] = node_envelope(sx - wxs[j], sy - wys[j], sx, sy, sz, ax, ay, vz, rr,
-                                       ball)
-        elif mcount:
-            inv_a = 1.0 / a
-            flat_envelope(mcount, wxs, wys, sz, ax, ay, vz, rr, ball, inv_a, math.sqrt(inv_a),
-                          1.0 / math.sqrt(a * (a + vz * vz)), env)
+        _envelopes(mcount, wxs, wys, sx, sy, sz, ax, ay, vz, rr, ball, env)
         best_s, best_r = -math.inf, -math.inf
         if apply[s]:
             for j in range(mcount):
@@ -349,10 +373,7 @@ def plain_kernel(x0: float, y0: float, dx: float, dy: float, p0: F64, p1: F64, r
         sx, sy, sz = p0[s, 0], p0[s, 1], p0[s, 2]
         ax, ay, vz = p1[s, 0] - sx, p1[s, 1] - sy, p1[s, 2] - sz
         rr = r[s]
-        k0 = max(0, math.ceil((min(sx, sx + ax) - rr - x0) / dx))
-        k1 = min(nx - 1, math.floor((max(sx, sx + ax) + rr - x0) / dx))
-        i0 = max(row_lo, math.ceil((min(sy, sy + ay) - rr - y0) / dy))
-        i1 = min(row_hi - 1, math.floor((max(sy, sy + ay) + rr - y0) / dy))
+        k0, k1, i0, i1 = _move_box(x0, y0, dx, dy, nx, row_lo, row_hi, sx, sy, ax, ay, rr)
         over_stock[s] = over_ref[s] = -math.inf
         if k1 < k0 or i1 < i0:
             continue
@@ -362,25 +383,10 @@ def plain_kernel(x0: float, y0: float, dx: float, dy: float, p0: F64, p1: F64, r
             wxs, wys, env = np.empty(cap), np.empty(cap), np.empty(cap)
             idx = np.empty(cap, np.int64)
         ylo, yhi = min(sy, sy + ay), max(sy, sy + ay)
-        a = ax * ax + ay * ay
-        vertical = a <= 1e-18
         m = 0
         for i in range(i0, i1 + 1):
             qy = y0 + i * dy
-            # the nodes of this row within R of the move's xy shadow: the part of the move
-            # within R of the row in y, widened by the disc's half-chord at the row
-            dyo = max(0.0, ylo - qy, qy - yhi)
-            if dyo > rr:
-                continue
-            # (clamped: with fused multiply-adds a row exactly R away can come out just below 0)
-            w = math.sqrt(max(rr * rr - dyo * dyo, 0.0))
-            ta, tb = 0.0, 1.0
-            if abs(ay) > 1e-12:
-                ta, tb = (qy - rr - sy) / ay, (qy + rr - sy) / ay
-                ta, tb = max(0.0, min(ta, tb)), min(1.0, max(ta, tb))
-            xa, xb = sx + ax * ta, sx + ax * tb
-            ka = max(k0, math.ceil((min(xa, xb) - w - x0) / dx))
-            kb = min(k1, math.floor((max(xa, xb) + w - x0) / dx))
+            ka, kb = _row_span(qy, x0, dx, k0, k1, sx, sy, ax, ay, ylo, yhi, rr)
             if kb < ka:  # never a range from a huge negative bound (it would wrap around)
                 continue
             for k in range(ka, kb + 1):
@@ -388,14 +394,7 @@ def plain_kernel(x0: float, y0: float, dx: float, dy: float, p0: F64, p1: F64, r
                 wys[m] = sy - qy
                 idx[m] = i * nx + k
                 m += 1
-        if vertical:
-            for j in range(m):
-                env[j] = node_envelope(sx - wxs[j], sy - wys[j], sx, sy, sz, ax, ay, vz, rr,
-                                       ball)
-        else:
-            inv_a = 1.0 / a
-            flat_envelope(m, wxs, wys, sz, ax, ay, vz, rr, ball, inv_a, math.sqrt(inv_a),
-                          1.0 / math.sqrt(a * (a + vz * vz)), env)
+        _envelopes(m, wxs, wys, sx, sy, sz, ax, ay, vz, rr, ball, env)
         best_s, best_r = -math.inf, -math.inf
         if apply[s]:
             for j in range(m):

@@ -18,7 +18,7 @@ from numpy.typing import NDArray
 
 from zwcore.contour.results import ContourPlan
 from zwcore.errors import InvalidInputError, LimitExceededError
-from zwcore.grid.sampling import bilinear_at_fine_nodes, cells_at_fine_nodes
+from zwcore.grid.sampling import cells_at_fine_nodes
 from zwcore.grid.tools import Tool
 from zwcore.grid.zmap import ZMap, finite_number
 from zwcore.scanline.results import ScanlinePlan, ScanlineStage
@@ -27,6 +27,7 @@ from zwcore.toolpath.parse import parse_program
 from zwcore.toolpath.program import CuttingData, ProgramSettings, StagePath
 from zwcore.toolpath.scanline_paths import CLHeights, scanline_stage_path, sim_cl_heights
 from zwcore.toolpath.simulate import ProgramCheck, simulate_program
+from zwcore.toolpath.verify_plan import stage_at_nodes
 from zwcore.toolpath.writer import iter_program
 
 __all__ = ["Toolpaths", "contour_toolpaths", "scanline_toolpaths", "tool_numbers"]
@@ -209,8 +210,7 @@ def scanline_toolpaths(part: ZMap, plan: ScanlinePlan, cl_heights: CLHeights = s
     cpu = [("paths", time.process_time() - c)]
 
     def model(i: int) -> F64:
-        st = plan.stages[i]
-        return bilinear_at_fine_nodes(st.model, round(st.spacing[0] / part.dx), part.shape)
+        return stage_at_nodes(plan.stages[i], part)
 
     return _finish(part, stages, settings, plan.stock_top, plan.tolerance,
                    _merge_models(stages, model) if verify else [], verify, max_bytes, reach,

@@ -116,7 +116,8 @@ def _plan_stretches(plan: ScanlinePlan, numbers: Mapping[int, Tool]) -> list[tup
     return out
 
 
-def _at_nodes(stage: ScanlineStage, part: ZMap) -> F64:
+def stage_at_nodes(stage: ScanlineStage, part: ZMap) -> F64:
+    """A scan-line pass's model at the part's input nodes (bilinear)."""
     return bilinear_at_fine_nodes(stage.model, round(stage.spacing[0] / part.dx), part.shape)
 
 
@@ -162,12 +163,12 @@ def replay_program(part: ZMap, plan: ScanlinePlan, program: str, numbers: Mappin
     current = stock_grid(plan.stock_top if stock is None else stock, part)
     stretches = []
     for k, ((a, b), (number, idx)) in enumerate(zip(spans, groups, strict=True)):
-        model = _at_nodes(plan.stages[idx[-1]], part)
+        model = stage_at_nodes(plan.stages[idx[-1]], part)
         st = simulate_stretch(current, part, prog, a, b, numbers[number], model)
         assert st.over_model_max is not None and st.over_model_p95 is not None
         over_model = (st.over_model_max, st.over_model_p95)
-        nxt = part.z if k + 1 == len(groups) else _at_nodes(plan.stages[groups[k + 1][1][0]],
-                                                           part)
+        nxt = (part.z if k + 1 == len(groups)
+               else stage_at_nodes(plan.stages[groups[k + 1][1][0]], part))
         on_next, on_part = _pair(current - nxt), _pair(current - part.z)
         stretches.append(StretchReplay(
             tool_number=number, tool=numbers[number], stages=tuple(idx), moves=b - a,
