@@ -27,12 +27,11 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from zwcore.grid.sampling import bilinear_at_fine_nodes
 from zwcore.grid.tools import Tool
 from zwcore.grid.zmap import ZMap
 from zwcore.scanline._stock import StockSim, left_over, run_pass
 from zwcore.scanline.planner import _guard as rounding_guard
-from zwcore.scanline.results import ScanlinePlan, ScanlineStage
+from zwcore.scanline.results import ScanlinePlan, stage_at_nodes
 
 __all__ = ["PassReplay", "PlanReplay", "replay_passes"]
 
@@ -109,11 +108,6 @@ def _targets(plan: ScanlinePlan) -> list[F64]:
     return [last[(s.level, s.tool.id)] for s in plan.stages]
 
 
-def _model_at_nodes(stage: ScanlineStage, part: ZMap) -> F64:
-    scale = round(stage.spacing[0] / part.dx)
-    return bilinear_at_fine_nodes(stage.model, scale, part.shape)
-
-
 def replay_passes(part: ZMap, plan: ScanlinePlan) -> PlanReplay:
     """Simulate every pass of a scan-line plan on its part again (module docstring).
 
@@ -139,7 +133,7 @@ def replay_passes(part: ZMap, plan: ScanlinePlan) -> PlanReplay:
         # s.region (rest regions): the model nodes the pass may cut, None for all
         done = run_pass(sim, target.copy(), s.spacing, s.tool, s.lines, stride, s.region,
                         guard, lift=s.sim_flute_rule_ok)
-        nxt = part.z if i + 1 == len(stages) else _model_at_nodes(stages[i + 1], part)
+        nxt = part.z if i + 1 == len(stages) else stage_at_nodes(stages[i + 1], part)
         on_next, on_part = left_over(sim.stock, nxt), left_over(sim.stock, part.z)
         cut = done.cut
         out.append(PassReplay(

@@ -8,7 +8,9 @@ from typing import Literal
 import numpy as np
 from numpy.typing import NDArray
 
+from zwcore.grid.sampling import bilinear_at_fine_nodes
 from zwcore.grid.tools import Tool
+from zwcore.grid.zmap import ZMap
 
 __all__ = ["ReachSummary", "ScanLines", "ScanlineChecks", "ScanlinePlan", "ScanlineStage"]
 
@@ -378,3 +380,8 @@ class ScanlinePlan:
     timings: tuple[tuple[str, float], ...] = ()
     # --- tool choice by reach (issue 11, parts 2-3) ---
     reach: ReachSummary | None = None
+
+
+def stage_at_nodes(stage: ScanlineStage, part: ZMap) -> NDArray[np.float64]:
+    """A scan-line stage's model at the part's input nodes (bilinear), ``(ny, nx)``."""
+    return bilinear_at_fine_nodes(stage.model, round(stage.spacing[0] / part.dx), part.shape)

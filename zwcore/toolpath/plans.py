@@ -21,13 +21,12 @@ from zwcore.errors import InvalidInputError, LimitExceededError
 from zwcore.grid.sampling import cells_at_fine_nodes
 from zwcore.grid.tools import Tool
 from zwcore.grid.zmap import ZMap, finite_number
-from zwcore.scanline.results import ScanlinePlan, ScanlineStage
+from zwcore.scanline.results import ScanlinePlan, ScanlineStage, stage_at_nodes
 from zwcore.toolpath.contour_paths import contour_stage_path
 from zwcore.toolpath.parse import parse_program
 from zwcore.toolpath.program import CuttingData, ProgramSettings, StagePath
 from zwcore.toolpath.scanline_paths import CLHeights, scanline_stage_path, sim_cl_heights
 from zwcore.toolpath.simulate import ProgramCheck, simulate_program
-from zwcore.toolpath.verify_plan import stage_at_nodes
 from zwcore.toolpath.writer import iter_program
 
 __all__ = ["Toolpaths", "contour_toolpaths", "scanline_toolpaths", "tool_numbers"]

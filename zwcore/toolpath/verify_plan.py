@@ -18,10 +18,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from zwcore.errors import InvalidInputError
-from zwcore.grid.sampling import bilinear_at_fine_nodes
 from zwcore.grid.tools import Tool
 from zwcore.grid.zmap import ZMap
-from zwcore.scanline.results import ScanlinePlan, ScanlineStage
+from zwcore.scanline.results import ScanlinePlan, stage_at_nodes
 from zwcore.toolpath.parse import parse_program
 from zwcore.toolpath.simulate import simulate_stretch, stock_grid, tool_spans
 
@@ -114,11 +113,6 @@ def _plan_stretches(plan: ScanlinePlan, numbers: Mapping[int, Tool]) -> list[tup
         else:
             out.append((n, [i]))
     return out
-
-
-def stage_at_nodes(stage: ScanlineStage, part: ZMap) -> F64:
-    """A scan-line pass's model at the part's input nodes (bilinear)."""
-    return bilinear_at_fine_nodes(stage.model, round(stage.spacing[0] / part.dx), part.shape)
 
 
 def _pair(d: F64) -> tuple[float, float]:
