@@ -223,6 +223,25 @@ def _polyline_to_chain(samples: FloatArray, geo: FloatArray, ks: IntArray, js: I
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
+def _seg_dist2(samples: FloatArray, s: int, x: float, y: float) -> float:
+    """Squared distance of ``(x, y)`` to polyline segment ``s`` (the arithmetic of
+    :func:`_segments_near`, so that one segment's figure equals the window's bit for bit
+    where it is the nearest)."""
+    ax, ay = samples[s, 0], samples[s, 1]
+    abx = samples[s + 1, 0] - ax
+    aby = samples[s + 1, 1] - ay
+    den = abx * abx + aby * aby
+    if not den > 0.0:
+        den = 1.0
+    apx = x - ax
+    apy = y - ay
+    f = min(max((apx * abx + apy * aby) / den, 0.0), 1.0)
+    qx = apx - f * abx
+    qy = apy - f * aby
+    return qx * qx + qy * qy
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
 def _segments_near(samples: FloatArray, x: float, y: float, m: int) -> tuple[float, int]:
     """Distance of ``(x, y)`` to the polyline segments ``m-3..m+3`` (clipped), and the
     nearest of them."""
@@ -231,19 +250,9 @@ def _segments_near(samples: FloatArray, x: float, y: float, m: int) -> tuple[flo
     best = 0
     for o in range(-3, 4):
         s = min(max(m + o, 0), nseg - 1)
-        ax, ay = samples[s, 0], samples[s, 1]
-        abx = samples[s + 1, 0] - ax
-        aby = samples[s + 1, 1] - ay
-        den = abx * abx + aby * aby
-        if not den > 0.0:
-            den = 1.0
-        apx = x - ax
-        apy = y - ay
-        f = min(max((apx * abx + apy * aby) / den, 0.0), 1.0)
-        qx = apx - f * abx
-        qy = apy - f * aby
-        if qx * qx + qy * qy < d2:
-            d2 = qx * qx + qy * qy
+        e2 = _seg_dist2(samples, s, x, y)
+        if e2 < d2:
+            d2 = e2
             best = s
     return math.sqrt(d2), best
 
@@ -290,8 +299,8 @@ def _portion_max(samples: FloatArray, foot: FloatArray, k: int, px: float, py: f
         d = _segments_near(samples, x, y, m)[0]
         if not d <= tol:
             return -1.0
-        w = seg_dist(x, y, samples[lseg, 0], samples[lseg, 1], samples[lseg + 1, 0],
-                     samples[lseg + 1, 1])
+        # (the window's own arithmetic: equal to ``d`` where ``lseg`` is the nearest)
+        w = math.sqrt(_seg_dist2(samples, lseg, x, y))
         if w > best_w:
             best_w, best_d = w, d
     return best_w if best_d == best_w else -1.0
