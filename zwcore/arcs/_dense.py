@@ -108,10 +108,11 @@ def _nearest_piece(geo: FloatArray, qs: IntArray, x: float, y: float) -> tuple[f
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def _segment_max(samples: FloatArray, off: IntArray, s: int, hi: int, geo: FloatArray,
-                 qs: IntArray, q: int, tol: float) -> float:
+                 qs: IntArray, q: int, tol: float, d0: float) -> float:
     """The largest distance of the dense points ``off[s]..hi-1`` of segment ``s`` to the
     pieces ``qs``, exactly, when every point's foot lies inside piece ``q`` and ``q`` is
-    the nearest piece where that distance peaks; else -1 (walk the points).
+    the nearest piece where that distance peaks; else -1 (walk the points). ``d0``: the
+    first point's distance, measured by the caller (``q`` the nearest there).
 
     Along a line the offset ``e`` from the piece (a line's ``v``, a circle's ``rho - R``)
     is linear or convex (``rho`` is), so over the evenly spaced points ``|e| = max(e,
@@ -152,13 +153,28 @@ def _segment_max(samples: FloatArray, off: IntArray, s: int, hi: int, geo: Float
         h = ((cx - x0) * dx + (cy - y0) * dy) / span
         f = h / span * (i1 - i0)
         c2 = i0 + int(min(max(f, 0.0), float(i1 - i0)))
-    best_q = -1.0
-    best_d = -1.0
-    for c in (i0, i1, c2, min(c2 + 1, i1)):
+    # (at the first point the nearest piece is ``q``: its figure is ``d0`` both ways, as
+    # with one piece near, where the nearest is that piece's own figure)
+    best_q = d0
+    best_d = d0
+    single = len(qs) == 1
+    c3 = min(c2 + 1, i1)
+    for c in (i1, c2, c3):
+        if c == i0 or (c == c2 and c2 == i1) or (c == c3 and (c3 == c2 or c3 == i1)):
+            continue
         x, y = _dense_point(samples, off, s, c)
-        dq = point_arc_distance(x, y, px, py, tx, ty, kappa, length, geo[q, 6], geo[q, 7],
-                                np.inf)
-        d = _nearest_piece(geo, qs, x, y)[0]
+        if c == i1:
+            # (point_arc_distance's figure from the local coordinates and the foot's
+            # angle found above: the foot is on the piece)
+            if kappa == 0.0:
+                dq = abs(v1)
+            else:
+                dq = min(abs(circle_gap1(u1, v1, kappa)),
+                         min(math.hypot(u1, v1), math.hypot(x - geo[q, 6], y - geo[q, 7])))
+        else:
+            dq = point_arc_distance(x, y, px, py, tx, ty, kappa, length, geo[q, 6],
+                                    geo[q, 7], np.inf)
+        d = dq if single else _nearest_piece(geo, qs, x, y)[0]
         if not d <= tol:
             return -1.0
         if dq > best_q:
@@ -212,7 +228,7 @@ def _polyline_to_chain(samples: FloatArray, geo: FloatArray, ks: IntArray, js: I
                                hi))
             if i == off[s] and i + 1 + skip < hi and q >= 0 and d <= tol:
                 # the whole segment from a few points, where the closed form holds
-                top = _segment_max(samples, off, s, hi, geo, qs, q, tol)
+                top = _segment_max(samples, off, s, hi, geo, qs, q, tol, d)
                 if top >= 0.0:
                     worst = max(worst, top)
                     break
@@ -269,7 +285,7 @@ def _all_segments(samples: FloatArray, x: float, y: float) -> float:
 @njit(cache=True, nogil=True, error_model="numpy")
 def _portion_max(samples: FloatArray, foot: FloatArray, k: int, px: float, py: float,
                  tx: float, ty: float, kappa: float, ds: float, i: int, i_r: int,
-                 lseg: int, tol: float) -> float:
+                 lseg: int, tol: float, d0: float) -> float:
     """The largest distance to the polyline of the dense points ``i..i_r`` of a piece
     (start ``p``, tangent ``t``, curvature ``kappa``, spacing ``ds``; ``foot``: the foot
     positions of its samples from ``k`` on), exactly, when their feet all lie inside
@@ -281,6 +297,7 @@ def _portion_max(samples: FloatArray, foot: FloatArray, k: int, px: float, py: f
     peaks at the first or last point or at the two points about where the piece runs parallel to the
     segment: at most four points to measure (each against its window, as the walk
     does, which is at most ``|w|`` and equal to it where ``lseg`` is the nearest).
+    ``d0``: point ``i``'s distance, measured by the caller (``lseg`` the nearest there).
     """
     c2 = i
     if kappa != 0.0:
@@ -291,9 +308,13 @@ def _portion_max(samples: FloatArray, foot: FloatArray, k: int, px: float, py: f
         s_par = i * ds - rel / kappa
         if i * ds < s_par < i_r * ds:
             c2 = min(int(s_par / ds), i_r)
-    best_w = -1.0
-    best_d = -1.0
-    for c in (i, i_r, c2, min(c2 + 1, i_r)):
+    # (at point i the nearest segment is ``lseg``: its figure is ``d0`` both ways)
+    best_w = d0
+    best_d = d0
+    c3 = min(c2 + 1, i_r)
+    for c in (i_r, c2, c3):
+        if c == i or (c == c2 and c2 == i_r) or (c == c3 and (c3 == c2 or c3 == i_r)):
+            continue
         x, y = arc_xy(px, py, tx, ty, kappa, c * ds)
         m = k + int(np.searchsorted(foot, c * ds, side="right")) - 1
         d = _segments_near(samples, x, y, m)[0]
@@ -373,7 +394,7 @@ def _chain_to_polyline(samples: FloatArray, geo: FloatArray, ks: IntArray, js: I
                 i_r = min(int(far / ds), n - 2)
                 if nxt < i_r - 2:
                     top = _portion_max(samples, foot, k, px, py, tx, ty, kappa, ds, i, i_r,
-                                       lseg, tol)
+                                       lseg, tol, d)
                     if top >= 0.0:
                         worst = max(worst, top)
                         nxt = i_r + 1
