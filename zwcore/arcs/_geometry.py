@@ -134,9 +134,12 @@ def line_fit(
 def points_to_segments_distance(pts: FloatArray, a: FloatArray, b: FloatArray) -> FloatArray:
     """Distance of each point ``(M, 2)`` to each segment ``a[k]-b[k]`` ``(K, 2)``: ``(M, K)``."""
     ab = b - a
-    den = np.einsum("ij,ij->i", ab, ab)
+    abx, aby = ab[:, 0], ab[:, 1]
+    # (the two-term dot products written out: the figures of ``einsum`` without its
+    # parsing, which cost more than the arithmetic on the few points of a call)
+    den = abx * abx + aby * aby
     den = np.where(den > 0.0, den, 1.0)
     ap = pts[:, None, :] - a[None, :, :]
-    s = np.clip(np.einsum("mkj,kj->mk", ap, ab) / den[None, :], 0.0, 1.0)
+    s = np.clip((ap[..., 0] * abx + ap[..., 1] * aby) / den[None, :], 0.0, 1.0)
     d = ap - s[:, :, None] * ab[None, :, :]
     return np.hypot(d[..., 0], d[..., 1])
