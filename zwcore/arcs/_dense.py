@@ -251,7 +251,15 @@ def _seg_dist2(samples: FloatArray, s: int, x: float, y: float) -> float:
         den = 1.0
     apx = x - ax
     apy = y - ay
-    f = min(max((apx * abx + apy * aby) / den, 0.0), 1.0)
+    dot = apx * abx + apy * aby
+    # (a foot before the start or past the end needs no division: the clamp's result,
+    # up to the sign of a zero that the squares drop)
+    if dot <= 0.0:
+        f = 0.0
+    elif dot >= den:
+        f = 1.0
+    else:
+        f = min(max(dot / den, 0.0), 1.0)
     qx = apx - f * abx
     qy = apy - f * aby
     return qx * qx + qy * qy
