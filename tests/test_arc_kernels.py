@@ -427,3 +427,67 @@ def test_fillet_clash_only_where_the_polygon_has_no_fillets(case, loop):
             assert _polygon.polygon_run(band, 0, len(pts) - 1, loop) is None
         finally:
             _polygon._fillets_clash = orig
+
+
+def _straight_span_reference(pts: np.ndarray, k: int, j: int, a: int, b: int,
+                             band: float) -> tuple[int, int]:
+    """The straight-run growth as the fit did it in Python before it was compiled (each
+    straightness test a numpy least-squares line): the first of the whole span, its last,
+    first or middle half that is straight, grown at its end by galloping and bisection,
+    then at its start."""
+
+    def straight(i0: int, i1: int) -> bool:
+        return i1 - i0 < 2 or line_fit(pts[i0 : i1 + 1])[2] <= band
+
+    q4 = (j - k) // 4
+    for kk, jj in ((k, j), (k + 2 * q4, j), (k, j - 2 * q4), (k + q4, j - q4)):
+        if jj - kk >= 2 and straight(kk, jj):
+            k, j = kk, jj
+            break
+    else:
+        return -1, -1
+
+    def grow(fixed: int, moving: int, limit: int, sgn: int) -> int:
+        good, step = moving, max(1, abs(moving - fixed) // 4)
+        while good != limit:
+            cand = good + sgn * step
+            cand = min(cand, limit) if sgn > 0 else max(cand, limit)
+            if straight(fixed, cand) if sgn > 0 else straight(cand, fixed):
+                good, step = cand, 2 * step
+                continue
+            lo, hi = good, cand
+            while abs(hi - lo) > 1:
+                mid = (lo + hi) // 2
+                if straight(fixed, mid) if sgn > 0 else straight(mid, fixed):
+                    lo = mid
+                else:
+                    hi = mid
+            return lo
+        return good
+
+    i1 = grow(k, j, b, 1)
+    return grow(i1, k, a, -1), i1
+
+
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(wavy_curves(), st.floats(0.0, 1.0), st.floats(0.0, 1.0), st.floats(0.0, 1.0),
+       st.floats(0.0, 1.0), st.floats(0.05, 1.0))
+def test_straight_span_grows_the_run_as_the_numpy_fit(case, fa, fk, fj, fb, share):
+    """The compiled gallop and bisection of a straight run ends where the same steps
+    with numpy's least-squares lines end (exactly, away from spreads within rounding of
+    the band: the kernel's spread agrees with numpy's to 1e-9, tested above)."""
+    from zwcore.arcs._straight import straight_span
+
+    pts, tol = case
+    n = len(pts) - 1
+    a = int(fa * n)
+    b = a + int(fb * (n - a))
+    k = a + int(fk * (b - a))
+    j = k + int(fj * (b - k))
+    band = share * tol
+    want = _straight_span_reference(pts, k, j, a, b, band)
+    # (a spread within rounding of the band may be judged either way by the two)
+    spreads = [line_fit(pts[i0 : i1 + 1])[2] for i0 in range(a, b + 1)
+               for i1 in range(i0 + 2, min(b, i0 + 60) + 1)]
+    assume(not any(abs(s - band) <= 1e-9 * (band + 1e-300) for s in spreads))
+    assert straight_span(pts, k, j, a, b, band) == want
