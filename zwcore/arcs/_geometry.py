@@ -53,6 +53,13 @@ def rotate1(t: FloatArray, angle: float) -> FloatArray:
 
 def local_uv(p: FloatArray, t: FloatArray, pts: FloatArray) -> tuple[FloatArray, FloatArray]:
     """Coordinates of ``pts`` ``(M, 2)`` in the frame of start ``p`` ``(2,)`` and tangent ``t``."""
+    if pts.shape == (1, 2) and p.shape == (2,) and t.shape == (2,):
+        # one point (a piece to one sample): the same arithmetic on floats, without the
+        # overhead of eight array operations on one element
+        ex = float(pts[0, 0]) - float(p[0])
+        ey = float(pts[0, 1]) - float(p[1])
+        tx, ty = float(t[0]), float(t[1])
+        return np.array([ex * tx + ey * ty]), np.array([ey * tx - ex * ty])
     dx = pts[..., 0] - p[..., 0]
     dy = pts[..., 1] - p[..., 1]
     u = dx * t[..., 0] + dy * t[..., 1]
