@@ -377,3 +377,117 @@ def test_select_verified_agrees_with_a_python_walk(case, beam, seed):
         n_special += bool(special[i])
     assert got.tolist() == [w[0] for w in want]
     np.testing.assert_allclose(figs[:, 0], [w[1] for w in want], rtol=1e-12)
+
+
+@st.composite
+def polygons(draw: st.DrawFn) -> tuple[np.ndarray, float]:
+    """A polygon (edges of random length, random turns, some of them straight) and a
+    tolerance: coarse ones the closed form fillets, and fine ones it must refuse."""
+    n = draw(st.integers(3, 40))
+    seed = draw(st.integers(0, 2**31))
+    tol = draw(st.floats(0.005, 0.5))
+    scale = draw(st.sampled_from([0.05, 1.0, 20.0]))
+    rng = np.random.default_rng(seed)
+    edges = rng.uniform(0.2, 1.0, n - 1) * scale
+    turns = rng.uniform(-2.5, 2.5, n - 1) * (rng.random(n - 1) < 0.8)
+    heading = np.cumsum(turns)
+    steps = np.stack([np.cos(heading), np.sin(heading)], 1) * edges[:, None]
+    return np.vstack([[0.0, 0.0], np.cumsum(steps, axis=0)]), tol
+
+
+@settings(max_examples=200, deadline=None)
+@given(polygons(), st.booleans())
+def test_fillet_clash_only_where_the_polygon_has_no_fillets(case, loop):
+    """The compiled early refusal of the closed-form filleted polygon is sound: where it
+    finds two neighbouring fillets that overlap, the whole-run array computation of
+    :func:`polygon_run` (run here with the refusal switched off) finds no filleted
+    polygon either; and a pair overlapping by more than a millionth of its edge, found
+    here by brute force over every vertex, is always found."""
+    from zwcore.arcs import _polygon
+
+    pts, tol = case
+    if loop:
+        pts = np.vstack([pts, pts[:1]])
+        assume(float(np.hypot(*(pts[-2] - pts[0]))) > 0.0)
+    band = ToleranceBand(pts, tol, 0.95, None)
+    work = _polygon._WORK * tol
+    clash = _polygon._fillets_clash(pts, work, 1e-13 * float(band.cum[-1]))
+    # brute force: every inner sample's turn and largest fillet, the edges between them
+    d = np.diff(pts, axis=0)
+    th = np.abs(np.arctan2(d[:-1, 0] * d[1:, 1] - d[:-1, 1] * d[1:, 0],
+                           (d[:-1] * d[1:]).sum(1)))
+    tangent = np.where(th > 1e-9, work / np.tan(0.25 * np.maximum(th, 1e-300)), np.nan)
+    overlap = (tangent[:-1] + tangent[1:]) / np.hypot(d[1:-1, 0], d[1:-1, 1])
+    if np.any(overlap > 1.0 + 1e-5):
+        assert clash
+    if clash:
+        orig = _polygon._fillets_clash
+        try:
+            _polygon._fillets_clash = lambda *a: False
+            assert _polygon.polygon_run(band, 0, len(pts) - 1, loop) is None
+        finally:
+            _polygon._fillets_clash = orig
+
+
+def _straight_span_reference(pts: np.ndarray, k: int, j: int, a: int, b: int,
+                             band: float) -> tuple[int, int]:
+    """The straight-run growth as the fit did it in Python before it was compiled (each
+    straightness test a numpy least-squares line): the first of the whole span, its last,
+    first or middle half that is straight, grown at its end by galloping and bisection,
+    then at its start."""
+
+    def straight(i0: int, i1: int) -> bool:
+        return i1 - i0 < 2 or line_fit(pts[i0 : i1 + 1])[2] <= band
+
+    q4 = (j - k) // 4
+    for kk, jj in ((k, j), (k + 2 * q4, j), (k, j - 2 * q4), (k + q4, j - q4)):
+        if jj - kk >= 2 and straight(kk, jj):
+            k, j = kk, jj
+            break
+    else:
+        return -1, -1
+
+    def grow(fixed: int, moving: int, limit: int, sgn: int) -> int:
+        good, step = moving, max(1, abs(moving - fixed) // 4)
+        while good != limit:
+            cand = good + sgn * step
+            cand = min(cand, limit) if sgn > 0 else max(cand, limit)
+            if straight(fixed, cand) if sgn > 0 else straight(cand, fixed):
+                good, step = cand, 2 * step
+                continue
+            lo, hi = good, cand
+            while abs(hi - lo) > 1:
+                mid = (lo + hi) // 2
+                if straight(fixed, mid) if sgn > 0 else straight(mid, fixed):
+                    lo = mid
+                else:
+                    hi = mid
+            return lo
+        return good
+
+    i1 = grow(k, j, b, 1)
+    return grow(i1, k, a, -1), i1
+
+
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(wavy_curves(), st.floats(0.0, 1.0), st.floats(0.0, 1.0), st.floats(0.0, 1.0),
+       st.floats(0.0, 1.0), st.floats(0.05, 1.0))
+def test_straight_span_grows_the_run_as_the_numpy_fit(case, fa, fk, fj, fb, share):
+    """The compiled gallop and bisection of a straight run ends where the same steps
+    with numpy's least-squares lines end (exactly, away from spreads within rounding of
+    the band: the kernel's spread agrees with numpy's to 1e-9, tested above)."""
+    from zwcore.arcs._straight import straight_span
+
+    pts, tol = case
+    n = len(pts) - 1
+    a = int(fa * n)
+    b = a + int(fb * (n - a))
+    k = a + int(fk * (b - a))
+    j = k + int(fj * (b - k))
+    band = share * tol
+    want = _straight_span_reference(pts, k, j, a, b, band)
+    # (a spread within rounding of the band may be judged either way by the two)
+    spreads = [line_fit(pts[i0 : i1 + 1])[2] for i0 in range(a, b + 1)
+               for i1 in range(i0 + 2, min(b, i0 + 60) + 1)]
+    assume(not any(abs(s - band) <= 1e-9 * (band + 1e-300) for s in spreads))
+    assert straight_span(pts, k, j, a, b, band) == want

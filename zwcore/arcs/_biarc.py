@@ -63,22 +63,29 @@ def _biarc_junction(p0x: float, p0y: float, t0x: float, t0y: float, p1x: float, 
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def _last_on_first_arc(uu: FloatArray, vv: FloatArray, k1: float, s1: float, k: int,
-                       b: int) -> int:
+                       b: int, limit: int) -> int:
     """The last sample (in ``k..b-1``) whose foot point lies on the first arc of a biarc
     (``uu, vv``: samples ``k..b`` in its start frame): the foot positions of
     :func:`zwcore.arcs._kernels.foot_positions` (angles unwrapped as :func:`numpy.unwrap`
     does, a correction at each step of pi or more), computed only up to the first one
-    past the arc's end ``s1`` (each depends on the earlier ones only)."""
+    past the arc's end ``s1`` (each depends on the earlier ones only), and only up to
+    ``uu[limit]``: -1 when none up to there is past it (the answer is at least
+    ``k + limit``, or ``b - 1``)."""
     m = b - 1
     if k1 == 0.0:
-        for i in range(len(uu)):
+        for i in range(min(len(uu), limit + 1)):
             if uu[i] > s1:
                 m = k + i - 1
                 break
+        else:
+            if limit + 1 < len(uu):
+                return -1
         return min(max(m, k), b - 1)
     prev = 0.0
     corr = 0.0
     for i in range(len(uu)):
+        if i > limit:
+            return -1
         val = 0.0
         if i:
             raw = math.atan2(k1 * uu[i], 1.0 - k1 * vv[i])
@@ -94,6 +101,21 @@ def _last_on_first_arc(uu: FloatArray, vv: FloatArray, k1: float, s1: float, k: 
             m = k + i - 1
             break
     return min(max(m, k), b - 1)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _first_outside(lo_t: FloatArray, up_t: FloatArray, kappa: float) -> int:
+    """The first index where ``kappa`` is not within the running bounds ``lo_t``
+    (non-decreasing) and ``up_t`` (non-increasing) ``(n,)``, by bisection (``n``:
+    never)."""
+    lo, hi = 0, len(lo_t)
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if lo_t[mid] <= kappa <= up_t[mid]:
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -154,8 +176,13 @@ def biarc(samples: FloatArray, p0: FloatArray, t0: FloatArray, k: int, e: float,
         tex, tey = c * tjx - s * tjy, s * tjx + c * tjy
         if abs(tex * t1[1] - tey * t1[0]) > 1e-9 or tex * t1[0] + tey * t1[1] < 0.0:
             continue
-        m = _last_on_first_arc(uu, vv, k1, s1, k, b)
-        if m > k and not lo_t[m - k - 1] <= k1 <= up_t[m - k - 1]:
+        # the running bounds narrow: k1 leaves them at one index for good, and the
+        # first arc fails their test when its last sample lies at or past it, so the
+        # foot scan stops there (most tried splits fail this way)
+        fail = _first_outside(lo_t, up_t, k1)
+        limit = fail + 1 if fail <= n - 3 else n
+        m = _last_on_first_arc(uu, vv, k1, s1, k, b, limit)
+        if m < 0 or (m > k and not lo_t[m - k - 1] <= k1 <= up_t[m - k - 1]):
             continue
         r1 = verify_piece(samples, p0[0], p0[1], t0[0], t0[1], k1, k, m, e, s1, True, False,
                           tol, step0)

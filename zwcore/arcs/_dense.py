@@ -108,10 +108,11 @@ def _nearest_piece(geo: FloatArray, qs: IntArray, x: float, y: float) -> tuple[f
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def _segment_max(samples: FloatArray, off: IntArray, s: int, hi: int, geo: FloatArray,
-                 qs: IntArray, q: int, tol: float) -> float:
+                 qs: IntArray, q: int, tol: float, d0: float) -> float:
     """The largest distance of the dense points ``off[s]..hi-1`` of segment ``s`` to the
     pieces ``qs``, exactly, when every point's foot lies inside piece ``q`` and ``q`` is
-    the nearest piece where that distance peaks; else -1 (walk the points).
+    the nearest piece where that distance peaks; else -1 (walk the points). ``d0``: the
+    first point's distance, measured by the caller (``q`` the nearest there).
 
     Along a line the offset ``e`` from the piece (a line's ``v``, a circle's ``rho - R``)
     is linear or convex (``rho`` is), so over the evenly spaced points ``|e| = max(e,
@@ -152,13 +153,28 @@ def _segment_max(samples: FloatArray, off: IntArray, s: int, hi: int, geo: Float
         h = ((cx - x0) * dx + (cy - y0) * dy) / span
         f = h / span * (i1 - i0)
         c2 = i0 + int(min(max(f, 0.0), float(i1 - i0)))
-    best_q = -1.0
-    best_d = -1.0
-    for c in (i0, i1, c2, min(c2 + 1, i1)):
+    # (at the first point the nearest piece is ``q``: its figure is ``d0`` both ways, as
+    # with one piece near, where the nearest is that piece's own figure)
+    best_q = d0
+    best_d = d0
+    single = len(qs) == 1
+    c3 = min(c2 + 1, i1)
+    for c in (i1, c2, c3):
+        if c == i0 or (c == c2 and c2 == i1) or (c == c3 and (c3 == c2 or c3 == i1)):
+            continue
         x, y = _dense_point(samples, off, s, c)
-        dq = point_arc_distance(x, y, px, py, tx, ty, kappa, length, geo[q, 6], geo[q, 7],
-                                np.inf)
-        d = _nearest_piece(geo, qs, x, y)[0]
+        if c == i1:
+            # (point_arc_distance's figure from the local coordinates and the foot's
+            # angle found above: the foot is on the piece)
+            if kappa == 0.0:
+                dq = abs(v1)
+            else:
+                dq = min(abs(circle_gap1(u1, v1, kappa)),
+                         min(math.hypot(u1, v1), math.hypot(x - geo[q, 6], y - geo[q, 7])))
+        else:
+            dq = point_arc_distance(x, y, px, py, tx, ty, kappa, length, geo[q, 6],
+                                    geo[q, 7], np.inf)
+        d = dq if single else _nearest_piece(geo, qs, x, y)[0]
         if not d <= tol:
             return -1.0
         if dq > best_q:
@@ -212,7 +228,7 @@ def _polyline_to_chain(samples: FloatArray, geo: FloatArray, ks: IntArray, js: I
                                hi))
             if i == off[s] and i + 1 + skip < hi and q >= 0 and d <= tol:
                 # the whole segment from a few points, where the closed form holds
-                top = _segment_max(samples, off, s, hi, geo, qs, q, tol)
+                top = _segment_max(samples, off, s, hi, geo, qs, q, tol, d)
                 if top >= 0.0:
                     worst = max(worst, top)
                     break
@@ -220,6 +236,33 @@ def _polyline_to_chain(samples: FloatArray, geo: FloatArray, ks: IntArray, js: I
     if nseg == 0:
         worst = _nearest_piece(geo, every, samples[0, 0], samples[0, 1])[0]
     return worst
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _seg_dist2(samples: FloatArray, s: int, x: float, y: float) -> float:
+    """Squared distance of ``(x, y)`` to polyline segment ``s`` (the arithmetic of
+    :func:`_segments_near`, so that one segment's figure equals the window's bit for bit
+    where it is the nearest)."""
+    ax, ay = samples[s, 0], samples[s, 1]
+    abx = samples[s + 1, 0] - ax
+    aby = samples[s + 1, 1] - ay
+    den = abx * abx + aby * aby
+    if not den > 0.0:
+        den = 1.0
+    apx = x - ax
+    apy = y - ay
+    dot = apx * abx + apy * aby
+    # (a foot before the start or past the end needs no division: the clamp's result,
+    # up to the sign of a zero that the squares drop)
+    if dot <= 0.0:
+        f = 0.0
+    elif dot >= den:
+        f = 1.0
+    else:
+        f = min(max(dot / den, 0.0), 1.0)
+    qx = apx - f * abx
+    qy = apy - f * aby
+    return qx * qx + qy * qy
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -231,19 +274,9 @@ def _segments_near(samples: FloatArray, x: float, y: float, m: int) -> tuple[flo
     best = 0
     for o in range(-3, 4):
         s = min(max(m + o, 0), nseg - 1)
-        ax, ay = samples[s, 0], samples[s, 1]
-        abx = samples[s + 1, 0] - ax
-        aby = samples[s + 1, 1] - ay
-        den = abx * abx + aby * aby
-        if not den > 0.0:
-            den = 1.0
-        apx = x - ax
-        apy = y - ay
-        f = min(max((apx * abx + apy * aby) / den, 0.0), 1.0)
-        qx = apx - f * abx
-        qy = apy - f * aby
-        if qx * qx + qy * qy < d2:
-            d2 = qx * qx + qy * qy
+        e2 = _seg_dist2(samples, s, x, y)
+        if e2 < d2:
+            d2 = e2
             best = s
     return math.sqrt(d2), best
 
@@ -258,9 +291,21 @@ def _all_segments(samples: FloatArray, x: float, y: float) -> float:
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
+def _window_w(samples: FloatArray, foot: FloatArray, k: int, px: float, py: float,
+              tx: float, ty: float, kappa: float, ds: float, c: int,
+              lseg: int) -> tuple[float, float]:
+    """Dense point ``c`` of a piece: its distance to its window of segments (as the walk
+    measures it) and to segment ``lseg`` (the window's arithmetic: equal where ``lseg``
+    is the nearest)."""
+    x, y = arc_xy(px, py, tx, ty, kappa, c * ds)
+    m = k + int(np.searchsorted(foot, c * ds, side="right")) - 1
+    return _segments_near(samples, x, y, m)[0], math.sqrt(_seg_dist2(samples, lseg, x, y))
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
 def _portion_max(samples: FloatArray, foot: FloatArray, k: int, px: float, py: float,
                  tx: float, ty: float, kappa: float, ds: float, i: int, i_r: int,
-                 lseg: int, tol: float) -> float:
+                 lseg: int, tol: float, d0: float, e0: float, rate: float) -> float:
     """The largest distance to the polyline of the dense points ``i..i_r`` of a piece
     (start ``p``, tangent ``t``, curvature ``kappa``, spacing ``ds``; ``foot``: the foot
     positions of its samples from ``k`` on), exactly, when their feet all lie inside
@@ -272,8 +317,12 @@ def _portion_max(samples: FloatArray, foot: FloatArray, k: int, px: float, py: f
     peaks at the first or last point or at the two points about where the piece runs parallel to the
     segment: at most four points to measure (each against its window, as the walk
     does, which is at most ``|w|`` and equal to it where ``lseg`` is the nearest).
+    ``d0``: point ``i``'s distance, measured by the caller (``lseg`` the nearest there);
+    ``(e0, rate)``: its growth from there (:func:`~zwcore.arcs._jumps.segment_growth`).
+    The last point is not measured where it cannot be the peak (:func:`_last_below`).
     """
     c2 = i
+    s_par = -1.0
     if kappa != 0.0:
         ax, ay = samples[lseg, 0], samples[lseg, 1]
         phi = math.atan2(samples[lseg + 1, 1] - ay, samples[lseg + 1, 0] - ax)
@@ -282,19 +331,61 @@ def _portion_max(samples: FloatArray, foot: FloatArray, k: int, px: float, py: f
         s_par = i * ds - rel / kappa
         if i * ds < s_par < i_r * ds:
             c2 = min(int(s_par / ds), i_r)
-    best_w = -1.0
-    best_d = -1.0
-    for c in (i, i_r, c2, min(c2 + 1, i_r)):
-        x, y = arc_xy(px, py, tx, ty, kappa, c * ds)
-        m = k + int(np.searchsorted(foot, c * ds, side="right")) - 1
-        d = _segments_near(samples, x, y, m)[0]
-        if not d <= tol:
+        else:
+            s_par = -1.0
+    c3 = min(c2 + 1, i_r)
+    # the candidates in the walk's order (i, i_r, c2, c3; the first of equal ones wins):
+    # (at point i the nearest segment is ``lseg``: its figure is ``d0`` both ways)
+    w2 = d2 = w3 = d3 = -1.0
+    if c2 != i and c2 != i_r:
+        d2, w2 = _window_w(samples, foot, k, px, py, tx, ty, kappa, ds, c2, lseg)
+    if c3 != i and c3 != c2 and c3 != i_r:
+        d3, w3 = _window_w(samples, foot, k, px, py, tx, ty, kappa, ds, c3, lseg)
+    if not (d2 <= tol and d3 <= tol):
+        return -1.0
+    best_w = d0
+    best_d = d0
+    top = max(d0, w2, w3)
+    if not (s_par >= 0.0 and c3 < i_r and _last_below(
+            kappa, ds, i, i_r, s_par, e0, rate, top, tol, abs(px) + abs(py) + i_r * ds)):
+        d1, w1 = _window_w(samples, foot, k, px, py, tx, ty, kappa, ds, i_r, lseg)
+        if not d1 <= tol:
             return -1.0
-        w = seg_dist(x, y, samples[lseg, 0], samples[lseg, 1], samples[lseg + 1, 0],
-                     samples[lseg + 1, 1])
-        if w > best_w:
-            best_w, best_d = w, d
+        if w1 > best_w:
+            best_w, best_d = w1, d1
+    if w2 > best_w:
+        best_w, best_d = w2, d2
+    if w3 > best_w:
+        best_w, best_d = w3, d3
     return best_w if best_d == best_w else -1.0
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _last_below(kappa: float, ds: float, i: int, i_r: int, s_par: float, e0: float,
+                rate: float, top: float, tol: float, scale: float) -> bool:
+    """True when the last point ``i_r`` of a portion (:func:`_portion_max`) is, by a
+    margin above the rounding, farther from ``lseg`` than none of the points ``i, c2,
+    c3`` measured (``top``: their largest offset), so it cannot be the peak.
+
+    With ``e = +-w`` convex (``0 <= e'' <= |kappa|``) from point ``i`` on: ``e`` at
+    ``i_r`` is at most ``e0 + rate h + |kappa| h^2 / 2``; ``-e`` is concave with its top
+    at the parallel point ``s_par`` (between ``c2`` and ``c3``), where the tangent runs
+    along the segment, so past it ``-e'' >= |kappa| cos(|kappa| D)`` (the tangent has
+    turned by ``|kappa| D`` from the segment's direction, ``D`` the way from ``s_par``)
+    and ``-e`` at ``i_r`` lies at least ``|kappa| (cos(|kappa| D) D^2 - ds^2) / 2``
+    below the better of ``c2, c3`` (one of them is within ``ds / 2`` of the top,
+    ``-e'' >= -|kappa|``). Both must clear the margin (a billionth of the tolerance
+    and 1e-13 of the coordinates' size)."""
+    margin = 1e-9 * tol + 1e-13 * scale
+    ak = abs(kappa)
+    h = (i_r - i) * ds
+    dist = i_r * ds - s_par
+    ang = ak * dist
+    if not ang < 0.5 * math.pi:
+        return False
+    if not 0.5 * ak * (math.cos(ang) * dist * dist - ds * ds) > 2.0 * margin:
+        return False
+    return e0 + rate * h + 0.5 * ak * h * h < top - 2.0 * margin
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -364,7 +455,7 @@ def _chain_to_polyline(samples: FloatArray, geo: FloatArray, ks: IntArray, js: I
                 i_r = min(int(far / ds), n - 2)
                 if nxt < i_r - 2:
                     top = _portion_max(samples, foot, k, px, py, tx, ty, kappa, ds, i, i_r,
-                                       lseg, tol)
+                                       lseg, tol, d, e0, rate)
                     if top >= 0.0:
                         worst = max(worst, top)
                         nxt = i_r + 1

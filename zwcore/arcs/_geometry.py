@@ -53,6 +53,13 @@ def rotate1(t: FloatArray, angle: float) -> FloatArray:
 
 def local_uv(p: FloatArray, t: FloatArray, pts: FloatArray) -> tuple[FloatArray, FloatArray]:
     """Coordinates of ``pts`` ``(M, 2)`` in the frame of start ``p`` ``(2,)`` and tangent ``t``."""
+    if pts.shape == (1, 2) and p.shape == (2,) and t.shape == (2,):
+        # one point (a piece to one sample): the same arithmetic on floats, without the
+        # overhead of eight array operations on one element
+        ex = float(pts[0, 0]) - float(p[0])
+        ey = float(pts[0, 1]) - float(p[1])
+        tx, ty = float(t[0]), float(t[1])
+        return np.array([ex * tx + ey * ty]), np.array([ey * tx - ex * ty])
     dx = pts[..., 0] - p[..., 0]
     dy = pts[..., 1] - p[..., 1]
     u = dx * t[..., 0] + dy * t[..., 1]
@@ -134,9 +141,12 @@ def line_fit(
 def points_to_segments_distance(pts: FloatArray, a: FloatArray, b: FloatArray) -> FloatArray:
     """Distance of each point ``(M, 2)`` to each segment ``a[k]-b[k]`` ``(K, 2)``: ``(M, K)``."""
     ab = b - a
-    den = np.einsum("ij,ij->i", ab, ab)
+    abx, aby = ab[:, 0], ab[:, 1]
+    # (the two-term dot products written out: the figures of ``einsum`` without its
+    # parsing, which cost more than the arithmetic on the few points of a call)
+    den = abx * abx + aby * aby
     den = np.where(den > 0.0, den, 1.0)
     ap = pts[:, None, :] - a[None, :, :]
-    s = np.clip(np.einsum("mkj,kj->mk", ap, ab) / den[None, :], 0.0, 1.0)
+    s = np.clip((ap[..., 0] * abx + ap[..., 1] * aby) / den[None, :], 0.0, 1.0)
     d = ap - s[:, :, None] * ab[None, :, :]
     return np.hypot(d[..., 0], d[..., 1])

@@ -20,6 +20,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba import njit
 from numpy.typing import NDArray
 
 from zwcore.arcs._geometry import arc_points
@@ -41,11 +42,40 @@ def _turn(d0: FloatArray, d1: FloatArray) -> FloatArray:
     return np.arctan2(d0[:, 0] * d1[:, 1] - d0[:, 1] * d1[:, 0], (d0 * d1).sum(axis=1))
 
 
+@njit(cache=True, nogil=True, error_model="numpy")
+def _fillets_clash(S: FloatArray, work_tol: float, slack: float) -> bool:
+    """True when two neighbouring inner samples of ``S`` ``(n, 2)`` both turn (clearly
+    more than :data:`_STRAIGHT`) and their largest fillets (tangent lengths ``work_tol /
+    tan(theta / 4)``) overlap on the edge between them, by more than a millionth of it:
+    then :func:`polygon_run` has no filleted polygon (that edge's ``need`` exceeds its
+    gap; the margins, a millionth and ``slack`` for the rounding of the run's cumulative
+    lengths, cover the rounding of its own figures). One pass, stopping at the
+    first clash: most runs that are not coarse polygons (any finely sampled curve) are
+    told at their first vertices instead of after a dozen whole-run array operations."""
+    n = len(S)
+    prev_l = -1.0  # the previous sample's tangent length (-1: not a clear vertex)
+    for i in range(1, n - 1):
+        ax, ay = S[i, 0] - S[i - 1, 0], S[i, 1] - S[i - 1, 1]
+        bx, by = S[i + 1, 0] - S[i, 0], S[i + 1, 1] - S[i, 1]
+        la, lb = math.hypot(ax, ay), math.hypot(bx, by)
+        if not (la > 0.0 and lb > 0.0):
+            return False
+        th = abs(math.atan2(ax * by - ay * bx, ax * bx + ay * by))
+        if th > 2.0 * _STRAIGHT:
+            cur = work_tol / math.tan(0.25 * th)
+            if prev_l >= 0.0 and prev_l + cur > la * (1.0 + 1e-6) + slack:
+                return True
+            prev_l = cur
+        else:
+            prev_l = -1.0
+    return False
+
+
 def polygon_run(band: ToleranceBand, a: int, b: int, loop: bool) -> list[Piece] | None:
     """The filleted polygon through samples ``a..b`` (see the module notes), or None
     when the run is not a coarse polygon at this tolerance or a loop's seam fails."""
     S = band.samples[a : b + 1]
-    if len(S) < 3:
+    if len(S) < 3 or _fillets_clash(S, _WORK * band.tol, 1e-13 * float(band.cum[b])):
         return None
     d = np.diff(S, axis=0)
     ln = np.hypot(d[:, 0], d[:, 1])

@@ -8,6 +8,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 from numpy.typing import NDArray
 
 from zwcore.arcs._geometry import line_fit, sagitta1
@@ -68,6 +69,61 @@ class Anchor:
     d: FloatArray
 
 
+@njit(cache=True, nogil=True, error_model="numpy")
+def _straight(samples: FloatArray, i0: int, i1: int, band: float) -> bool:
+    """Samples ``i0..i1`` lie within ``band`` of their least-squares line."""
+    return i1 - i0 < 2 or line_spread(samples, i0, i1, False, 0.0, 0.0) <= band
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _grow(samples: FloatArray, fixed: int, moving: int, limit: int, sgn: int,
+          band: float) -> int:
+    """The straight run ``fixed..moving`` grown at its ``moving`` end towards ``limit``
+    (``sgn``: the direction) by galloping, then bisection: its new end."""
+    good, step = moving, max(1, abs(moving - fixed) // 4)
+    while good != limit:
+        cand = good + sgn * step
+        cand = min(cand, limit) if sgn > 0 else max(cand, limit)
+        ok = _straight(samples, fixed, cand, band) if sgn > 0 else _straight(
+            samples, cand, fixed, band)
+        if ok:
+            good = cand
+            step *= 2
+            continue
+        lo, hi = good, cand  # lo straight, hi not
+        while abs(hi - lo) > 1:
+            mid = (lo + hi) // 2
+            if (_straight(samples, fixed, mid, band) if sgn > 0
+                    else _straight(samples, mid, fixed, band)):
+                lo = mid
+            else:
+                hi = mid
+        return lo
+    return good
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def straight_span(samples: FloatArray, k: int, j: int, a: int, b: int,
+                  band: float) -> tuple[int, int]:
+    """The first and last sample of the maximal straight run (samples within ``band`` of
+    their least-squares line, within ``a..b``) grown from samples ``k..j``, else from
+    their last, first or middle half; ``(-1, -1)`` when none of these is straight. One
+    compiled call for the whole gallop and bisection (dozens of line fits), which cost
+    a kernel call each from Python."""
+    q4 = (j - k) // 4
+    found = False
+    for kk, jj in ((k, j), (k + 2 * q4, j), (k, j - 2 * q4), (k + q4, j - q4)):
+        if jj - kk >= 2 and _straight(samples, kk, jj, band):
+            k, j = kk, jj
+            found = True
+            break
+    if not found:
+        return -1, -1
+    i1 = _grow(samples, k, j, b, 1, band)
+    i0 = _grow(samples, i1, k, a, -1, band)
+    return i0, i1
+
+
 def straight_run(
     samples: FloatArray, k: int, j: int, a: int, b: int, tol: float, pin_start: bool,
     pin_end: bool,
@@ -80,42 +136,9 @@ def straight_run(
     reaches sample ``a``/``b`` gets the line through that sample (the chain must
     start/end exactly there, on the line), if that line still keeps the band.
     """
-    band = STRAIGHT_BAND * tol
-
-    def straight(i0: int, i1: int) -> bool:
-        return i1 - i0 < 2 or line_spread(samples, i0, i1, False, 0.0, 0.0) <= band
-
-    # the whole span, else its end parts or its middle half
-    q4 = (j - k) // 4
-    for kk, jj in ((k, j), (k + 2 * q4, j), (k, j - 2 * q4), (k + q4, j - q4)):
-        if jj - kk >= 2 and straight(kk, jj):
-            k, j = kk, jj
-            break
-    else:
+    i0, i1 = straight_span(samples, k, j, a, b, STRAIGHT_BAND * tol)
+    if i0 < 0:
         return None
-
-    def grow(fixed: int, moving: int, limit: int, sgn: int) -> int:
-        good, step = moving, max(1, abs(moving - fixed) // 4)
-        while good != limit:
-            cand = good + sgn * step
-            cand = min(cand, limit) if sgn > 0 else max(cand, limit)
-            ok = straight(fixed, cand) if sgn > 0 else straight(cand, fixed)
-            if ok:
-                good = cand
-                step *= 2
-                continue
-            lo, hi = good, cand  # lo straight, hi not
-            while abs(hi - lo) > 1:
-                mid = (lo + hi) // 2
-                if (straight(fixed, mid) if sgn > 0 else straight(mid, fixed)):
-                    lo = mid
-                else:
-                    hi = mid
-            return lo
-        return good
-
-    i1 = grow(k, j, b, 1)
-    i0 = grow(i1, k, a, -1)
     q, d, _ = line_fit(samples[i0 : i1 + 1])
     for pin, flag in ((a, pin_start and i0 == a), (b, pin_end and i1 == b)):
         if not flag:
