@@ -345,8 +345,10 @@ def _coarse(cell_slopes: F64, kappa: F64, widths: F64, k: int, radius: float,
     bends = np.maximum(_grouped(kappa[:n], k), kappa[np.minimum(heads + k, n)])
     eff = _effective_slopes(slopes, bends, radius)
     gw = np.add.reduceat(widths, heads)
-    ok = (_scallops(gw[:, None], eff, radius) <= budget).all(axis=1)
-    return ok, gw, eff, slopes
+    ok: NDArray[np.bool_] = np.asarray(
+        (_scallops(gw[:, None], eff, radius) <= budget).all(axis=1), dtype=bool)
+    gwf: F64 = np.asarray(gw, dtype=np.float64)
+    return ok, gwf, eff, slopes
 
 
 def _stride_layout(cell_slopes: F64, kappa: F64, widths: F64, radius: float, budget: float,

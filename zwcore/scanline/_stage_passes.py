@@ -174,7 +174,7 @@ class _Stage:
         key = (reached, budget, what)
         if key not in self.lines:  # the passes that do not reach the target share theirs
             ax, ay = (self.ax_t, self.ay_t) if reached else (self.ax_b, self.ay_b)
-            bends = self.bends_t if reached else self.bends_b
+            bends: tuple[F64, F64] | None = self.bends_t if reached else self.bends_b
             # a rest ball works in the corners the larger balls left, which nearly fit it:
             # there the kinks of the level's model understate the part's curvature (the
             # R 3 ball in the 45 deg fillet left cusps on 2.73 mm radii), so its lines
