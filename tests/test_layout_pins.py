@@ -32,12 +32,6 @@ Re-pinned on purpose: ``scanline`` for issue 11 parts 2-3 brought back on the si
 stock: every finishing stage targets the part, rest balls' regions come from the
 simulated stock the passes before them leave, and the reach summary is read off the
 final simulated stock (the plan changes; the request and task id do not).
-
-Re-pinned on purpose: ``scanline`` for the pick-feed from the scallop (branch pick4):
-passes run their lines on every k-th grid line where the scallop with the cross slope
-and concave curvature allows (this part's Ø20 stages: 2 mm, every 4th 0.5 mm line), so
-the stages' ``pick_feed``, ``pick_feed_max``, ``scan_lines``, ``scallop_height``, lines
-and the simulated figures change; the request and task id do not.
 """
 
 from __future__ import annotations
@@ -80,7 +74,7 @@ PINNED: dict[str, tuple[str, str]] = {
     "mrr": ("b1500866fbd1fdfbf5316dd1ae2173f8c32f5260c9b4e878b3c9f6dba7610746",
             "511b56c84f0f5b7c3b3699bb21052e244b35645644ad5df5ecb96d9ae068b23c"),
     "scanline": ("0d373fe45ad19e3b0af762cc5bf3f023ae1ecd34c414f499db31a0f7bee50cc5",
-                 "6cc6e8fcad62b11208ede2f1fdbe829bd6c3a5d4197ea94742b8fa66d1744824"),
+                 "fdddb81e2f65af0f6c118d2c624fd398663e4e1779e2b108bb71df6ca3a98a7a"),
     "contour": ("af4786a3c0c89d765d85abbeb7289898a35f887b14e5abbe03ef564b2b881010",
                 "451e40e57762313c96b6500671840cc7a1e474220a35a9f05768aff603afad78"),
     # (re-pinned twice: issue 14 names results by operation id, ``fit_arcs``; issue 15

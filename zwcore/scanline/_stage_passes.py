@@ -180,6 +180,10 @@ class _Stage:
             # R 3 ball in the 45 deg fillet left cusps on 2.73 mm radii), so its lines
             # stay on every grid line
             bends = None if self.region is not None else bends
+            # only finishing passes (the tolerance as budget): coarser roughing lines left
+            # budget-sized scallops that the flute rule then lifted into more passes (1025²
+            # bench: 11 stages instead of 10, 2049²: 24 instead of 13, plan time 1.6-2.4x)
+            bends = bends if reached and self.next_flute is None else None
             self.lines[key] = plan_strips(ax, ay, self.lev.sx, self.lev.sy, extent_mm,
                                           self.tool.radius, budget, what, bends)
         return self.lines[key]
