@@ -146,17 +146,11 @@ class _Stage:
         # the flute rule does not raise them); the last one on the target's own.
         self.ax_t, self.ay_t = cell_cross_slopes(lev.model, lev.sx, lev.sy, lev.cells)
         self.slope_t = steepest_slope(lev.model, lev.sx, lev.sy, extent=lev.cells)
-        # concave kinks across the lines: where the scallop allows, lines run every
-        # k-th grid line (the curvature makes a near-fitting ball's cusps grow)
-        self.bends_t = cell_cross_curvatures(lev.model, lev.sx, lev.sy, lev.cells)
         if self.first:
             self.ax_b, self.ay_b, self.slope_b = self.ax_t, self.ay_t, self.slope_t
-            self.bends_b = self.bends_t
         else:
             ax_o, ay_o = cell_cross_slopes(self.on, lev.sx, lev.sy, lev.cells)
             self.ax_b, self.ay_b = np.maximum(self.ax_t, ax_o), np.maximum(self.ay_t, ay_o)
-            bx_o, by_o = cell_cross_curvatures(self.on, lev.sx, lev.sy, lev.cells)
-            self.bends_b = (np.maximum(self.bends_t[0], bx_o), np.maximum(self.bends_t[1], by_o))
             self.slope_b = max(self.slope_t,
                                steepest_slope(self.on, lev.sx, lev.sy, extent=lev.cells))
         self.memo = PassMemo()  # the target's drop and the last pass, per position
@@ -174,16 +168,17 @@ class _Stage:
         key = (reached, budget, what)
         if key not in self.lines:  # the passes that do not reach the target share theirs
             ax, ay = (self.ax_t, self.ay_t) if reached else (self.ax_b, self.ay_b)
-            bends: tuple[F64, F64] | None = self.bends_t if reached else self.bends_b
-            # a rest ball works in the corners the larger balls left, which nearly fit it:
-            # there the kinks of the level's model understate the part's curvature (the
-            # R 3 ball in the 45 deg fillet left cusps on 2.73 mm radii), so its lines
-            # stay on every grid line
-            bends = None if self.region is not None else bends
-            # only finishing passes (the tolerance as budget): coarser roughing lines left
-            # budget-sized scallops that the flute rule then lifted into more passes (1025²
-            # bench: 11 stages instead of 10, 2049²: 24 instead of 13, plan time 1.6-2.4x)
-            bends = bends if reached and self.next_flute is None else None
+            # Only the finishing lines on the part (the tolerance as budget, the whole
+            # part) run every k-th grid line where the scallop with the concave kinks
+            # across them allows (their model is the target: its kinks, computed here
+            # only). A rest ball works in corners the larger balls left, which nearly
+            # fit it: there the kinks of the level's model understate the part's
+            # curvature (the R 3 ball in the 45 deg fillet left cusps on 2.73 mm radii),
+            # so its lines stay on every grid line; roughing lines too (scallops at half
+            # the next flute, measured: more lifted passes).
+            coarse = reached and self.next_flute is None and self.region is None
+            bends = (cell_cross_curvatures(self.lev.model, self.lev.sx, self.lev.sy,
+                                           self.lev.cells) if coarse else None)
             self.lines[key] = plan_strips(ax, ay, self.lev.sx, self.lev.sy, extent_mm,
                                           self.tool.radius, budget, what, bends)
         return self.lines[key]
