@@ -3,17 +3,21 @@
 Checked against an independent brute force: the ball is dropped onto the part's
 nodes at positions along the plan's own finishing lines, and the stock it leaves
 is compared with the stock the same ball leaves running on every grid row (the
-ball's reach; what the pick-feed adds on top of it is the scallop).
+ball's reach; what the pick-feed adds on top of it is the scallop). The simulated
+stock's thinning of such a pass is checked by brute force too: every position of the
+pass lies within the thinning's gap of a simulated one.
 """
 
 from __future__ import annotations
 
 import numpy as np
-from hypothesis import given, settings
+import pytest
+from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from zwcore.grid.tools import Tool
 from zwcore.grid.zmap import ZMap
+from zwcore.scanline import _stock as stock_sim
 from zwcore.scanline.planner import plan_scanline
 from zwcore.scanline.results import ScanLines
 
@@ -80,3 +84,54 @@ def test_finishing_lines_wider_than_grid_and_scallop_within_tolerance(z: np.ndar
     dense = _stock(z, D, every, np.tile([0.0, length], (N, 1)), along_x, step)
     # The lines leave at most the tolerance above what the ball leaves anyway.
     assert (got - dense).max() <= TOL + 1e-9
+
+
+@st.composite
+def line_sets(draw: st.DrawFn) -> tuple[ScanLines, int]:
+    """Lines along x on a 0.1 mm grid: whole lines every ``k_pick``-th grid line over some
+    stretches of rows and on every one elsewhere (a finishing pass's layout), a few
+    extra segments between grid lines, and the last line at the part's edge."""
+    n = draw(st.integers(40, 160))  # strips
+    k_pick = draw(st.integers(1, 9))
+    coarse_rows = draw(st.lists(st.booleans(), min_size=n // max(k_pick, 1) + 1,
+                                max_size=n // max(k_pick, 1) + 1))
+    rows: list[int] = []
+    for g, coarse in enumerate(coarse_rows):
+        a = g * k_pick
+        rows.extend([a] if coarse else range(a, min(a + k_pick, n)))
+    rows = sorted({r for r in rows if r < n} | {0})
+    offset = [0.1 * r for r in rows] + [0.1 * n]
+    length = 0.1 * n
+    start, stop = [0.0] * len(offset), [length] * len(offset)
+    for r in draw(st.lists(st.integers(0, n - 1), max_size=5)):
+        offset.append(0.1 * r + 0.05)
+        start.append(draw(st.floats(0.0, length / 2)))
+        stop.append(length)
+    o, a, b = np.array(offset), np.array(start), np.array(stop)
+    order = np.lexsort((a, o))
+    return ScanLines("x", o[order], a[order], b[order]), n
+
+
+@settings(max_examples=40, deadline=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])  # same patch each time
+@given(case=line_sets())
+def test_thinning_keeps_lines_at_most_gap_apart(case: tuple[ScanLines, int],
+                                                monkeypatch: pytest.MonkeyPatch) -> None:
+    """Thinning a pass whose lines skip grid lines: every position the full pass has lies
+    within the thinning's ``gap`` of a simulated one (brute force over the positions), and
+    on lines on every grid line it keeps the rows divisible by ``k`` (as it always did)."""
+    lines, n = case
+    monkeypatch.setattr(stock_sim, "MAX_PASS_WORK", 2_000)  # force thinning on this small part
+    part = ZMap(np.zeros((n + 1, n + 1)), dx=0.1, dy=0.1)
+    ball = Tool("B10", "ball", 10.0, 40.0)
+    thin = stock_sim._Thinning.of(lines, part, 1, ball, (0.1, 0.1))
+    assert thin.k > 1
+    full = stock_sim.positions(lines, part, 1)
+    kept = stock_sim.positions(thin.lines, part, thin.k)
+    d2 = (full.x[:, None] - kept.x[None, :]) ** 2 + (full.y[:, None] - kept.y[None, :]) ** 2
+    assert np.sqrt(d2.min(axis=1)).max() <= thin.gap * (1 + 1e-9)
+    assert thin.gap <= 0.7 * ball.radius
+    grid = np.abs(lines.offset / 0.1 - np.rint(lines.offset / 0.1)) <= 1e-9
+    if np.unique(np.rint(lines.offset[grid] / 0.1)).size == n + 1:  # every grid line
+        idx = np.rint(thin.lines.offset / 0.1).astype(int)
+        assert set(idx) == set(range(0, n + 1, thin.k)) | {n}
