@@ -107,9 +107,9 @@ def line_sets(draw: st.DrawFn) -> tuple[ScanLines, int]:
         offset.append(0.1 * r + 0.05)
         start.append(draw(st.floats(0.0, length / 2)))
         stop.append(length)
-    o, a, b = np.array(offset), np.array(start), np.array(stop)
-    order = np.lexsort((a, o))
-    return ScanLines("x", o[order], a[order], b[order]), n
+    off, lo, hi = np.array(offset), np.array(start), np.array(stop)
+    order = np.lexsort((lo, off))
+    return ScanLines("x", off[order], lo[order], hi[order]), n
 
 
 @settings(max_examples=40, deadline=None,

@@ -407,7 +407,7 @@ def _stride_layout(cell_slopes: F64, kappa: F64, widths: F64, radius: float, bud
     # grid lines at i * spacing exactly (a running sum drifts by ulps off the model's
     # node rows, and the simulated stock's rim tests then flip: Mount Rushmore's Ø1
     # stage took 27 passes instead of 17 with the same lines)
-    starts = np.arange(n) * float(widths[0])
+    starts: F64 = np.arange(n, dtype=np.float64) * float(widths[0])
     flat = float(_allowed(budget, radius, np.zeros(1))[0])
     kmax = min(int(flat / float(widths[0])) if widths[0] > 0 else 1, MAX_STRIDE, n)
     if kmax < 2 or kappa.shape[0] != n + 1:
