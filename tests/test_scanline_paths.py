@@ -54,19 +54,24 @@ def cell_scallops(stage: ScanlineStage, extent: tuple[float, float]) -> np.ndarr
         d = np.abs(grid[i + 1] - grid[i]) / s_across  # edge differences across the strip
         hi_node = np.minimum(c + 1, grid.shape[1] - 1)
         slope = np.maximum(d[c], d[hi_node])
-        inside = (lines.offset >= lo_off - eps) & (lines.offset <= hi_off + eps)
-        order = np.argsort(lines.offset[inside], kind="stable")
-        off = lines.offset[inside][order]
-        start = lines.start[inside][order]
-        stop = lines.stop[inside][order]
+        # Lines run along every k-th grid line where the scallop allows, so the lines
+        # around a strip may lie beyond its grid lines: every pair of adjacent lines
+        # over a cell whose gap overlaps the strip bounds the cell's scallop there.
+        order = np.argsort(lines.offset, kind="stable")
         last = np.full(n_cells, np.nan)
+        below = np.zeros(n_cells, dtype=bool)
+        above = np.zeros(n_cells, dtype=bool)
         gap = np.zeros(n_cells)
-        for o, a, b in zip(off, start, stop, strict=True):
+        for o, a, b in zip(lines.offset[order], lines.start[order], lines.stop[order],
+                           strict=True):
             covers = (a <= cell_lo + eps) & (b >= cell_hi - eps)
-            gap = np.where(covers & ~np.isnan(last), np.maximum(gap, o - last), gap)
+            spans = covers & ~np.isnan(last) & (o > lo_off + eps) & (last < hi_off - eps)
+            gap = np.where(spans, np.maximum(gap, o - last), gap)
+            below |= covers & (o <= lo_off + eps)
+            above |= covers & (o >= hi_off - eps)
             last = np.where(covers, o, last)
-        # Both strip edges must be covered everywhere (the nominal lines run whole).
-        assert np.all(last >= hi_off - eps), f"strip {i}: its upper grid line is missing"
+        # Both strip edges must be bracketed everywhere (lines on grid lines run whole).
+        assert np.all(below & above), f"strip {i}: no line at or beyond its grid lines"
         out[i] = _closed_form(gap, slope, stage.tool.radius)
     return out
 

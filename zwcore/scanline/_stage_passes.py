@@ -33,7 +33,7 @@ from zwcore.grid.curvature import steepest_slope
 from zwcore.grid.tools import Tool
 from zwcore.grid.zmap import ZMap
 from zwcore.scanline._checks import PassSpec, axis_weights, eval_rows
-from zwcore.scanline._passes import StripPlan, cell_cross_slopes, plan_strips
+from zwcore.scanline._passes import StripPlan, cell_cross_curvatures, cell_cross_slopes, plan_strips
 from zwcore.scanline._stock import (
     PassMemo,
     SimulatedPass,
@@ -168,8 +168,19 @@ class _Stage:
         key = (reached, budget, what)
         if key not in self.lines:  # the passes that do not reach the target share theirs
             ax, ay = (self.ax_t, self.ay_t) if reached else (self.ax_b, self.ay_b)
+            # Only the finishing lines on the part (the tolerance as budget, the whole
+            # part) run every k-th grid line where the scallop with the concave kinks
+            # across them allows (their model is the target: its kinks, computed here
+            # only). A rest ball works in corners the larger balls left, which nearly
+            # fit it: there the kinks of the level's model understate the part's
+            # curvature (the R 3 ball in the 45 deg fillet left cusps on 2.73 mm radii),
+            # so its lines stay on every grid line; roughing lines too (scallops at half
+            # the next flute, measured: more lifted passes).
+            coarse = reached and self.next_flute is None and self.region is None
+            bends = (cell_cross_curvatures(self.lev.model, self.lev.sx, self.lev.sy,
+                                           self.lev.cells) if coarse else None)
             self.lines[key] = plan_strips(ax, ay, self.lev.sx, self.lev.sy, extent_mm,
-                                          self.tool.radius, budget, what)
+                                          self.tool.radius, budget, what, bends)
         return self.lines[key]
 
 

@@ -428,8 +428,9 @@ MAX_PASS_WORK = 1 << 26
 
 @dataclass(frozen=True, eq=False)
 class _Thinning:
-    """A pass too large to simulate at every position: every ``k``-th nominal line (and
-    the last), every ``k``-th point along them, extra lines dropped, ``k`` no larger than
+    """A pass too large to simulate at every position: lines on grid lines at most ``k``
+    grid lines apart (every ``k``-th where there is one on every grid line; and the
+    last), every ``k``-th point along them, extra lines dropped, ``k`` no larger than
     keeps every node within the ball's radius of a simulated position. The stock it
     leaves is higher than the full pass's (safe for the next pass's flute rule). The rule
     holds at the simulated positions; every model node within the gap of a binding one
@@ -448,28 +449,54 @@ class _Thinning:
         along = part.dx if lines.direction == "x" else part.dy
         across = spacing[1] if lines.direction == "x" else spacing[0]
         n = lines.length / (stride * along) + lines.offset.size
-        work = n * math.pi * (tool.radius / part.dx + 1.0) * (tool.radius / part.dy + 1.0)
+        per = math.pi * (tool.radius / part.dx + 1.0) * (tool.radius / part.dy + 1.0)
+        # The lines on grid lines (segments sorted by offset): on every one, or every few
+        # where a finishing pass's scallop allows (zwcore.scanline._passes). Thinning keeps
+        # lines at most k grid lines apart among those present (on every grid line: those
+        # with index divisible by k, as ever), and its work counts what it keeps. Keeping
+        # grid lines by index alone kept every lcm-th of a coarse pass's lines: 28 mm apart
+        # for a Ø20 ball at 2049², and the next ball met the uncut ridges between them.
+        idx = lines.offset / across
+        on_grid = np.flatnonzero(np.abs(idx - np.rint(idx)) <= 1e-9)
+        grid_idx = np.rint(idx[on_grid]).astype(np.int64)
+        last = lines.offset >= lines.offset.max()
+        seg = lines.stop - lines.start
         # Every node stays within the radius of a simulated position (gap <= 0.7 R), so the
         # simulated positions still cut all the stock the lift reads.
         unit = max(across, stride * along)
-        k = 1
+        k, keep = 1, np.ones(lines.offset.size, dtype=bool)
         small = tool.radius <= GRID_MODE_RADIUS * min(part.dx, part.dy)  # grid mode copes
-        while (THINNING and not small and work / (k * k) > MAX_PASS_WORK
+        work = n * per
+        while (THINNING and not small and work > MAX_PASS_WORK
                and 2 * k * unit <= 0.7 * tool.radius):
             k *= 2
+            keep = np.zeros(lines.offset.size, dtype=bool)
+            keep[on_grid] = np.isin(grid_idx, grid_idx[_within(grid_idx, k)])
+            keep |= last
+            work = (float(seg[keep].sum()) / (k * stride * along) + int(keep.sum())) * per
         if k == 1:
             return cls(lines, 1, 0.0)
-        idx = lines.offset / across
-        nominal = np.abs(idx - np.rint(idx)) <= 1e-9
-        last = lines.offset >= lines.offset.max()
-        keep = (nominal & (np.rint(idx).astype(np.int64) % k == 0)) | last
         kept = ScanLines(lines.direction, lines.offset[keep], lines.start[keep],
                          lines.stop[keep])
-        return cls(kept, k, k * max(across, stride * along))
+        return cls(kept, k, k * unit)
 
     def lift(self, model: F64, spacing: tuple[float, float], pos: Positions, need: F64) -> int:
         return int(_k.raise_box(model, spacing[0], spacing[1], pos.x, pos.y,
                                 np.ascontiguousarray(need), self.gap))
+
+
+def _within(grid_idx: NDArray[np.int64], k: int) -> NDArray[np.intp]:
+    """Lines to keep (indices into ``grid_idx``, the sorted grid-line indices of the lines
+    present) so that kept ones are at most ``k`` grid lines apart where the lines allow:
+    the first, then each time the furthest within ``k`` of the last kept (a step longer
+    than ``k`` keeps both its ends). On every grid line from 0: those divisible by ``k``."""
+    out = []
+    i, n = 0, grid_idx.size
+    while i < n:
+        out.append(i)
+        j = int(np.searchsorted(grid_idx, grid_idx[i] + k, side="right")) - 1
+        i = j if j > i else i + 1
+    return np.asarray(out, dtype=np.intp)
 
 
 def _lift(model: F64, spacing: tuple[float, float], pos: Positions, node: NDArray[np.bool_],
