@@ -80,14 +80,14 @@ def test_sweep_cut_equals_the_per_position_kernel(case: _Case, along_x: bool) ->
     order = np.lexsort((u, v))
     ref = stock.copy()
     t_ref = np.zeros(block_max(stock).shape, dtype=bool)
-    _k.cut(ref, block_max(stock), BLOCK, x, y, c, r, dx, dy, t_ref)
+    _k.cut(ref, block_max(stock), BLOCK, x, y, c, r, dx, dy, t_ref, np.zeros_like(t_ref))
     got = stock.copy()
     t_got = np.zeros_like(t_ref)
     view = (lambda a: a) if along_x else (lambda a: a.T)
     du, dv = (dx, dy) if along_x else (dy, dx)
     cut_lines(view(got), np.ascontiguousarray(u[order]), np.ascontiguousarray(v[order]),
               np.ascontiguousarray(c[order]), line_starts(v[order]), r, du, dv, BLOCK,
-              view(t_got))
+              view(t_got), view(np.zeros_like(t_ref)))
     # the same to the rounding of tied balls, and never below (a winner rounded higher)
     assert np.all(got >= ref)
     assert np.all(got - ref <= _ULPS * np.spacing(np.abs(ref)))

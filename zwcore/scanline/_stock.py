@@ -46,6 +46,7 @@ from numpy.typing import NDArray
 
 from zwcore.grid.tools import Tool
 from zwcore.grid.zmap import ZMap
+from zwcore.scanline import _stock_bounds as _b
 from zwcore.scanline import _stock_kernels as _k
 from zwcore.scanline import _stock_sweep as _sw
 from zwcore.scanline._stock_grid import GRID_MODE_RADIUS, GridMode
@@ -195,13 +196,22 @@ class StockSim:
     def top(self, pos: Positions, idx: NDArray[np.intp], tool: Tool, smax: F64,
             grid_ok: bool) -> F64:
         """Highest stock node within ``R`` of the positions ``idx`` (grid mode when they
-        are most of the input nodes and ``grid_ok``)."""
+        are most of the input nodes and ``grid_ok``; else the block bounds where they
+        settle it, :func:`_stock_bounds.top_bounded`, and the kernel elsewhere)."""
         px, py = pos.x[idx], pos.y[idx]
         grid = self._grid(pos, idx, px, py, tool) if grid_ok else None
         if grid is not None:
             return grid.top(self.stock, smax, self.part, px, py, tool)
-        return _k.top(self.stock, smax, BLOCK, px, py, tool.radius, self.part.dx,
-                      self.part.dy)
+        part, r = self.part, tool.radius
+        if not BOUNDS or px.size < BOUNDS_MIN:
+            return _k.top(self.stock, smax, BLOCK, px, py, r, part.dx, part.dy)
+        grown = grow_blocks(smax, r, part.dx, part.dy)
+        out, rest = _b.top_bounded(smax, grown, part.shape, px, py, r, part.dx, part.dy,
+                                   BLOCK)
+        if rest.size:
+            out[rest] = _k.top(self.stock, smax, BLOCK, px[rest], py[rest], r, part.dx,
+                               part.dy)
+        return out
 
     def _grid(self, pos: Positions, idx: NDArray[np.intp], px: F64, py: F64,
               tool: Tool) -> GridMode | None:
@@ -221,16 +231,27 @@ class StockSim:
         touched = np.zeros(smax.shape, dtype=bool)
         px, py, c = pos.x[idx], pos.y[idx], np.ascontiguousarray(cl[idx])
         grid = self._grid(pos, idx, px, py, tool) if grid_ok else None
-        sweep = (None if grid is not None
-                 else _Sweep.of(px, py, pos.along, tool.radius, self.part.dx, self.part.dy))
         if grid is not None:
             grid.cut(self.stock, smax, self.part, px, py, c, tool, touched)
-        elif sweep is not None:
-            sweep.cut(self.stock, c, touched)
+            return touched
+        part, r = self.part, tool.radius
+        skip = (_b.settle(self.stock, px, py, c, r, part.dx, part.dy, BLOCK, touched)
+                if BOUNDS and px.size >= BOUNDS_MIN else np.zeros_like(touched))
+        sweep = _Sweep.of(px, py, pos.along, r, part.dx, part.dy)
+        if sweep is not None:
+            sweep.cut(self.stock, c, touched, skip)
         else:
-            _k.cut(self.stock, smax, BLOCK, px, py, c, tool.radius, self.part.dx,
-                   self.part.dy, touched)
+            _k.cut(self.stock, smax, BLOCK, px, py, c, r, part.dx, part.dy, touched, skip)
         return touched
+
+
+#: ``False``: the kernels alone, without the block bounds that settle most of a dense
+#: pass first (:mod:`zwcore.scanline._stock_bounds`; the tests compare the two).
+BOUNDS = True
+
+#: Positions from which the block bounds are tried (their set-up costs a few block-grid
+#: filters).
+BOUNDS_MIN = 256
 
 
 #: The line sweep (:mod:`zwcore.scanline._stock_sweep`) runs instead of the per-position
@@ -276,11 +297,12 @@ class _Sweep:
             return None
         return cls(order, us, vs, starts, along_x, r, du, dv)
 
-    def cut(self, stock: F64, cl: F64, touched: NDArray[np.bool_]) -> None:
+    def cut(self, stock: F64, cl: F64, touched: NDArray[np.bool_],
+            skip: NDArray[np.bool_]) -> None:
         """:func:`_stock_kernels.cut` at the positions with CL ``cl`` (their order)."""
-        s, t = (stock, touched) if self.along_x else (stock.T, touched.T)
+        s, t, k = (stock, touched, skip) if self.along_x else (stock.T, touched.T, skip.T)
         _sw.cut_lines(s, self.u, self.v, np.ascontiguousarray(cl[self.order]),
-                      self.starts, self.r, self.du, self.dv, BLOCK, t)
+                      self.starts, self.r, self.du, self.dv, BLOCK, t, k)
 
     def drop(self, z: F64, cl0: F64) -> F64:
         """:func:`_stock_kernels.cl_part` at the positions (their order)."""
