@@ -375,11 +375,18 @@ def run_pass(sim: StockSim, model: F64, spacing: tuple[float, float], tool: Tool
         state = next_state(sim, tool, last)
     else:
         state = _first_state(sim, model, spacing, tool, lines, stride, region, target_cl,
-                             memo)
+                             memo, guard if lift else None)
     part = sim.part
     pos, cand, top, cl, depth = state.pos, state.cand, state.top, state.cl, state.depth
     base = state.base
     need = top[cand] - tool.flute_length + guard
+    if state.exact is not None:  # the unlifted CL where the rule may now leave it
+        vague = ~state.exact[cand] & ((need <= base[cand]) if lift else True)
+        if vague.any():
+            if target_cl is None and memo is not None:
+                target_cl = memo.drop
+            _exact_base(sim, model, spacing, tool, pos, cand[vague], target_cl, base,
+                        state.exact)
     bind = (need > base[cand]) if lift else np.zeros(cand.size, dtype=bool)
     lifted = 0
     if bind.any():
@@ -398,7 +405,7 @@ def run_pass(sim: StockSim, model: F64, spacing: tuple[float, float], tool: Tool
     touched = sim.cut(pos, cutters, cl, tool, state.thin.k == 1)
     if memo is not None:
         memo.keep(lines, Last(state.lines, stride, region, pos, base, cl, top, depth,
-                               touched, state.thin))
+                              touched, state.thin, state.exact))
     # nodes outside the blocks the pass lowered kept their stock
     sim.gouge = max(sim.gouge, _k.blocks_diff_max(part.z, sim.stock, touched, BLOCK))
     lowered = (-1 if not lifted or before is None
@@ -410,8 +417,10 @@ def run_pass(sim: StockSim, model: F64, spacing: tuple[float, float], tool: Tool
 
 def _first_state(sim: StockSim, model: F64, spacing: tuple[float, float], tool: Tool,
                  lines: ScanLines, stride: int, region: NDArray[np.bool_] | None,
-                 target_cl: F64 | None, memo: PassMemo | None) -> State:
-    """Every position of the pass: CL on the target, the part's nodes where it may cut."""
+                 target_cl: F64 | None, memo: PassMemo | None,
+                 lazy: float | None = None) -> State:
+    """Every position of the pass: CL on the target, the part's nodes where it may cut
+    (``lazy``: the flute rule's guard of a lifted pass, :func:`_lazy_state`)."""
     sx, sy = spacing
     part = sim.part
     thin = _Thinning.of(lines, part, stride, tool, spacing)
@@ -422,6 +431,8 @@ def _first_state(sim: StockSim, model: F64, spacing: tuple[float, float], tool: 
         target_cl = memo.drop
     elif target_cl is None:
         target_cl = target_drop(model, sx, sy, tool, pos.size)
+    if lazy is not None and BOUNDS and pos.size >= BOUNDS_MIN:
+        return _lazy_state(sim, model, spacing, tool, thin, pos, target_cl, lazy)
     if target_cl is None:  # a large ball on a fine model: dropped on its nodes here only
         cl = drop_nodes(model, block_max(model), pos, np.full(pos.size, -np.inf),
                         tool.radius, sx, sy)
@@ -437,6 +448,77 @@ def _first_state(sim: StockSim, model: F64, spacing: tuple[float, float], tool: 
     top = np.full(pos.size, -np.inf)
     top[act] = sim.top(pos, act, tool, smax, thin.k == 1)
     return State(thin.lines, thin, pos, act, top, cl, cl.copy(), np.zeros(pos.size), True)
+
+
+def _lazy_state(sim: StockSim, model: F64, spacing: tuple[float, float], tool: Tool,
+                thin: _Thinning, pos: Positions, target_cl: F64 | None,
+                guard: float) -> State:
+    """:func:`_first_state` of a lifted pass, its unlifted CL found only where the flute
+    rule may leave it.
+
+    The drop-cutter of a large ball at every position (on the model's nodes when the
+    target is not dropped whole, against the part's nodes off them) is most of a dense
+    pass's cost, yet where the highest stock within ``R`` less the flute length lies
+    above an upper bound of that CL the position is lifted whatever the CL is (a facing
+    pass over the stock top). The bound: the largest model node (and part node, off the
+    model's nodes) the ball can reach, by blocks
+    (:func:`_stock_state.grow_blocks`); a drop-cutter CL is never above the highest node
+    within ``R``. The top is read first, at the positions a lower bound of the CL
+    (:func:`_stock_bounds.nearest_low`) does not rule out; the exact CL is found at the
+    others and kept, the bound where the position is lifted (``State.exact``;
+    :func:`run_pass` finds the exact CL when a later pass needs it). The pass is the
+    eager one's, bit for bit (tests).
+    """
+    sx, sy = spacing
+    part, r = sim.part, tool.radius
+    on = _on_nodes(pos, sx, sy)
+    if target_cl is None:
+        low = _b.nearest_low(model, sx, sy, pos.x, pos.y, r)
+        high = _b.block_at(grow_blocks(block_max(model), r, sx, sy), BLOCK, pos.x, pos.y,
+                           1.0 / sx, 1.0 / sy)
+    else:
+        low = interpolate(target_cl, sx, sy, pos)
+        high = low.copy()
+    part_high = _b.block_at(grow_blocks(sim._zmax, r, part.dx, part.dy), BLOCK, pos.x,
+                            pos.y, 1.0 / part.dx, 1.0 / part.dy)
+    high = np.where(on, high, np.maximum(high, part_high))
+    smax = block_max(sim.stock)
+    may = _k.may_cut(grow_blocks(smax, r, part.dx, part.dy), BLOCK, pos.x, pos.y, low,
+                     1.0 / part.dx, 1.0 / part.dy)
+    act = np.flatnonzero(may)
+    top = np.full(pos.size, -np.inf)
+    top[act] = sim.top(pos, act, tool, smax, thin.k == 1)
+    base = low  # exact where ``on`` with a dropped target; never read where not ``act``
+    exact = np.ones(pos.size, dtype=bool)
+    base[act] = high[act]
+    exact[act] = False
+    need = top[act] - tool.flute_length + guard
+    _exact_base(sim, model, spacing, tool, pos, act[need <= high[act]], target_cl, base,
+                exact)
+    return State(thin.lines, thin, pos, act, top, base, base.copy(), np.zeros(pos.size),
+                 True, exact)
+
+
+def _exact_base(sim: StockSim, model: F64, spacing: tuple[float, float], tool: Tool,
+                pos: Positions, idx: NDArray[np.intp], target_cl: F64 | None, base: F64,
+                exact: NDArray[np.bool_]) -> None:
+    """The unlifted CL at the positions ``idx`` (into ``base``, in place): on the
+    target (dropped whole, or on the model's nodes at the positions) and against the
+    part's nodes off the model's nodes."""
+    if idx.size == 0:
+        return
+    sx, sy = spacing
+    sub = Positions(pos.x[idx], pos.y[idx], pos.along)
+    if target_cl is None:
+        cl = drop_nodes(model, block_max(model), sub, np.full(idx.size, -np.inf),
+                        tool.radius, sx, sy)
+    else:
+        cl = interpolate(target_cl, sx, sy, sub)
+    off = np.flatnonzero(~_on_nodes(sub, sx, sy))
+    if off.size:
+        cl[off] = sim.base_cl(cl[off], Positions(sub.x[off], sub.y[off], pos.along), tool)
+    base[idx] = cl
+    exact[idx] = True
 
 
 #: ``False``: no pass is thinned, whatever its work (``bench/bench_scanline_core.py

@@ -31,7 +31,9 @@ from numba import njit
 from numpy.typing import NDArray
 from scipy import ndimage
 
-__all__ = ["block_at", "inner_max", "settle", "top_bounded"]
+from zwcore.scanline._stock_kernels import RIM
+
+__all__ = ["block_at", "inner_max", "nearest_low", "settle", "top_bounded"]
 
 F64 = NDArray[np.float64]
 
@@ -160,3 +162,20 @@ def _settle(s: F64, px: F64, py: F64, cl: F64, least: F64, b: int, idx: float,
             full = (min(bi * b + b, ny) - bi * b) * (min(bk * b + b, nx) - bk * b)
             easy[bi, bk] = count[bi, bk] == full
     return easy
+
+
+@njit(cache=True, nogil=True)
+def nearest_low(z: F64, sx: float, sy: float, px: F64, py: F64, r: float) -> F64:
+    """A lower bound of the drop-cutter on the nodes ``z`` (spacing ``sx, sy``) at
+    each position: the ball resting on its nearest node, ``z[q] - h(|q - c|)`` by the
+    kernels' own expression (-inf when that node lies beyond ``r``)."""
+    my, mx = z.shape
+    r2, rin = r * r, r * r * RIM
+    out = np.empty(px.size)
+    for n in range(px.size):
+        k = min(max(round(px[n] / sx), 0), mx - 1)
+        i = min(max(round(py[n] / sy), 0), my - 1)
+        ex, ey = k * sx - px[n], i * sy - py[n]
+        d2 = ex * ex + ey * ey
+        out[n] = z[i, k] - (r - math.sqrt(max(r2 - d2, 0.0))) if d2 <= rin else -np.inf
+    return out
