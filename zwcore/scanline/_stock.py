@@ -65,6 +65,7 @@ from zwcore.sim import drop_cutter
 
 __all__ = [
     "BLOCK",
+    "CUSP_SHARE",
     "DROP_SHARE",
     "INCREMENTAL",
     "THINNING",
@@ -339,7 +340,8 @@ class SimulatedPass:
 def run_pass(sim: StockSim, model: F64, spacing: tuple[float, float], tool: Tool,
              lines: ScanLines, stride: int, region: NDArray[np.bool_] | None,
              guard: float, *, lift: bool = True, target_cl: F64 | None = None,
-             memo: PassMemo | None = None, before: F64 | None = None) -> SimulatedPass:
+             memo: PassMemo | None = None, before: F64 | None = None,
+             cusp: float | None = None) -> SimulatedPass:
     """Simulate one pass over ``sim``'s stock, lifting ``model`` (in place) where the flute
     rule needs it.
 
@@ -365,6 +367,11 @@ def run_pass(sim: StockSim, model: F64, spacing: tuple[float, float], tool: Tool
         What the stage's passes share; updated to this pass.
     before : (ny, nx) float64, optional
         A copy of ``sim.stock`` as it is (else taken here when the pass is lifted).
+    cusp : float, optional
+        The cusp, mm, a thinned pass may leave between its simulated positions on a flat
+        (:class:`_Thinning`; the planner gives :data:`CUSP_SHARE` of the pass's scallop or
+        the tolerance, as :func:`stride_for` along the lines). ``None``: thinned as far as
+        ``0.7 R``.
 
     Returns
     -------
@@ -375,7 +382,7 @@ def run_pass(sim: StockSim, model: F64, spacing: tuple[float, float], tool: Tool
         state = next_state(sim, tool, last)
     else:
         state = _first_state(sim, model, spacing, tool, lines, stride, region, target_cl,
-                             memo, guard if lift else None)
+                             memo, guard if lift else None, cusp)
     part = sim.part
     pos, cand, top, cl, depth = state.pos, state.cand, state.top, state.cl, state.depth
     base = state.base
@@ -418,12 +425,12 @@ def run_pass(sim: StockSim, model: F64, spacing: tuple[float, float], tool: Tool
 def _first_state(sim: StockSim, model: F64, spacing: tuple[float, float], tool: Tool,
                  lines: ScanLines, stride: int, region: NDArray[np.bool_] | None,
                  target_cl: F64 | None, memo: PassMemo | None,
-                 lazy: float | None = None) -> State:
+                 lazy: float | None = None, cusp: float | None = None) -> State:
     """Every position of the pass: CL on the target, the part's nodes where it may cut
     (``lazy``: the flute rule's guard of a lifted pass, :func:`_lazy_state`)."""
     sx, sy = spacing
     part = sim.part
-    thin = _Thinning.of(lines, part, stride, tool, spacing)
+    thin = _Thinning.of(lines, part, stride, tool, spacing, cusp)
     pos = positions(thin.lines, part, stride * thin.k, region, spacing)
     if target_cl is None and memo is not None:
         if not memo.dropped:  # the stage's target: the first pass's model
@@ -548,18 +555,20 @@ class _Thinning:
 
     @classmethod
     def of(cls, lines: ScanLines, part: ZMap, stride: int, tool: Tool,
-           spacing: tuple[float, float]) -> _Thinning:
+           spacing: tuple[float, float], cusp: float | None = None) -> _Thinning:
         along = part.dx if lines.direction == "x" else part.dy
         across = spacing[1] if lines.direction == "x" else spacing[0]
-        n = lines.length / (stride * along) + lines.offset.size
-        work = n * math.pi * (tool.radius / part.dx + 1.0) * (tool.radius / part.dy + 1.0)
         # Every node stays within the radius of a simulated position (gap <= 0.7 R), so the
-        # simulated positions still cut all the stock the lift reads.
+        # simulated positions still cut all the stock the lift reads; with ``cusp`` the
+        # gap also keeps the cusp between simulated positions, gap² / (8R), under it.
+        limit = 0.7 * tool.radius
+        if cusp is not None:
+            limit = min(limit, math.sqrt(8.0 * tool.radius * cusp))
         unit = max(across, stride * along)
         k = 1
         small = tool.radius <= GRID_MODE_RADIUS * min(part.dx, part.dy)  # grid mode copes
-        while (THINNING and not small and work / (k * k) > MAX_PASS_WORK
-               and 2 * k * unit <= 0.7 * tool.radius):
+        while (THINNING and not small and _pass_work(lines, part, stride, tool, k)
+               > MAX_PASS_WORK and 2 * k * unit <= limit):
             k *= 2
         if k == 1:
             return cls(lines, 1, 0.0)
@@ -574,6 +583,23 @@ class _Thinning:
     def lift(self, model: F64, spacing: tuple[float, float], pos: Positions, need: F64) -> int:
         return int(_k.raise_box(model, spacing[0], spacing[1], pos.x, pos.y,
                                 np.ascontiguousarray(need), self.gap))
+
+
+def _pass_work(lines: ScanLines, part: ZMap, stride: int, tool: Tool, k: int) -> float:
+    """Node visits of a pass thinned by ``k``, in units of the per-position kernels'
+    footprint (positions times the nodes within ``R``): the line sweep's visits over
+    :data:`SWEEP_SHARE` where it is the cheaper (:class:`_Sweep`), as the kernels are
+    chosen."""
+    along_x = lines.direction == "x"
+    du, dv = (part.dx, part.dy) if along_x else (part.dy, part.dx)
+    r = tool.radius
+    count = max(lines.offset.size / k, 1.0)
+    points = (lines.length / (stride * du) + lines.offset.size) / (k * k)
+    footprint = points * math.pi * (r / part.dx + 1.0) * (r / part.dy + 1.0)
+    # per line and row within R: its positions and the nodes its balls span
+    span = lines.length / max(lines.offset.size, 1) / du + 2.0 * r / du
+    sweep = (points + count * span) * (2.0 * r / dv + 1.0)
+    return min(footprint, sweep / SWEEP_SHARE)
 
 
 def _lift(model: F64, spacing: tuple[float, float], pos: Positions, node: NDArray[np.bool_],
