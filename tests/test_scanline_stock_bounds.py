@@ -16,7 +16,7 @@ from hypothesis import strategies as st
 
 from zwcore.grid.tools import Tool
 from zwcore.grid.zmap import ZMap
-from zwcore.scanline import _stock
+from zwcore.scanline import _stock, _stock_lines
 from zwcore.scanline import _stock_bounds as _b
 from zwcore.scanline import _stock_kernels as _k
 from zwcore.scanline._stock_state import BLOCK, block_max, grow_blocks
@@ -130,13 +130,13 @@ def test_settled_envelope_equals_the_kernels(
         t_got = none.copy()
         skip = _b.settle(got, x, y, c, r, d, d, BLOCK, t_got)
         if swept:
-            sweep = _stock._Sweep.of(x, y, "x" if along_x else "y", r, d, d)
+            sweep = _stock_lines.LineSweep.of(x, y, "x" if along_x else "y", r, d, d)
             if sweep is None:  # forced: the choice is by cost alone
                 u, v = (x, y) if along_x else (y, x)
                 order = np.lexsort((u, v))
-                sweep = _stock._Sweep(order, np.ascontiguousarray(u[order]),
+                sweep = _stock_lines.LineSweep(order, np.ascontiguousarray(u[order]),
                                       np.ascontiguousarray(v[order]),
-                                      _stock._sw.line_starts(v[order]), along_x, r, d, d)
+                                      _stock_lines._sw.line_starts(v[order]), along_x, r, d, d)
             sweep.cut(got, c, t_got, skip)
             # the sweep may take a tied ball rounded a few ulps higher (its module)
             assert np.all(got >= ref)

@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 from tests.test_scanline_stock import _assert_sim_holds
 from zwcore.grid.tools import Tool
 from zwcore.grid.zmap import ZMap
-from zwcore.scanline import _stock
+from zwcore.scanline import _stock, _stock_lines
 from zwcore.scanline import _stock_kernels as _k
 from zwcore.scanline import _stock_sweep as _sw
 from zwcore.scanline._stock_state import BLOCK, block_max
@@ -146,7 +146,7 @@ def test_stock_sim_gives_the_same_pass_with_either_kernel(
 
     monkeypatch.setattr(_sw, "cut_lines", counted)
     for share in (0.0, 1e9):  # never, always
-        monkeypatch.setattr(_stock, "SWEEP_SHARE", share)
+        monkeypatch.setattr(_stock_lines, "SWEEP_SHARE", share)
         sim = _stock.StockSim(part, float(part.z.max()) + 3.0)
         model = part.z.copy()
         done = _stock.run_pass(sim, model, (d, d), tool, lines, 1, None, 1e-9)
@@ -156,7 +156,7 @@ def test_stock_sim_gives_the_same_pass_with_either_kernel(
     assert np.array_equal(results[0][0], results[1][0])
     assert np.array_equal(results[0][1], results[1][1])
     assert results[0][2:] == results[1][2:]
-    assert _stock._Sweep.of(np.zeros(4), np.zeros(4), None, 1.0, d, d) is None
+    assert _stock_lines.LineSweep.of(np.zeros(4), np.zeros(4), None, 1.0, d, d) is None
 
 
 def test_plan_with_swept_passes_holds_against_the_brute_force(

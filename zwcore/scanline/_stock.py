@@ -33,7 +33,7 @@ CL may fall and those near stock that changed (:mod:`zwcore.scanline._stock_stat
 For a large ball with dense positions the envelope and the drop against the nodes run
 as a line sweep instead (:mod:`zwcore.scanline._stock_sweep`: per line and node row a
 1-D lower envelope, lines x rows x nodes instead of positions x footprint), whichever
-costs less (:data:`SWEEP_SHARE`).
+costs less (:data:`zwcore.scanline._stock_lines.SWEEP_SHARE`).
 """
 
 from __future__ import annotations
@@ -48,8 +48,10 @@ from zwcore.grid.tools import Tool
 from zwcore.grid.zmap import ZMap
 from zwcore.scanline import _stock_bounds as _b
 from zwcore.scanline import _stock_kernels as _k
-from zwcore.scanline import _stock_sweep as _sw
+from zwcore.scanline import _stock_lines as _ls
 from zwcore.scanline._stock_grid import GRID_MODE_RADIUS, GridMode
+from zwcore.scanline._stock_lazy import exact_base, lazy_state
+from zwcore.scanline._stock_lines import LineSweep, drop_nodes
 from zwcore.scanline._stock_state import (
     BLOCK,
     Last,
@@ -179,7 +181,7 @@ class StockSim:
     def __init__(self, part: ZMap, stock_top: float) -> None:
         self.part = part
         self.stock = np.full(part.shape, float(stock_top))
-        self._zmax = block_max(part.z)
+        self.zmax = block_max(part.z)
         #: ``max(part - stock)`` so far, clipped at 0 (kept over the blocks each pass lowers)
         self.gouge = max(0.0, float(part.z.max()) - float(stock_top))
         self._grid_key: tuple[Positions, NDArray[np.intp], float, GridMode | None] | None = None
@@ -191,7 +193,7 @@ class StockSim:
 
     def base_cl(self, model_cl: F64, pos: Positions, tool: Tool) -> F64:
         """``max(model_cl, CL against the part's nodes)`` at the positions."""
-        return drop_nodes(self.part.z, self._zmax, pos, np.ascontiguousarray(model_cl),
+        return drop_nodes(self.part.z, self.zmax, pos, np.ascontiguousarray(model_cl),
                           tool.radius, self.part.dx, self.part.dy)
 
     def top(self, pos: Positions, idx: NDArray[np.intp], tool: Tool, smax: F64,
@@ -238,7 +240,7 @@ class StockSim:
         part, r = self.part, tool.radius
         skip = (_b.settle(self.stock, px, py, c, r, part.dx, part.dy, BLOCK, touched)
                 if BOUNDS and px.size >= BOUNDS_MIN else np.zeros_like(touched))
-        sweep = _Sweep.of(px, py, pos.along, r, part.dx, part.dy)
+        sweep = LineSweep.of(px, py, pos.along, r, part.dx, part.dy)
         if sweep is not None:
             sweep.cut(self.stock, c, touched, skip)
         else:
@@ -253,76 +255,6 @@ BOUNDS = True
 #: Positions from which the block bounds are tried (their set-up costs a few block-grid
 #: filters).
 BOUNDS_MIN = 256
-
-
-#: The line sweep (:mod:`zwcore.scanline._stock_sweep`) runs instead of the per-position
-#: kernels (envelope and drop against nodes) when its node visits are at most this share
-#: of the footprint visits theirs would make. Those skip whole blocks the ball cannot
-#: change and come out about 20 times under the footprint on the bench part; the sweep
-#: visits every node of its rows, about 20 ns each (measured: a thinned Ø3 pass at 1025²,
-#: share 0.18, took twice as long swept; the Ø20 finishing pass on every node, share
-#: 0.013, ten times less). The highest stock within ``R`` stays per position: its block
-#: bound (a block no higher than the best so far) beat the sweep at every size measured.
-SWEEP_SHARE = 0.05
-
-
-@dataclass(frozen=True, eq=False)
-class _Sweep:
-    """Positions on scan lines sorted for :mod:`zwcore.scanline._stock_sweep` (by line,
-    then along it), with the arrays' axes swapped for lines along y. The sweep gives the
-    per-position kernels' results bit for bit (tests), so the choice is by cost alone."""
-
-    order: NDArray[np.intp]
-    u: F64
-    v: F64
-    starts: NDArray[np.int64]
-    along_x: bool
-    r: float
-    du: float
-    dv: float
-
-    @classmethod
-    def of(cls, px: F64, py: F64, along: str | None, r: float, dx: float,
-           dy: float) -> _Sweep | None:
-        """The sweep when the positions lie on lines (``along``) and it is cheaper."""
-        if along is None or px.size == 0:
-            return None
-        along_x = along == "x"
-        u, v = (px, py) if along_x else (py, px)
-        du, dv = (dx, dy) if along_x else (dy, dx)
-        per_position = px.size * math.pi * (r / dx + 1.0) * (r / dy + 1.0)
-        order = np.lexsort((u, v))
-        us, vs = np.ascontiguousarray(u[order]), np.ascontiguousarray(v[order])
-        starts = _sw.line_starts(vs)
-        if _sw.sweep_work(us, starts, r, du, dv) > SWEEP_SHARE * per_position:
-            return None
-        return cls(order, us, vs, starts, along_x, r, du, dv)
-
-    def cut(self, stock: F64, cl: F64, touched: NDArray[np.bool_],
-            skip: NDArray[np.bool_]) -> None:
-        """:func:`_stock_kernels.cut` at the positions with CL ``cl`` (their order)."""
-        s, t, k = (stock, touched, skip) if self.along_x else (stock.T, touched.T, skip.T)
-        _sw.cut_lines(s, self.u, self.v, np.ascontiguousarray(cl[self.order]),
-                      self.starts, self.r, self.du, self.dv, BLOCK, t, k)
-
-    def drop(self, z: F64, cl0: F64) -> F64:
-        """:func:`_stock_kernels.cl_part` at the positions (their order)."""
-        zz = z if self.along_x else np.ascontiguousarray(z.T)
-        out = np.empty(self.order.size)
-        out[self.order] = _sw.cl_lines(zz, self.u, self.v,
-                                       np.ascontiguousarray(cl0[self.order]), self.starts,
-                                       self.r, self.du, self.dv)
-        return out
-
-
-def drop_nodes(z: F64, zmax: F64, pos: Positions, cl0: F64, r: float, dx: float,
-               dy: float) -> F64:
-    """``max(cl0, max over nodes q within r of z[q] - h(|q - c|))`` at the positions (the
-    line sweep or the per-position kernel, whichever is cheaper: the same values)."""
-    sweep = _Sweep.of(pos.x, pos.y, pos.along, r, dx, dy)
-    if sweep is not None:
-        return sweep.drop(z, cl0)
-    return _k.cl_part(z, zmax, BLOCK, pos.x, pos.y, cl0, r, dx, dy)
 
 
 @dataclass(frozen=True, eq=False)
@@ -392,8 +324,8 @@ def run_pass(sim: StockSim, model: F64, spacing: tuple[float, float], tool: Tool
         if vague.any():
             if target_cl is None and memo is not None:
                 target_cl = memo.drop
-            _exact_base(sim, model, spacing, tool, pos, cand[vague], target_cl, base,
-                        state.exact)
+            exact_base(sim, model, spacing, tool, pos, cand[vague], target_cl, base,
+                       state.exact)
     bind = (need > base[cand]) if lift else np.zeros(cand.size, dtype=bool)
     lifted = 0
     if bind.any():
@@ -427,7 +359,8 @@ def _first_state(sim: StockSim, model: F64, spacing: tuple[float, float], tool: 
                  target_cl: F64 | None, memo: PassMemo | None,
                  lazy: float | None = None, cusp: float | None = None) -> State:
     """Every position of the pass: CL on the target, the part's nodes where it may cut
-    (``lazy``: the flute rule's guard of a lifted pass, :func:`_lazy_state`)."""
+    (``lazy``: the flute rule's guard of a lifted pass,
+    :func:`zwcore.scanline._stock_lazy.lazy_state`)."""
     sx, sy = spacing
     part = sim.part
     thin = _Thinning.of(lines, part, stride, tool, spacing, cusp)
@@ -439,7 +372,7 @@ def _first_state(sim: StockSim, model: F64, spacing: tuple[float, float], tool: 
     elif target_cl is None:
         target_cl = target_drop(model, sx, sy, tool, pos.size)
     if lazy is not None and BOUNDS and pos.size >= BOUNDS_MIN:
-        return _lazy_state(sim, model, spacing, tool, thin, pos, target_cl, lazy)
+        return lazy_state(sim, model, spacing, tool, thin.lines, thin, pos, target_cl, lazy)
     if target_cl is None:  # a large ball on a fine model: dropped on its nodes here only
         cl = drop_nodes(model, block_max(model), pos, np.full(pos.size, -np.inf),
                         tool.radius, sx, sy)
@@ -455,77 +388,6 @@ def _first_state(sim: StockSim, model: F64, spacing: tuple[float, float], tool: 
     top = np.full(pos.size, -np.inf)
     top[act] = sim.top(pos, act, tool, smax, thin.k == 1)
     return State(thin.lines, thin, pos, act, top, cl, cl.copy(), np.zeros(pos.size), True)
-
-
-def _lazy_state(sim: StockSim, model: F64, spacing: tuple[float, float], tool: Tool,
-                thin: _Thinning, pos: Positions, target_cl: F64 | None,
-                guard: float) -> State:
-    """:func:`_first_state` of a lifted pass, its unlifted CL found only where the flute
-    rule may leave it.
-
-    The drop-cutter of a large ball at every position (on the model's nodes when the
-    target is not dropped whole, against the part's nodes off them) is most of a dense
-    pass's cost, yet where the highest stock within ``R`` less the flute length lies
-    above an upper bound of that CL the position is lifted whatever the CL is (a facing
-    pass over the stock top). The bound: the largest model node (and part node, off the
-    model's nodes) the ball can reach, by blocks
-    (:func:`_stock_state.grow_blocks`); a drop-cutter CL is never above the highest node
-    within ``R``. The top is read first, at the positions a lower bound of the CL
-    (:func:`_stock_bounds.nearest_low`) does not rule out; the exact CL is found at the
-    others and kept, the bound where the position is lifted (``State.exact``;
-    :func:`run_pass` finds the exact CL when a later pass needs it). The pass is the
-    eager one's, bit for bit (tests).
-    """
-    sx, sy = spacing
-    part, r = sim.part, tool.radius
-    on = _on_nodes(pos, sx, sy)
-    if target_cl is None:
-        low = _b.nearest_low(model, sx, sy, pos.x, pos.y, r)
-        high = _b.block_at(grow_blocks(block_max(model), r, sx, sy), BLOCK, pos.x, pos.y,
-                           1.0 / sx, 1.0 / sy)
-    else:
-        low = interpolate(target_cl, sx, sy, pos)
-        high = low.copy()
-    part_high = _b.block_at(grow_blocks(sim._zmax, r, part.dx, part.dy), BLOCK, pos.x,
-                            pos.y, 1.0 / part.dx, 1.0 / part.dy)
-    high = np.where(on, high, np.maximum(high, part_high))
-    smax = block_max(sim.stock)
-    may = _k.may_cut(grow_blocks(smax, r, part.dx, part.dy), BLOCK, pos.x, pos.y, low,
-                     1.0 / part.dx, 1.0 / part.dy)
-    act = np.flatnonzero(may)
-    top = np.full(pos.size, -np.inf)
-    top[act] = sim.top(pos, act, tool, smax, thin.k == 1)
-    base = low  # exact where ``on`` with a dropped target; never read where not ``act``
-    exact = np.ones(pos.size, dtype=bool)
-    base[act] = high[act]
-    exact[act] = False
-    need = top[act] - tool.flute_length + guard
-    _exact_base(sim, model, spacing, tool, pos, act[need <= high[act]], target_cl, base,
-                exact)
-    return State(thin.lines, thin, pos, act, top, base, base.copy(), np.zeros(pos.size),
-                 True, exact)
-
-
-def _exact_base(sim: StockSim, model: F64, spacing: tuple[float, float], tool: Tool,
-                pos: Positions, idx: NDArray[np.intp], target_cl: F64 | None, base: F64,
-                exact: NDArray[np.bool_]) -> None:
-    """The unlifted CL at the positions ``idx`` (into ``base``, in place): on the
-    target (dropped whole, or on the model's nodes at the positions) and against the
-    part's nodes off the model's nodes."""
-    if idx.size == 0:
-        return
-    sx, sy = spacing
-    sub = Positions(pos.x[idx], pos.y[idx], pos.along)
-    if target_cl is None:
-        cl = drop_nodes(model, block_max(model), sub, np.full(idx.size, -np.inf),
-                        tool.radius, sx, sy)
-    else:
-        cl = interpolate(target_cl, sx, sy, sub)
-    off = np.flatnonzero(~_on_nodes(sub, sx, sy))
-    if off.size:
-        cl[off] = sim.base_cl(cl[off], Positions(sub.x[off], sub.y[off], pos.along), tool)
-    base[idx] = cl
-    exact[idx] = True
 
 
 #: ``False``: no pass is thinned, whatever its work (``bench/bench_scanline_core.py
@@ -588,8 +450,8 @@ class _Thinning:
 def _pass_work(lines: ScanLines, part: ZMap, stride: int, tool: Tool, k: int) -> float:
     """Node visits of a pass thinned by ``k``, in units of the per-position kernels'
     footprint (positions times the nodes within ``R``): the line sweep's visits over
-    :data:`SWEEP_SHARE` where it is the cheaper (:class:`_Sweep`), as the kernels are
-    chosen."""
+    :data:`_stock_lines.SWEEP_SHARE` where it is the cheaper
+    (:class:`_stock_lines.LineSweep`), as the kernels are chosen."""
     along_x = lines.direction == "x"
     du, dv = (part.dx, part.dy) if along_x else (part.dy, part.dx)
     r = tool.radius
@@ -599,7 +461,8 @@ def _pass_work(lines: ScanLines, part: ZMap, stride: int, tool: Tool, k: int) ->
     # per line and row within R: its positions and the nodes its balls span
     span = lines.length / max(lines.offset.size, 1) / du + 2.0 * r / du
     sweep = (points + count * span) * (2.0 * r / dv + 1.0)
-    return min(footprint, sweep / SWEEP_SHARE)
+    share = _ls.SWEEP_SHARE
+    return min(footprint, sweep / share) if share > 0.0 else footprint
 
 
 def _lift(model: F64, spacing: tuple[float, float], pos: Positions, node: NDArray[np.bool_],
