@@ -5,8 +5,9 @@ growth ratios per x4 cells in the same run, for the simulated stock as planned (
 stage's next pass visits only what can change) and, unless ``--no-before``, as before
 (``_stock.INCREMENTAL = False``: every pass simulates every position; the kernels are
 today's in both). Usage: ``python bench/bench_scanline_core.py [--no-before]``.
-``--unthinned [--big]``: instead, the plan with and without thinning the passes over
-``MAX_PASS_WORK`` (257², 513², with ``--big`` also 1025²), same run.
+``--unthinned [--big]``: instead, the plan with the passes over ``MAX_PASS_WORK``
+thinned as far as ``0.7 R`` (the rule before), thinned within the cusp rule (as
+planned), and not thinned (257², 513², with ``--big`` also 1025²), same run.
 ``--before PATH``: instead, the code of another checkout (``PATH``, e.g. ``git archive``
 of main) against this one, each in a subprocess, back to back: wall and CPU seconds, the
 passes, tools and regions and what the simulated stock leaves, for 513², 1025², 2049²
@@ -88,27 +89,30 @@ def _regions(plan: ScanlinePlan) -> str:
 
 
 def unthinned(sizes: tuple[int, ...]) -> None:
-    """The plan with every pass simulated at all its positions (``_stock.THINNING =
-    False``) against the plan as it runs (passes over ``MAX_PASS_WORK`` thinned), same
-    run: time, passes and regions, and what the simulated stock leaves on the part."""
+    """The plan with passes over ``MAX_PASS_WORK`` thinned to ``0.7 R``
+    (``_stock.CUSP_THINNING = False``), within the cusp rule (as planned), and every pass
+    at all its positions (``_stock.THINNING = False``), same run: time, passes and
+    regions, and what the simulated stock leaves on the part."""
     for n in sizes:
         zmap = synthetic(n)
         rows = []
-        for thin in (True, False):
-            _stock.THINNING = thin
+        for label, thin, cusp in (("0.7 R", True, False), ("cusp", True, True),
+                                  ("unthinned", False, True)):
+            _stock.THINNING, _stock.CUSP_THINNING = thin, cusp
             t, c = time.perf_counter(), time.process_time()
             plan = plan_scanline(zmap)
             wall, cpu = time.perf_counter() - t, time.process_time() - c
             phases = dict(plan.timings)
-            rows.append(wall)
-            print(f"{'thinned' if thin else 'unthinned':>10s} {n}x{n}: {wall:.2f} s wall, "
+            rows.append(cpu)
+            print(f"{label:>10s} {n}x{n}: {wall:.2f} s wall, "
                   f"{cpu:.2f} s CPU (passes {phases['passes_simulated']:.2f} s), "
                   f"{len(plan.stages)} passes: {_regions(plan)}; left over part p95 "
                   f"{plan.checks.sim_left_over_part_p95:.4f} max "
                   f"{plan.checks.sim_left_over_part_max:.3f} mm, ok {plan.checks.ok}",
                   flush=True)
-        _stock.THINNING = True
-        print(f"{'':>10s} {n}x{n}: unthinned/thinned wall {rows[1] / rows[0]:.2f}")
+        _stock.THINNING = _stock.CUSP_THINNING = True
+        print(f"{'':>10s} {n}x{n}: CPU cusp/0.7 R {rows[1] / rows[0]:.2f}, "
+              f"unthinned/0.7 R {rows[2] / rows[0]:.2f}")
 
 
 def _figures(zmap: ZMap, repeat: int) -> dict[str, object]:

@@ -394,6 +394,10 @@ def _first_state(sim: StockSim, model: F64, spacing: tuple[float, float], tool: 
 #: --unthinned``: what thinning changes in the plan).
 THINNING = True
 
+#: ``False``: a pass is thinned as far as ``0.7 R`` whatever the cusp its gaps leave (the
+#: rule before; ``bench/bench_scanline_core.py --unthinned`` compares the three).
+CUSP_THINNING = True
+
 #: Node visits one pass's simulation may make (positions times the nodes within a ball's
 #: radius): a Ø20 ball finishing a 1024² grid at 0.1 mm would make 3e10.
 MAX_PASS_WORK = 1 << 26
@@ -424,7 +428,7 @@ class _Thinning:
         # simulated positions still cut all the stock the lift reads; with ``cusp`` the
         # gap also keeps the cusp between simulated positions, gap² / (8R), under it.
         limit = 0.7 * tool.radius
-        if cusp is not None:
+        if cusp is not None and CUSP_THINNING:
             limit = min(limit, math.sqrt(8.0 * tool.radius * cusp))
         unit = max(across, stride * along)
         k = 1
