@@ -5,14 +5,22 @@ growth ratios per x4 cells in the same run, for the simulated stock as planned (
 stage's next pass visits only what can change) and, unless ``--no-before``, as before
 (``_stock.INCREMENTAL = False``: every pass simulates every position; the kernels are
 today's in both). Usage: ``python bench/bench_scanline_core.py [--no-before]``.
-``--unthinned [--big]``: instead, the plan with and without thinning the passes over
-``MAX_PASS_WORK`` (257², 513², with ``--big`` also 1025²), same run.
+``--unthinned [--big]``: instead, the plan with the passes over ``MAX_PASS_WORK``
+thinned as far as ``0.7 R`` (the rule before), thinned within the cusp rule (as
+planned), and not thinned (257², 513², with ``--big`` also 1025²), same run.
+``--before PATH``: instead, the code of another checkout (``PATH``, e.g. ``git archive``
+of main) against this one, each in a subprocess, back to back: wall and CPU seconds, the
+passes, tools and regions and what the simulated stock leaves, for 513², 1025², 2049²
+and Mount Rushmore; the ratios this/before and the growth per x4 cells.
 """
 
 from __future__ import annotations
 
 import itertools
+import json
+import os
 import pathlib
+import subprocess
 import sys
 import time
 
@@ -81,30 +89,89 @@ def _regions(plan: ScanlinePlan) -> str:
 
 
 def unthinned(sizes: tuple[int, ...]) -> None:
-    """The plan with every pass simulated at all its positions (``_stock.THINNING =
-    False``) against the plan as it runs (passes over ``MAX_PASS_WORK`` thinned), same
-    run: time, passes and regions, and what the simulated stock leaves on the part."""
+    """The plan with passes over ``MAX_PASS_WORK`` thinned to ``0.7 R``
+    (``_stock.CUSP_THINNING = False``), within the cusp rule (as planned), and every pass
+    at all its positions (``_stock.THINNING = False``), same run: time, passes and
+    regions, and what the simulated stock leaves on the part."""
     for n in sizes:
         zmap = synthetic(n)
         rows = []
-        for thin in (True, False):
-            _stock.THINNING = thin
+        for label, thin, cusp in (("0.7 R", True, False), ("cusp", True, True),
+                                  ("unthinned", False, True)):
+            _stock.THINNING, _stock.CUSP_THINNING = thin, cusp
             t, c = time.perf_counter(), time.process_time()
             plan = plan_scanline(zmap)
             wall, cpu = time.perf_counter() - t, time.process_time() - c
             phases = dict(plan.timings)
-            rows.append(wall)
-            print(f"{'thinned' if thin else 'unthinned':>10s} {n}x{n}: {wall:.2f} s wall, "
+            rows.append(cpu)
+            print(f"{label:>10s} {n}x{n}: {wall:.2f} s wall, "
                   f"{cpu:.2f} s CPU (passes {phases['passes_simulated']:.2f} s), "
                   f"{len(plan.stages)} passes: {_regions(plan)}; left over part p95 "
                   f"{plan.checks.sim_left_over_part_p95:.4f} max "
                   f"{plan.checks.sim_left_over_part_max:.3f} mm, ok {plan.checks.ok}",
                   flush=True)
-        _stock.THINNING = True
-        print(f"{'':>10s} {n}x{n}: unthinned/thinned wall {rows[1] / rows[0]:.2f}")
+        _stock.THINNING = _stock.CUSP_THINNING = True
+        print(f"{'':>10s} {n}x{n}: CPU cusp/0.7 R {rows[1] / rows[0]:.2f}, "
+              f"unthinned/0.7 R {rows[2] / rows[0]:.2f}")
+
+
+def _figures(zmap: ZMap, repeat: int) -> dict[str, object]:
+    """Best wall and CPU seconds of ``repeat`` plans, and the last plan's figures."""
+    best, cpu = float("inf"), float("inf")
+    for _ in range(repeat):
+        t, c = time.perf_counter(), time.process_time()
+        plan = plan_scanline(zmap)
+        best = min(best, time.perf_counter() - t)
+        cpu = min(cpu, time.process_time() - c)
+    ck = plan.checks
+    return {"wall": best, "cpu": cpu, "passes": len(plan.stages), "regions": _regions(plan),
+            "left": f"p95 {ck.sim_left_over_part_p95:.4f} max {ck.sim_left_over_part_max:.3f}",
+            "ok": ck.ok}
+
+
+def _child() -> None:
+    """The figures of :func:`_compare` with the code on ``sys.path`` (a subprocess)."""
+    plan_scanline(synthetic(129))  # load the compiled kernels
+    out = {str(n): _figures(synthetic(n), 2 if n < 2049 else 1) for n in (513, 1025, 2049)}
+    path = DATA / "mount_rush_zmap_0.1mm.npy"
+    if path.exists():
+        z = np.load(path).astype(np.float64)
+        out["Rushmore"] = _figures(ZMap(z, x0=-40.958, y0=-24.696, dx=0.1, dy=0.1), 2)
+    print(json.dumps(out))
+
+
+def _compare(before: str) -> None:
+    """This checkout against ``before``, each in a subprocess, back to back."""
+    here = str(pathlib.Path(__file__).resolve().parents[1])
+    runs = {}
+    for name, tree in (("before", before), ("this", here)):
+        env = dict(os.environ, PYTHONPATH=tree)
+        done = subprocess.run([sys.executable, str(pathlib.Path(__file__).resolve()),
+                               "--child"], env=env, cwd=tree, capture_output=True,
+                              text=True, check=True)
+        runs[name] = json.loads(done.stdout.strip().splitlines()[-1])
+    for name, run in runs.items():
+        for part, r in run.items():
+            print(f"{name:>6s} {part:>8s}: {r['wall']:.2f} s wall, {r['cpu']:.2f} s CPU, "
+                  f"{r['passes']} passes: {r['regions']}; left over part {r['left']} mm, "
+                  f"ok {r['ok']}")
+    for part in runs["this"]:
+        b, a = runs["before"][part], runs["this"][part]
+        print(f"this/before {part}: CPU {a['cpu'] / b['cpu']:.2f}, wall "
+              f"{a['wall'] / b['wall']:.2f}")
+    for name, run in runs.items():
+        print(f"{name} CPU growth per x4 cells: 1025/513 "
+              f"{run['1025']['cpu'] / run['513']['cpu']:.2f}, 2049/1025 "
+              f"{run['2049']['cpu'] / run['1025']['cpu']:.2f}")
 
 
 def main() -> None:
+    if "--child" in sys.argv:
+        _child()
+        return
+    if "--before" in sys.argv:
+        _compare(sys.argv[sys.argv.index("--before") + 1])
+        return
     if "--unthinned" in sys.argv:
         plan_scanline(synthetic(129))  # load the compiled kernels
         unthinned((257, 513, 1025) if "--big" in sys.argv else (257, 513))

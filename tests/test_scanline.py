@@ -177,12 +177,6 @@ def test_flat_part_single_stage() -> None:
 # on 6.5 mm² (reported; tools_fit false where the grid's concave radius reads under 6 mm).
 # Simulated in full it finishes the bowl (the test after this one): the mark goes when the
 # simulation no longer thins a finishing pass (issue 11, speed of the stock simulation).
-_BORDER_XFAIL = pytest.mark.xfail(strict=True, reason="issue 11: the Ø12 pass in the R 7 bowl "
-                                  "is thinned in the stock simulation (every 2nd position), and "
-                                  "a nearly fitting ball's cusps between those positions grow by "
-                                  "rho / (rho - R): 0.017 mm on 6.5 mm², reported")
-
-
 def _largest_within(r: float) -> Tool:
     return next(t for t in BALLS if t.radius <= r)
 
@@ -195,7 +189,9 @@ def _bowl(r: float) -> ZMap:
     return ZMap(r - np.sqrt(r * r - xx**2 - yy**2), dx=h, dy=h)
 
 
-@pytest.mark.parametrize("r", [3.5, pytest.param(7.0, marks=_BORDER_XFAIL)])
+# R 7: the Ø12 ball's pass is simulated at every position (thinned to every 2nd one
+# before, its cusps grown by rho / (rho - R) = 7 left 0.017 mm on 6.5 mm²)
+@pytest.mark.parametrize("r", [3.5, 7.0])
 def test_spherical_bowl_finished_with_largest_fitting_ball(r: float) -> None:
     zmap = _bowl(r)
     plan = plan_scanline(zmap)

@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 from tests.test_scanline_stock import _assert_sim_holds
 from zwcore.grid.tools import Tool
 from zwcore.grid.zmap import ZMap
-from zwcore.scanline import _stock
+from zwcore.scanline import _stock, _stock_lines
 from zwcore.scanline import _stock_kernels as _k
 from zwcore.scanline import _stock_sweep as _sw
 from zwcore.scanline._stock_state import BLOCK, block_max
@@ -80,14 +80,14 @@ def test_sweep_cut_equals_the_per_position_kernel(case: _Case, along_x: bool) ->
     order = np.lexsort((u, v))
     ref = stock.copy()
     t_ref = np.zeros(block_max(stock).shape, dtype=bool)
-    _k.cut(ref, block_max(stock), BLOCK, x, y, c, r, dx, dy, t_ref)
+    _k.cut(ref, block_max(stock), BLOCK, x, y, c, r, dx, dy, t_ref, np.zeros_like(t_ref))
     got = stock.copy()
     t_got = np.zeros_like(t_ref)
     view = (lambda a: a) if along_x else (lambda a: a.T)
     du, dv = (dx, dy) if along_x else (dy, dx)
     cut_lines(view(got), np.ascontiguousarray(u[order]), np.ascontiguousarray(v[order]),
               np.ascontiguousarray(c[order]), line_starts(v[order]), r, du, dv, BLOCK,
-              view(t_got))
+              view(t_got), view(np.zeros_like(t_ref)))
     # the same to the rounding of tied balls, and never below (a winner rounded higher)
     assert np.all(got >= ref)
     assert np.all(got - ref <= _ULPS * np.spacing(np.abs(ref)))
@@ -146,7 +146,7 @@ def test_stock_sim_gives_the_same_pass_with_either_kernel(
 
     monkeypatch.setattr(_sw, "cut_lines", counted)
     for share in (0.0, 1e9):  # never, always
-        monkeypatch.setattr(_stock, "SWEEP_SHARE", share)
+        monkeypatch.setattr(_stock_lines, "SWEEP_SHARE", share)
         sim = _stock.StockSim(part, float(part.z.max()) + 3.0)
         model = part.z.copy()
         done = _stock.run_pass(sim, model, (d, d), tool, lines, 1, None, 1e-9)
@@ -156,7 +156,7 @@ def test_stock_sim_gives_the_same_pass_with_either_kernel(
     assert np.array_equal(results[0][0], results[1][0])
     assert np.array_equal(results[0][1], results[1][1])
     assert results[0][2:] == results[1][2:]
-    assert _stock._Sweep.of(np.zeros(4), np.zeros(4), None, 1.0, d, d) is None
+    assert _stock_lines.LineSweep.of(np.zeros(4), np.zeros(4), None, 1.0, d, d) is None
 
 
 def test_plan_with_swept_passes_holds_against_the_brute_force(

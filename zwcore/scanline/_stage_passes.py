@@ -35,6 +35,7 @@ from zwcore.grid.zmap import ZMap
 from zwcore.scanline._checks import PassSpec, axis_weights, eval_rows
 from zwcore.scanline._passes import StripPlan, cell_cross_curvatures, cell_cross_slopes, plan_strips
 from zwcore.scanline._stock import (
+    CUSP_SHARE,
     PassMemo,
     SimulatedPass,
     StockSim,
@@ -216,7 +217,8 @@ def _one_pass(plan: _Plan, st: _Stage, lift: bool,
         for _ in range(2):
             model = lev.model.copy()  # the flute rule raises it in place
             done = run_pass(plan.sim, model, (lev.sx, lev.sy), tool, strips.lines, stride,
-                            st.region, plan.guard, lift=lift, memo=st.memo, before=before)
+                            st.region, plan.guard, lift=lift, memo=st.memo, before=before,
+                            cusp=CUSP_SHARE * max(strips.scallop, plan.tolerance))
             if not (done.incremental and done.lifted_nodes and done.lowered == 0):
                 break
             # A lifted pass that lowers nothing stalls the stage: decided on every

@@ -33,7 +33,7 @@ CL may fall and those near stock that changed (:mod:`zwcore.scanline._stock_stat
 For a large ball with dense positions the envelope and the drop against the nodes run
 as a line sweep instead (:mod:`zwcore.scanline._stock_sweep`: per line and node row a
 1-D lower envelope, lines x rows x nodes instead of positions x footprint), whichever
-costs less (:data:`SWEEP_SHARE`).
+costs less (:data:`zwcore.scanline._stock_lines.SWEEP_SHARE`).
 """
 
 from __future__ import annotations
@@ -46,9 +46,12 @@ from numpy.typing import NDArray
 
 from zwcore.grid.tools import Tool
 from zwcore.grid.zmap import ZMap
+from zwcore.scanline import _stock_bounds as _b
 from zwcore.scanline import _stock_kernels as _k
-from zwcore.scanline import _stock_sweep as _sw
+from zwcore.scanline import _stock_lines as _ls
 from zwcore.scanline._stock_grid import GRID_MODE_RADIUS, GridMode
+from zwcore.scanline._stock_lazy import exact_base, lazy_state
+from zwcore.scanline._stock_lines import LineSweep, drop_nodes
 from zwcore.scanline._stock_state import (
     BLOCK,
     Last,
@@ -64,6 +67,7 @@ from zwcore.sim import drop_cutter
 
 __all__ = [
     "BLOCK",
+    "CUSP_SHARE",
     "DROP_SHARE",
     "INCREMENTAL",
     "THINNING",
@@ -177,7 +181,7 @@ class StockSim:
     def __init__(self, part: ZMap, stock_top: float) -> None:
         self.part = part
         self.stock = np.full(part.shape, float(stock_top))
-        self._zmax = block_max(part.z)
+        self.zmax = block_max(part.z)
         #: ``max(part - stock)`` so far, clipped at 0 (kept over the blocks each pass lowers)
         self.gouge = max(0.0, float(part.z.max()) - float(stock_top))
         self._grid_key: tuple[Positions, NDArray[np.intp], float, GridMode | None] | None = None
@@ -189,19 +193,28 @@ class StockSim:
 
     def base_cl(self, model_cl: F64, pos: Positions, tool: Tool) -> F64:
         """``max(model_cl, CL against the part's nodes)`` at the positions."""
-        return drop_nodes(self.part.z, self._zmax, pos, np.ascontiguousarray(model_cl),
+        return drop_nodes(self.part.z, self.zmax, pos, np.ascontiguousarray(model_cl),
                           tool.radius, self.part.dx, self.part.dy)
 
     def top(self, pos: Positions, idx: NDArray[np.intp], tool: Tool, smax: F64,
             grid_ok: bool) -> F64:
         """Highest stock node within ``R`` of the positions ``idx`` (grid mode when they
-        are most of the input nodes and ``grid_ok``)."""
+        are most of the input nodes and ``grid_ok``; else the block bounds where they
+        settle it, :func:`_stock_bounds.top_bounded`, and the kernel elsewhere)."""
         px, py = pos.x[idx], pos.y[idx]
         grid = self._grid(pos, idx, px, py, tool) if grid_ok else None
         if grid is not None:
             return grid.top(self.stock, smax, self.part, px, py, tool)
-        return _k.top(self.stock, smax, BLOCK, px, py, tool.radius, self.part.dx,
-                      self.part.dy)
+        part, r = self.part, tool.radius
+        if not BOUNDS or px.size < BOUNDS_MIN:
+            return _k.top(self.stock, smax, BLOCK, px, py, r, part.dx, part.dy)
+        grown = grow_blocks(smax, r, part.dx, part.dy)
+        out, rest = _b.top_bounded(smax, grown, part.shape, px, py, r, part.dx, part.dy,
+                                   BLOCK)
+        if rest.size:
+            out[rest] = _k.top(self.stock, smax, BLOCK, px[rest], py[rest], r, part.dx,
+                               part.dy)
+        return out
 
     def _grid(self, pos: Positions, idx: NDArray[np.intp], px: F64, py: F64,
               tool: Tool) -> GridMode | None:
@@ -221,85 +234,27 @@ class StockSim:
         touched = np.zeros(smax.shape, dtype=bool)
         px, py, c = pos.x[idx], pos.y[idx], np.ascontiguousarray(cl[idx])
         grid = self._grid(pos, idx, px, py, tool) if grid_ok else None
-        sweep = (None if grid is not None
-                 else _Sweep.of(px, py, pos.along, tool.radius, self.part.dx, self.part.dy))
         if grid is not None:
             grid.cut(self.stock, smax, self.part, px, py, c, tool, touched)
-        elif sweep is not None:
-            sweep.cut(self.stock, c, touched)
+            return touched
+        part, r = self.part, tool.radius
+        skip = (_b.settle(self.stock, px, py, c, r, part.dx, part.dy, BLOCK, touched)
+                if BOUNDS and px.size >= BOUNDS_MIN else np.zeros_like(touched))
+        sweep = LineSweep.of(px, py, pos.along, r, part.dx, part.dy)
+        if sweep is not None:
+            sweep.cut(self.stock, c, touched, skip)
         else:
-            _k.cut(self.stock, smax, BLOCK, px, py, c, tool.radius, self.part.dx,
-                   self.part.dy, touched)
+            _k.cut(self.stock, smax, BLOCK, px, py, c, r, part.dx, part.dy, touched, skip)
         return touched
 
 
-#: The line sweep (:mod:`zwcore.scanline._stock_sweep`) runs instead of the per-position
-#: kernels (envelope and drop against nodes) when its node visits are at most this share
-#: of the footprint visits theirs would make. Those skip whole blocks the ball cannot
-#: change and come out about 20 times under the footprint on the bench part; the sweep
-#: visits every node of its rows, about 20 ns each (measured: a thinned Ø3 pass at 1025²,
-#: share 0.18, took twice as long swept; the Ø20 finishing pass on every node, share
-#: 0.013, ten times less). The highest stock within ``R`` stays per position: its block
-#: bound (a block no higher than the best so far) beat the sweep at every size measured.
-SWEEP_SHARE = 0.05
+#: ``False``: the kernels alone, without the block bounds that settle most of a dense
+#: pass first (:mod:`zwcore.scanline._stock_bounds`; the tests compare the two).
+BOUNDS = True
 
-
-@dataclass(frozen=True, eq=False)
-class _Sweep:
-    """Positions on scan lines sorted for :mod:`zwcore.scanline._stock_sweep` (by line,
-    then along it), with the arrays' axes swapped for lines along y. The sweep gives the
-    per-position kernels' results bit for bit (tests), so the choice is by cost alone."""
-
-    order: NDArray[np.intp]
-    u: F64
-    v: F64
-    starts: NDArray[np.int64]
-    along_x: bool
-    r: float
-    du: float
-    dv: float
-
-    @classmethod
-    def of(cls, px: F64, py: F64, along: str | None, r: float, dx: float,
-           dy: float) -> _Sweep | None:
-        """The sweep when the positions lie on lines (``along``) and it is cheaper."""
-        if along is None or px.size == 0:
-            return None
-        along_x = along == "x"
-        u, v = (px, py) if along_x else (py, px)
-        du, dv = (dx, dy) if along_x else (dy, dx)
-        per_position = px.size * math.pi * (r / dx + 1.0) * (r / dy + 1.0)
-        order = np.lexsort((u, v))
-        us, vs = np.ascontiguousarray(u[order]), np.ascontiguousarray(v[order])
-        starts = _sw.line_starts(vs)
-        if _sw.sweep_work(us, starts, r, du, dv) > SWEEP_SHARE * per_position:
-            return None
-        return cls(order, us, vs, starts, along_x, r, du, dv)
-
-    def cut(self, stock: F64, cl: F64, touched: NDArray[np.bool_]) -> None:
-        """:func:`_stock_kernels.cut` at the positions with CL ``cl`` (their order)."""
-        s, t = (stock, touched) if self.along_x else (stock.T, touched.T)
-        _sw.cut_lines(s, self.u, self.v, np.ascontiguousarray(cl[self.order]),
-                      self.starts, self.r, self.du, self.dv, BLOCK, t)
-
-    def drop(self, z: F64, cl0: F64) -> F64:
-        """:func:`_stock_kernels.cl_part` at the positions (their order)."""
-        zz = z if self.along_x else np.ascontiguousarray(z.T)
-        out = np.empty(self.order.size)
-        out[self.order] = _sw.cl_lines(zz, self.u, self.v,
-                                       np.ascontiguousarray(cl0[self.order]), self.starts,
-                                       self.r, self.du, self.dv)
-        return out
-
-
-def drop_nodes(z: F64, zmax: F64, pos: Positions, cl0: F64, r: float, dx: float,
-               dy: float) -> F64:
-    """``max(cl0, max over nodes q within r of z[q] - h(|q - c|))`` at the positions (the
-    line sweep or the per-position kernel, whichever is cheaper: the same values)."""
-    sweep = _Sweep.of(pos.x, pos.y, pos.along, r, dx, dy)
-    if sweep is not None:
-        return sweep.drop(z, cl0)
-    return _k.cl_part(z, zmax, BLOCK, pos.x, pos.y, cl0, r, dx, dy)
+#: Positions from which the block bounds are tried (their set-up costs a few block-grid
+#: filters).
+BOUNDS_MIN = 256
 
 
 @dataclass(frozen=True, eq=False)
@@ -317,7 +272,8 @@ class SimulatedPass:
 def run_pass(sim: StockSim, model: F64, spacing: tuple[float, float], tool: Tool,
              lines: ScanLines, stride: int, region: NDArray[np.bool_] | None,
              guard: float, *, lift: bool = True, target_cl: F64 | None = None,
-             memo: PassMemo | None = None, before: F64 | None = None) -> SimulatedPass:
+             memo: PassMemo | None = None, before: F64 | None = None,
+             cusp: float | None = None) -> SimulatedPass:
     """Simulate one pass over ``sim``'s stock, lifting ``model`` (in place) where the flute
     rule needs it.
 
@@ -343,6 +299,11 @@ def run_pass(sim: StockSim, model: F64, spacing: tuple[float, float], tool: Tool
         What the stage's passes share; updated to this pass.
     before : (ny, nx) float64, optional
         A copy of ``sim.stock`` as it is (else taken here when the pass is lifted).
+    cusp : float, optional
+        The cusp, mm, a thinned pass may leave between its simulated positions on a flat
+        (:class:`_Thinning`; the planner gives :data:`CUSP_SHARE` of the pass's scallop or
+        the tolerance, as :func:`stride_for` along the lines). ``None``: thinned as far as
+        ``0.7 R``.
 
     Returns
     -------
@@ -353,11 +314,18 @@ def run_pass(sim: StockSim, model: F64, spacing: tuple[float, float], tool: Tool
         state = next_state(sim, tool, last)
     else:
         state = _first_state(sim, model, spacing, tool, lines, stride, region, target_cl,
-                             memo)
+                             memo, guard if lift else None, cusp)
     part = sim.part
     pos, cand, top, cl, depth = state.pos, state.cand, state.top, state.cl, state.depth
     base = state.base
     need = top[cand] - tool.flute_length + guard
+    if state.exact is not None:  # the unlifted CL where the rule may now leave it
+        vague = ~state.exact[cand] & ((need <= base[cand]) if lift else True)
+        if vague.any():
+            if target_cl is None and memo is not None:
+                target_cl = memo.drop
+            exact_base(sim, model, spacing, tool, pos, cand[vague], target_cl, base,
+                       state.exact)
     bind = (need > base[cand]) if lift else np.zeros(cand.size, dtype=bool)
     lifted = 0
     if bind.any():
@@ -376,7 +344,7 @@ def run_pass(sim: StockSim, model: F64, spacing: tuple[float, float], tool: Tool
     touched = sim.cut(pos, cutters, cl, tool, state.thin.k == 1)
     if memo is not None:
         memo.keep(lines, Last(state.lines, stride, region, pos, base, cl, top, depth,
-                               touched, state.thin))
+                              touched, state.thin, state.exact))
     # nodes outside the blocks the pass lowered kept their stock
     sim.gouge = max(sim.gouge, _k.blocks_diff_max(part.z, sim.stock, touched, BLOCK))
     lowered = (-1 if not lifted or before is None
@@ -388,11 +356,14 @@ def run_pass(sim: StockSim, model: F64, spacing: tuple[float, float], tool: Tool
 
 def _first_state(sim: StockSim, model: F64, spacing: tuple[float, float], tool: Tool,
                  lines: ScanLines, stride: int, region: NDArray[np.bool_] | None,
-                 target_cl: F64 | None, memo: PassMemo | None) -> State:
-    """Every position of the pass: CL on the target, the part's nodes where it may cut."""
+                 target_cl: F64 | None, memo: PassMemo | None,
+                 lazy: float | None = None, cusp: float | None = None) -> State:
+    """Every position of the pass: CL on the target, the part's nodes where it may cut
+    (``lazy``: the flute rule's guard of a lifted pass,
+    :func:`zwcore.scanline._stock_lazy.lazy_state`)."""
     sx, sy = spacing
     part = sim.part
-    thin = _Thinning.of(lines, part, stride, tool, spacing)
+    thin = _Thinning.of(lines, part, stride, tool, spacing, cusp)
     pos = positions(thin.lines, part, stride * thin.k, region, spacing)
     if target_cl is None and memo is not None:
         if not memo.dropped:  # the stage's target: the first pass's model
@@ -400,6 +371,8 @@ def _first_state(sim: StockSim, model: F64, spacing: tuple[float, float], tool: 
         target_cl = memo.drop
     elif target_cl is None:
         target_cl = target_drop(model, sx, sy, tool, pos.size)
+    if lazy is not None and BOUNDS and pos.size >= BOUNDS_MIN:
+        return lazy_state(sim, model, spacing, tool, thin.lines, thin, pos, target_cl, lazy)
     if target_cl is None:  # a large ball on a fine model: dropped on its nodes here only
         cl = drop_nodes(model, block_max(model), pos, np.full(pos.size, -np.inf),
                         tool.radius, sx, sy)
@@ -420,6 +393,10 @@ def _first_state(sim: StockSim, model: F64, spacing: tuple[float, float], tool: 
 #: ``False``: no pass is thinned, whatever its work (``bench/bench_scanline_core.py
 #: --unthinned``: what thinning changes in the plan).
 THINNING = True
+
+#: ``False``: a pass is thinned as far as ``0.7 R`` whatever the cusp its gaps leave (the
+#: rule before; ``bench/bench_scanline_core.py --unthinned`` compares the three).
+CUSP_THINNING = True
 
 #: Node visits one pass's simulation may make (positions times the nodes within a ball's
 #: radius): a Ø20 ball finishing a 1024² grid at 0.1 mm would make 3e10.
@@ -445,11 +422,9 @@ class _Thinning:
 
     @classmethod
     def of(cls, lines: ScanLines, part: ZMap, stride: int, tool: Tool,
-           spacing: tuple[float, float]) -> _Thinning:
+           spacing: tuple[float, float], cusp: float | None = None) -> _Thinning:
         along = part.dx if lines.direction == "x" else part.dy
         across = spacing[1] if lines.direction == "x" else spacing[0]
-        n = lines.length / (stride * along) + lines.offset.size
-        per = math.pi * (tool.radius / part.dx + 1.0) * (tool.radius / part.dy + 1.0)
         # The lines on grid lines (segments sorted by offset): on every one, or every few
         # where a finishing pass's scallop allows (zwcore.scanline._passes). Thinning keeps
         # lines at most k grid lines apart among those present (on every grid line: those
@@ -460,24 +435,25 @@ class _Thinning:
         on_grid = np.flatnonzero(np.abs(idx - np.rint(idx)) <= 1e-9)
         grid_idx = np.rint(idx[on_grid]).astype(np.int64)
         last = lines.offset >= lines.offset.max()
-        seg = lines.stop - lines.start
         # Every node stays within the radius of a simulated position (gap <= 0.7 R), so the
-        # simulated positions still cut all the stock the lift reads.
+        # simulated positions still cut all the stock the lift reads; with ``cusp`` the
+        # gap also keeps the cusp between simulated positions, gap² / (8R), under it.
+        limit = 0.7 * tool.radius
+        if cusp is not None and CUSP_THINNING:
+            limit = min(limit, math.sqrt(8.0 * tool.radius * cusp))
         unit = max(across, stride * along)
-        k, keep = 1, np.ones(lines.offset.size, dtype=bool)
+        k, kept = 1, lines
         small = tool.radius <= GRID_MODE_RADIUS * min(part.dx, part.dy)  # grid mode copes
-        work = n * per
-        while (THINNING and not small and work > MAX_PASS_WORK
-               and 2 * k * unit <= 0.7 * tool.radius):
+        while (THINNING and not small and _pass_work(kept, part, stride, tool, k)
+               > MAX_PASS_WORK and 2 * k * unit <= limit):
             k *= 2
             keep = np.zeros(lines.offset.size, dtype=bool)
             keep[on_grid] = np.isin(grid_idx, grid_idx[_within(grid_idx, k)])
             keep |= last
-            work = (float(seg[keep].sum()) / (k * stride * along) + int(keep.sum())) * per
+            kept = ScanLines(lines.direction, lines.offset[keep], lines.start[keep],
+                             lines.stop[keep])
         if k == 1:
             return cls(lines, 1, 0.0)
-        kept = ScanLines(lines.direction, lines.offset[keep], lines.start[keep],
-                         lines.stop[keep])
         return cls(kept, k, k * unit)
 
     def lift(self, model: F64, spacing: tuple[float, float], pos: Positions, need: F64) -> int:
@@ -497,6 +473,25 @@ def _within(grid_idx: NDArray[np.int64], k: int) -> NDArray[np.intp]:
         j = int(np.searchsorted(grid_idx, grid_idx[i] + k, side="right")) - 1
         i = j if j > i else i + 1
     return np.asarray(out, dtype=np.intp)
+
+
+def _pass_work(kept: ScanLines, part: ZMap, stride: int, tool: Tool, k: int) -> float:
+    """Node visits of a pass thinned by ``k`` (``kept``: the lines it keeps; every
+    ``k``-th point along them), in units of the per-position kernels' footprint
+    (positions times the nodes within ``R``): the line sweep's visits over
+    :data:`_stock_lines.SWEEP_SHARE` where it is the cheaper
+    (:class:`_stock_lines.LineSweep`), as the kernels are chosen."""
+    along_x = kept.direction == "x"
+    du, dv = (part.dx, part.dy) if along_x else (part.dy, part.dx)
+    r = tool.radius
+    count = max(float(kept.offset.size), 1.0)
+    points = kept.length / (k * stride * du) + kept.offset.size
+    footprint = points * math.pi * (r / part.dx + 1.0) * (r / part.dy + 1.0)
+    # per line and row within R: its positions and the nodes its balls span
+    span = kept.length / count / du + 2.0 * r / du
+    sweep = (points + count * span) * (2.0 * r / dv + 1.0)
+    share = _ls.SWEEP_SHARE
+    return min(footprint, sweep / share) if share > 0.0 else footprint
 
 
 def _lift(model: F64, spacing: tuple[float, float], pos: Positions, node: NDArray[np.bool_],

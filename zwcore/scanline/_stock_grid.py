@@ -71,7 +71,7 @@ class GridMode:
         env = envelope(grid, tool, part.dx, part.dy, "bilinear")
         if off.any():
             _k.cut(stock, smax, self.b, px[off], py[off], np.ascontiguousarray(cl[off]),
-                   tool.radius, part.dx, part.dy, touched)
+                   tool.radius, part.dx, part.dy, touched, np.zeros_like(touched))
         _k.lower(stock, env, self.b, touched)
 
 

@@ -102,12 +102,13 @@ def top(s: F64, smax: F64, b: int, px: F64, py: F64, r: float, dx: float,
     return out
 @njit(cache=True, nogil=True)
 def cut(s: F64, smax: F64, b: int, px: F64, py: F64, cl: F64, r: float, dx: float,
-        dy: float, touched: NDArray[np.bool_]) -> None:
+        dy: float, touched: NDArray[np.bool_], skip: NDArray[np.bool_]) -> None:
     """``s = min(s, cl + h(|p - c|))`` at every node within ``r`` of each position, in place.
 
     ``smax`` is the block maximum of ``s`` before the pass: a block whose stock lies at or
-    under the ball's lowest point over it is left alone. ``touched`` (blocks) is set where
-    a node was lowered.
+    under the ball's lowest point over it is left alone, and so is a block ``skip``
+    marks (settled already, :func:`zwcore.scanline._stock_bounds.settle`). ``touched``
+    (blocks) is set where a node was lowered.
     """
     ny, nx = s.shape
     r2, rin = r * r, r * r * RIM
@@ -119,6 +120,8 @@ def cut(s: F64, smax: F64, b: int, px: F64, py: F64, cl: F64, r: float, dx: floa
             continue
         for bi in range(i0 // b, i1 // b + 1):
             for bk in range(k0 // b, k1 // b + 1):
+                if skip[bi, bk]:
+                    continue
                 dm2 = _block_dist2(p, q, bi, bk, b, ny, nx, dx, dy)
                 if dm2 > rin or smax[bi, bk] <= c + (r - math.sqrt(max(r2 - dm2, 0.0))):
                     continue

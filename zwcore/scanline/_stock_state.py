@@ -120,6 +120,9 @@ class Last:
     depth: F64
     touched: NDArray[np.bool_]
     thin: Thin
+    #: where ``base`` is the unlifted CL itself; elsewhere an upper bound of it, left so
+    #: because the flute rule lifted the position above that bound (``None``: everywhere)
+    exact: NDArray[np.bool_] | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -137,6 +140,7 @@ class State:
     cl: F64
     depth: F64
     first: bool
+    exact: NDArray[np.bool_] | None = None  # as :attr:`Last.exact`
 
 
 def next_state(sim: Sim, tool: Tool, last: Last) -> State:
@@ -154,7 +158,9 @@ def next_state(sim: Sim, tool: Tool, last: Last) -> State:
     pos = last.pos
     top = last.top  # updated in place: the last pass's figures are kept as numbers
     grown = grow_blocks(last.touched.astype(np.float64), tool.radius, part.dx, part.dy)
-    dirty = _k.near_blocks(grown, BLOCK, pos.x, pos.y, top, last.base, 1.0 / part.dx,
+    # a position whose unlifted CL is only bounded is read again whatever that bound
+    base = last.base if last.exact is None else np.where(last.exact, last.base, -np.inf)
+    dirty = _k.near_blocks(grown, BLOCK, pos.x, pos.y, top, base, 1.0 / part.dx,
                            1.0 / part.dy)
     if dirty.size:
         top[dirty] = sim.top(pos, dirty, tool, block_max(sim.stock), last.thin.k == 1)
@@ -162,7 +168,7 @@ def next_state(sim: Sim, tool: Tool, last: Last) -> State:
     again[dirty] = True
     cand = np.flatnonzero(again)
     return State(last.lines, last.thin, pos, cand, top, last.base, last.cl, last.depth,
-                  False)
+                 False, last.exact)
 
 
 def grow_blocks(smax: F64, r: float, dx: float, dy: float) -> F64:

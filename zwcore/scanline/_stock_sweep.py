@@ -104,16 +104,18 @@ def _envelope(pu: F64, pc: F64, j0: int, j1: int, w: float, rho2: float, st: I64
 @njit(cache=True, nogil=True)
 def _cut_row(row: F64, i: int, b: int, ey2: float, floor: float, pu: F64, pc: F64,
              st: I64, start: F64, m: int, w: float, r: float, du: float,
-             touched: NDArray[np.bool_]) -> None:
-    """Lower one row (``ey2`` from the line) by the envelope ``st[:m]``, ``start[:m]``."""
+             touched: NDArray[np.bool_], skip: NDArray[np.bool_]) -> None:
+    """Lower one row (``ey2`` from the line) by the envelope ``st[:m]``, ``start[:m]``
+    (not in the blocks ``skip`` marks)."""
     nu = row.size
     r2, rin = r * r, r * r * RIM
     k0, _ = _span(pu[st[0]], w, du, nu)
     _, k1 = _span(pu[st[m - 1]], w, du, nu)
     near = _NEAR * du
     at = 0
+    sk = skip[i // b]
     for k in range(k0, k1 + 1):
-        if row[k] <= floor:
+        if row[k] <= floor or sk[k // b]:
             continue
         x = k * du
         while at + 1 < m and start[at + 1] <= x:
@@ -143,10 +145,12 @@ _NEAR = 1e-6
 
 @njit(cache=True, nogil=True)
 def cut_lines(s: F64, pu: F64, pv: F64, pc: F64, starts: I64, r: float, du: float,
-              dv: float, b: int, touched: NDArray[np.bool_]) -> None:
+              dv: float, b: int, touched: NDArray[np.bool_], skip: NDArray[np.bool_],
+              ) -> None:
     """``s = min(s, c + h(|p - c|))`` at every node within ``r`` of each position, in
     place; ``touched`` (blocks of ``b x b`` nodes, ``(ceil(nv/b), ceil(nu/b))``) is set
-    where a node was lowered.
+    where a node was lowered. Blocks ``skip`` marks (the same shape) are left alone, and
+    a row none of whose blocks in a line's reach is left is not swept for that line.
 
     A line on a node row sees the rows ``a`` above and below it alike (to the rounding of
     ``e``): one envelope serves both.
@@ -160,11 +164,17 @@ def cut_lines(s: F64, pu: F64, pv: F64, pc: F64, starts: I64, r: float, du: floa
     starts : (lines + 1,) int64
         Each line's first position, and ``n``.
     """
-    nv = s.shape[0]
+    nv, nu = s.shape
     r2, rin = r * r, r * r * RIM
     n = pu.size
     st = np.empty(n, dtype=np.int64)
     start = np.empty(n)
+    # per block row, blocks left to sweep before each block column
+    mb, nb = skip.shape
+    left = np.zeros((mb, nb + 1), dtype=np.int64)
+    for bi in range(mb):
+        for bk in range(nb):
+            left[bi, bk + 1] = left[bi, bk] + (0 if skip[bi, bk] else 1)
     for ln in range(starts.size - 1):
         j0, j1 = starts[ln], starts[ln + 1]
         q = pv[j0]
@@ -174,9 +184,19 @@ def cut_lines(s: F64, pu: F64, pv: F64, pc: F64, starts: I64, r: float, du: floa
         i0, i1 = _span(q, r, dv, nv)
         iq = round(q / dv)
         mirror = abs(q / dv - iq) <= 1e-9  # a line on a node row
+        ka, _ = _span(pu[j0], r, du, nu)
+        _, kb = _span(pu[j1 - 1], r, du, nu)
+        if ka > kb:
+            continue
+        ba, bb = ka // b, kb // b + 1
         for i in range(i0, i1 + 1):
             if mirror and i < iq and 2 * iq - i <= i1:
                 continue  # done with its mirror row below
+            other = 2 * iq - i
+            two = mirror and other != i and i0 <= other <= i1
+            if (left[i // b, bb] == left[i // b, ba]
+                    and not (two and left[other // b, bb] > left[other // b, ba])):
+                continue  # every block of the row (and its mirror) in reach is settled
             ey = i * dv - q
             ey2 = ey * ey
             if ey2 > rin:
@@ -185,15 +205,14 @@ def cut_lines(s: F64, pu: F64, pv: F64, pc: F64, starts: I64, r: float, du: floa
             w = math.sqrt(rin - ey2)
             m = _envelope(pu, pc, j0, j1, w, rho2, st, start)
             _cut_row(s[i], i, b, ey2, cmin + (r - math.sqrt(max(rho2, 0.0))), pu, pc, st,
-                     start, m, w, r, du, touched)
-            other = 2 * iq - i
-            if mirror and other != i and i0 <= other <= i1:
+                     start, m, w, r, du, touched, skip)
+            if two:
                 ey_o = other * dv - q
                 e2 = ey_o * ey_o
                 if e2 <= rin:
                     _cut_row(s[other], other, b, e2,
                              cmin + (r - math.sqrt(max(r2 - e2, 0.0))), pu, pc, st,
-                             start, m, math.sqrt(rin - e2), r, du, touched)
+                             start, m, math.sqrt(rin - e2), r, du, touched, skip)
 
 
 @njit(cache=True, nogil=True)
