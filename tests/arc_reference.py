@@ -140,11 +140,19 @@ def samples_within(
 def segments_within(
     u: FloatArray, v: FloatArray, sig: FloatArray, sig_end: float, p: FloatArray,
     t: FloatArray, end: FloatArray, kappa: float, tol: float, dense_first: bool,
+    end_slack: float = 0.0,
 ) -> bool:
     """True when the interiors of the polyline segments are within ``tol`` of the arc
     (``kappa != 0``): the farthest point from a circle on a segment is an end point or
     the point closest to the centre. The piece starts at ``p`` along ``t`` and ends at
-    ``end``; ``dense_first`` skips the first segment (checked densely by the caller)."""
+    ``end``; ``dense_first`` skips the first segment (checked densely by the caller).
+
+    A segment counts as inside the arc when its later foot is at most ``sig_end * (1 +
+    end_slack)``: the bound of a segment reaching past the end is far coarser, so the
+    decision jumps where a foot lies at the end (a sample the piece ends on), and which
+    side of it an ulp of ``arctan2`` puts the foot on is rounding, not geometry. A
+    positive ``end_slack`` takes such feet as on the arc, a negative one as past it: the
+    two sides of that rounding for :func:`biarc`'s agreement test."""
     du = np.diff(u)
     dv = np.diff(v)
     den = du * du + dv * dv
@@ -153,7 +161,7 @@ def segments_within(
     xu = u[:-1] + ts * du
     xv = v[:-1] + ts * dv
     gx = np.abs(circle_gap(xu, xv, kappa))
-    inside = (sig[:-1] >= 0.0) & (sig[1:] <= sig_end)
+    inside = (sig[:-1] >= 0.0) & (sig[1:] <= sig_end * (1.0 + end_slack))
     xe = np.hypot(
         xu - (end[0] - p[0]) * t[0] - (end[1] - p[1]) * t[1],
         xv - (end[1] - p[1]) * t[0] + (end[0] - p[0]) * t[1],
@@ -211,8 +219,9 @@ def arc_near_polyline(samples: FloatArray, tol: float, dense_step: float, p: Flo
 def verify(samples: FloatArray, tol: float, dense_step: float, p: FloatArray,
            t: FloatArray, kappa: float, k: int, j: int, e_k: float,
            sig_end: float | None = None, dense_first: bool = False,
-           ) -> tuple[float, FloatArray, float] | None:
-    """:meth:`zwcore.arcs._pieces.ToleranceBand.verify` in numpy."""
+           end_slack: float = 0.0) -> tuple[float, FloatArray, float] | None:
+    """:meth:`zwcore.arcs._pieces.ToleranceBand.verify` in numpy (``end_slack``: see
+    :func:`segments_within`)."""
     pts = samples[k : j + 1]
     u, v = local_uv(p, t, pts)
     g = np.abs(circle_gap(u, v, kappa))
@@ -227,7 +236,7 @@ def verify(samples: FloatArray, tol: float, dense_step: float, p: FloatArray,
     if not samples_within(u, v, g, sig, sig_end, de, tol):
         return None
     if kappa != 0.0 and len(pts) > 1 and not segments_within(
-            u, v, sig, sig_end, p, t, end, kappa, tol, dense_first):
+            u, v, sig, sig_end, p, t, end, kappa, tol, dense_first, end_slack):
         return None
     bound, dphi, phi_c = portion_bounds(pts, sig, sig_end, g, de, e_k, kappa)
     if dphi.size:
@@ -451,12 +460,15 @@ def _arc_through(kmin: float, kcap: float, p: FloatArray, t: FloatArray, q: Floa
 
 def biarc(samples: FloatArray, tol: float, dense_step: float, kmin: float, kcap: float,
           p0: FloatArray, t0: FloatArray, k: int, e: float, b: int, t1: FloatArray,
-          p1: FloatArray | None, splits: tuple[float, ...]) -> list[Piece] | None:
-    """:meth:`zwcore.arcs._pieces.ToleranceBand.biarc` in numpy (with :func:`verify`)."""
+          p1: FloatArray | None, splits: tuple[float, ...],
+          end_slack: float = 0.0) -> list[Piece] | None:
+    """:meth:`zwcore.arcs._pieces.ToleranceBand.biarc` in numpy (with :func:`verify`;
+    ``end_slack``: see :func:`segments_within`)."""
 
     def _verify(p, t, kappa, k, j, e_k, sig_end=None,  # type: ignore[no-untyped-def]
                 dense_first=False):
-        return verify(samples, tol, dense_step, p, t, kappa, k, j, e_k, sig_end, dense_first)
+        return verify(samples, tol, dense_step, p, t, kappa, k, j, e_k, sig_end, dense_first,
+                      end_slack)
 
     def _make_piece(p, t, kappa, k, j, verified):  # type: ignore[no-untyped-def]
         length, end, e_end = verified
