@@ -22,6 +22,10 @@ Printed:
 3. per run (between corners) of the given glyph contours, the fewest pieces each chain
    needs in the model at ``--tol``, the curvature taken from the outline sampled every
    0.05 mm (its Bezier pieces, bench/glyphs.py).
+
+``--c1-minimax d0 5 11 --arcwelder PATH``: instead, the least deviation a C1 chain of as
+many arcs as ArcWelder's segments 5..10 of contour ``d0`` (the bowl of the "d") reaches
+(a local minimax, started from ArcWelder's arcs).
 """
 
 from __future__ import annotations
@@ -90,12 +94,15 @@ def minimax(s: FloatArray, g: FloatArray, knots: FloatArray, c1: bool) -> float:
 
 
 def best_knots(s: FloatArray, g: FloatArray, p: int, c1: bool, w: FloatArray | None = None,
-               iters: int = 400, starts: int = 3) -> float:
+               iters: int = 400, starts: int = 3,
+               also: FloatArray | None = None) -> tuple[float, FloatArray]:
     """:func:`minimax` with ``p`` pieces, the junctions moved by Nelder-Mead from an even
-    spread of the weight ``w`` ``(K,)`` (default: arc length), of arc length, and from
-    ``starts - 2`` seeded random spreads; the smallest figure found."""
+    spread of arc length, of the weight ``w`` ``(K,)``, from the knots ``also``
+    ``(p + 1,)`` (another chain's best) and from seeded random spreads (``starts`` in
+    all); the smallest figure found and its knots."""
     if p == 1:
-        return minimax(s, g, np.array([s[0], s[-1]]), c1)
+        one = np.array([s[0], s[-1]])
+        return minimax(s, g, one, c1), one
 
     def knots(x: FloatArray) -> FloatArray:
         ln = np.exp(x - x.max())
@@ -103,18 +110,23 @@ def best_knots(s: FloatArray, g: FloatArray, p: int, c1: bool, w: FloatArray | N
 
     rng = np.random.default_rng(p)
     x0s = [np.zeros(p)]
+    if also is not None:
+        x0s.append(np.log(np.maximum(np.diff(also), 1e-12)))
     if w is not None:
         cw = np.concatenate([[0.0], np.cumsum(0.5 * (w[1:] + w[:-1]) * np.diff(s))])
         x0s.append(np.log(np.maximum(np.diff(np.interp(np.linspace(0.0, cw[-1], p + 1), cw,
                                                                s)), 1e-9)))
     while len(x0s) < starts:
         x0s.append(rng.normal(0.0, 0.3, p))
-    best = math.inf
+    best, at = math.inf, knots(x0s[0])
     for x0 in x0s:
         got = minimize(lambda x: minimax(s, g, knots(x), c1), x0, method="Nelder-Mead",
                        options={"maxiter": iters, "xatol": 1e-4, "fatol": 1e-12})
-        best = min(best, float(got.fun), minimax(s, g, knots(x0), c1))
-    return best
+        for x in (got.x, x0):
+            e = minimax(s, g, knots(x), c1)
+            if e < best:
+                best, at = e, knots(x)
+    return best, at
 
 
 def _models() -> None:
@@ -129,7 +141,11 @@ def _models() -> None:
     g = -(s**4) / 12.0
     print(f"   {'pieces':>6s} {'C0 max|e|':>10s} {'C1 max|e|':>10s} {'C1/C0':>6s}")
     for p in range(2, 7):
-        e0, e1 = best_knots(s, g, p, False), best_knots(s, g, p, True)
+        e1, k1 = best_knots(s, g, p, True)
+        # a C1 chain is a C0 chain: C0 searched from C1's junctions too
+        e0, k0 = best_knots(s, g, p, False, also=k1)
+        # and C1 from C0's junctions
+        e1 = min(e1, best_knots(s, g, p, True, also=k0, starts=2)[0])
         print(f"   {p:6d} {e0:10.3e} {e1:10.3e} {e1 / e0:6.2f}")
 
 
@@ -160,7 +176,7 @@ def _fewest(run: FloatArray, tol: float, c1: bool, p_from: int = 1,
     # the constraints on a grid of about 250 points (every sample: 0.05 mm)
     keep = np.unique(np.r_[np.linspace(0, len(s) - 1, 250).astype(int), len(s) - 1])
     for p in range(p_from, p_max + 1):
-        if best_knots(s[keep], g[keep], p, c1, w[keep], iters=200) <= tol:
+        if best_knots(s[keep], g[keep], p, c1, w[keep], iters=200)[0] <= tol:
             return p
     return None
 
@@ -192,6 +208,70 @@ def _contours(labels: list[str], tol: float) -> None:
         print(f"   {label:8s} all {'':6s} {n0:3d} {n1:3d}", flush=True)
 
 
+def _c1_arcs(x: FloatArray, start: FloatArray, n: int, per: int = 24) -> FloatArray:
+    """Points ``(n * per, 2)`` of the C1 chain of ``n`` arcs from ``start`` with first
+    direction ``x[0]``, curvatures ``x[1:n+1]`` and lengths ``x[n+1:]``."""
+    th, (px, py) = x[0], start
+    out = []
+    f = np.linspace(0.0, 1.0, per)
+    for k, ln in zip(x[1 : n + 1], x[n + 1 :], strict=True):
+        sg = f * ln
+        dx = (np.sin(th + k * sg) - np.sin(th)) / k
+        dy = (np.cos(th) - np.cos(th + k * sg)) / k
+        out.append(np.stack([px + dx, py + dy], 1))
+        px, py = out[-1][-1]
+        th += k * ln
+    return np.vstack(out)
+
+
+def _to_polyline(q: FloatArray, poly: FloatArray) -> FloatArray:
+    """Distance of each point of ``q`` ``(Q, 2)`` to the polyline ``poly`` ``(K, 2)``."""
+    a, b = poly[:-1], poly[1:]
+    ab = b - a
+    t = np.clip(((q[:, None] - a[None]) * ab[None]).sum(2)
+                / np.maximum((ab * ab).sum(1), 1e-30)[None], 0.0, 1.0)
+    return np.hypot(*(q[:, None] - a[None] - t[..., None] * ab[None]).transpose(2, 0, 1)).min(1)
+
+
+def c1_minimax(label: str, i0: int, i1: int, tol: float, exe: str) -> None:
+    """Least two-sided deviation (SLSQP, local) of C1 chains with as many arcs as
+    ArcWelder's segments ``i0..i1-1`` of contour ``label`` (chordal), through their end
+    points, started from ArcWelder's arcs with their kinks averaged out."""
+    from _arcwelder import _tangents, run_arcwelder
+    from glyphs import glyph_contours
+
+    pts = next(p for lb, p, _c in glyph_contours()["chordal"] if lb == label)
+    segs = run_arcwelder(exe, pts, tol)[0][i0:i1]
+    if any(sg[0] != "arc" for sg in segs):
+        raise SystemExit("choose a stretch of ArcWelder's arcs only")
+    a, b = np.array(segs[0][1]), np.array(segs[-1][2])
+    ia, ib = (int(np.argmin(np.hypot(*(pts - q).T))) for q in (a, b))
+    poly = np.vstack([pts, pts])[ia : ib + (0 if ib > ia else len(pts)) + 1]
+    ks, lens = [], []
+    for sg in segs:
+        c = np.asarray(sg[3])
+        r = float(np.hypot(*(np.asarray(sg[1]) - c)))
+        a0, a1 = (math.atan2(*(np.asarray(q) - c)[::-1]) for q in (sg[1], sg[2]))
+        sweep = (a1 - a0) % (2 * math.pi) if sg[4] else (a0 - a1) % (2 * math.pi)
+        ks.append((1.0 if sg[4] else -1.0) / r)
+        lens.append(sweep * r)
+    n = len(segs)
+    t0 = _tangents(segs[0])[0]
+    x0 = np.r_[math.atan2(t0[1], t0[0]), ks, lens]
+
+    def devs(x: FloatArray) -> FloatArray:
+        q = _c1_arcs(x, a, n)
+        return np.r_[_to_polyline(q, poly), _to_polyline(poly, q)]
+
+    z0 = np.r_[x0, devs(x0).max()]
+    got = minimize(lambda z: z[-1], z0, method="SLSQP", options={"maxiter": 400, "ftol": 1e-12},
+                   constraints=[{"type": "ineq", "fun": lambda z: z[-1] - devs(z[:-1])},
+                                {"type": "eq", "fun": lambda z: _c1_arcs(z[:-1], a, n)[-1] - b}])
+    print(f"\n{label} segments {i0}..{i1 - 1} of ArcWelder at tol {tol}: {n} arcs; a C1 chain"
+          f" of {n} arcs through the same ends: max deviation {devs(got.x[:-1]).max():.4f}"
+          f" (SLSQP, local: {got.message})")
+
+
 def _resample(pts: FloatArray, step: float) -> FloatArray:
     closed = np.vstack([pts, pts[:1]])
     s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(closed, axis=0).T))])
@@ -203,7 +283,15 @@ def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--contours", default="", help="glyph contours, e.g. d0,b1 (slow)")
     ap.add_argument("--tol", type=float, default=0.05)
+    ap.add_argument("--c1-minimax", nargs=3, metavar=("LABEL", "I0", "I1"),
+                    help="a C1 chain with as many arcs as ArcWelder's segments I0..I1-1 of"
+                    " a chordal glyph contour (needs --arcwelder; about a minute)")
+    ap.add_argument("--arcwelder", metavar="PATH")
     args = ap.parse_args()
+    if args.c1_minimax:
+        lb, i0, i1 = args.c1_minimax
+        c1_minimax(lb, int(i0), int(i1), args.tol, args.arcwelder)
+        return
     _models()
     if args.contours:
         _contours(args.contours.split(","), args.tol)
