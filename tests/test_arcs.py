@@ -500,10 +500,10 @@ DATA = Path(__file__).resolve().parent / "data"
     # (fixed with the first beam's scans at 0.97 of the tolerance, _runs.WORK)
     "refit_split_fillets",
     # found by a local (random) run on main 57274c8 and on arcs3 alike: the 17.0 mm
-    # straight part between two fillets is an arc of radius 452 (sagitta 0.045 mm, not
-    # flat) covering 12.7 mm of it
-    pytest.param("arc_over_short_straight", marks=pytest.mark.xfail(
-        strict=True, reason="open: an arc of radius 452 over a 17 mm straight part")),
+    # straight part between two fillets was an arc of radius 452 (sagitta 0.045 mm, not
+    # flat) covering 12.7 mm of it (fixed with the first beam's scans at 0.97 of the
+    # tolerance, _runs.WORK)
+    "arc_over_short_straight",
 ])
 def test_saved_lines_and_fillets_give_lines(name):
     """Lines-and-fillets curves hypothesis once found failing (points, straight parts)."""
