@@ -104,9 +104,9 @@ class _RunFitter:
         if self.closed_form and t_start is None:
             # a coarse polygon: the filleted polygon (checked densely by fit_arcs; the
             # refit without closed forms uses the beam)
-            got = polygon_run(self._band, a, b, loop)
-            if got is not None:
-                return got, []
+            poly = polygon_run(self._band, a, b, loop)
+            if poly is not None:
+                return poly, []
         self.all_closed_form = False
         pins = {"pin_start": t_start is None and not loop, "pin_end": not loop}
         work = work_share(self.max_radius)
