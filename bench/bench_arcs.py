@@ -17,6 +17,10 @@ with ArcWelder 1.2.0 and stored). With ``--arcwelder PATH``
 ``AW seg`` its segments with its G1 runs merged and ``ratio`` ours over it, its
 deviation (both ways, sampled) and kink, ``AW str`` its segments with every straight
 run of lines or flat arcs merged (the generous count) and ``ratio`` ours over that.
+``--glyphs --contours``: after each glyph row, the contours whose counts differ from
+ArcWelder's (or the greedy bound's). ``--floor``: counts on an ellipse and a clothoid at
+0.05-0.002 mm against the asymptotic floor of chains whose pieces join (C0 or C1 alike,
+:data:`JOINED_CONST`) and of pieces free to jump (:data:`FREE_CONST`).
 """
 
 from __future__ import annotations
