@@ -150,7 +150,9 @@ def run_arcwelder(exe: str, pts: FloatArray, tol: float, closed: bool = True,
                         "--default-xyz-precision=4"], check=True, capture_output=True)
         dt = time.perf_counter() - t0
         text = dst.read_text()
-    return merge_g1_runs(parse_moves(text), tol), dt
+    # (its output may drop the first G0 of an open path: the moves start at the first point)
+    start = f"G0 X{pts[0, 0]:.4f} Y{pts[0, 1]:.4f}\n"
+    return merge_g1_runs(parse_moves(start + text), tol), dt
 
 
 def _arc_frame(s: Segment) -> tuple[FloatArray, float, float, float, float]:

@@ -17,6 +17,10 @@ with ArcWelder 1.2.0 and stored). With ``--arcwelder PATH``
 ``AW seg`` its segments with its G1 runs merged and ``ratio`` ours over it, its
 deviation (both ways, sampled) and kink, ``AW str`` its segments with every straight
 run of lines or flat arcs merged (the generous count) and ``ratio`` ours over that.
+``--glyphs --contours``: after each glyph row, the contours whose counts differ from
+ArcWelder's (or the greedy bound's). ``--floor``: counts on an ellipse and a clothoid at
+0.05-0.002 mm against the asymptotic floor of chains whose pieces join (C0 or C1 alike,
+:data:`JOINED_CONST`) and of pieces free to jump (:data:`FREE_CONST`).
 """
 
 from __future__ import annotations
@@ -148,9 +152,10 @@ def _corners_kept(chain: object, corners: np.ndarray, reach: float) -> int:
     return int((d.min(axis=1) <= reach).sum())
 
 
-def glyphs(quick: bool, arcwelder: str | None) -> None:
+def glyphs(quick: bool, arcwelder: str | None, contours: bool = False) -> None:
     """Glyph outlines (bench/glyphs.py): per sampling and tolerance, the totals over all
-    contours against ArcWelder (``arcwelder``: its console) or the greedy bound."""
+    contours against ArcWelder (``arcwelder``: its console) or the greedy bound;
+    ``contours``: after each row, the contours where the counts differ (ours - its)."""
     from _arcwelder import deviation as aw_deviation
     from _arcwelder import max_kink as aw_max_kink
     from _arcwelder import merge_straight_runs, run_arcwelder
@@ -173,9 +178,11 @@ def glyphs(quick: bool, arcwelder: str | None) -> None:
         for name in ("even", "chordal", "noisy"):
             n_pts = seg = arcs = lines = kept = n_corner = n_ref = 0
             n_str = 0
+            diff: list[str] = []
             dev = kink = t_all = c_all = aw_dev = aw_kink = aw_t = 0.0
-            for _label, pts, corners in sets[name]:
+            for label, pts, corners in sets[name]:
                 dt, dc, chain = _timed_cpu(pts, True, tol)
+                n_ref0 = n_ref
                 c_all += dc
                 n_pts += len(pts)
                 seg += len(chain.segments)
@@ -195,6 +202,8 @@ def glyphs(quick: bool, arcwelder: str | None) -> None:
                     n_str += merge_straight_runs(aw, pts, True, tol)
                 else:
                     n_ref += greedy_min_pieces(pts, tol, True)
+                if len(chain.segments) != n_ref - n_ref0:
+                    diff.append(f"{label} {len(chain.segments) - (n_ref - n_ref0):+d}")
             print(f"{name:8s} {tol:5.2f} {n_pts:6d} {seg:5d} {arcs:5d} {lines:5d} {dev:8.5f}"
                   f" {kink:8.1e} {kept:4d}/{n_corner:<4d} {t_all:7.2f}"
                   f" {1e3 * t_all / max(seg, 1):6.2f} {c_all:6.2f}"
@@ -203,6 +212,8 @@ def glyphs(quick: bool, arcwelder: str | None) -> None:
                   + (f" {aw_dev:8.5f} {aw_kink:7.1f} {aw_t:6.2f} {n_str:6d}"
                      f" {seg / max(n_str, 1):5.2f}" if arcwelder else ""),
                   flush=True)
+            if contours:
+                print("    ours - ref by contour:", ", ".join(diff) or "none", flush=True)
 
 
 def _aw_columns(exe: str, pts: np.ndarray, closed: bool, tol: float, nseg: int) -> str:
@@ -285,6 +296,61 @@ def _coarse() -> None:
               f" {dt:7.3f} {1e3 * dt / nseg:6.2f} {dc:6.3f} {1e3 * dc / nseg:10.2f}")
 
 
+#: Local model of a stretch whose curvature varies linearly (``kappa' = c``): the normal
+#: offset of the curve from a piece of curvature ``k`` is ``c s^3 / 6`` plus a quadratic,
+#: so a chain's error is a cubic with leading coefficient ``c / 6`` on every piece. One
+#: piece of length ``L`` alone (ends free) keeps ``|error| >= c L^3 / 192`` (Chebyshev);
+#: pieces joined continuously, tangentially (C1) or not (C0, ArcWelder), need the error
+#: continuous, and their best uniform pieces give the periodic Bernoulli monospline,
+#: ``c L^3 / (72 sqrt 3) = c L^3 / 124.7`` (C0 cannot do better in the limit: an LP over
+#: 24 pieces gives 1/125.5 for C0, 1/124.7 for C1; the optimal C0 junctions are C1).
+FREE_CONST = 192.0
+JOINED_CONST = 72.0 * math.sqrt(3.0)
+
+
+def floor_count(dkappa_ds: np.ndarray, ds: np.ndarray, tol: float, const: float) -> float:
+    """Asymptotic count of pieces ``sum |kappa'|^(1/3) ds / (const tol)^(1/3)`` of a curve
+    given ``|kappa'|`` (1/mm^2) at parameter nodes and their arc-length weights ``ds``
+    (both ``(K,)``): the limit for small ``tol`` of the fewest pieces, each of length
+    ``(const tol / |kappa'|)^(1/3)`` (see :data:`JOINED_CONST`)."""
+    return float(np.sum(np.abs(dkappa_ds) ** (1.0 / 3.0) * ds) / (const * tol) ** (1.0 / 3.0))
+
+
+def floor(arcwelder: str | None) -> None:
+    """Counts on smooth curves against the asymptotic floor of chains whose pieces join
+    (:data:`JOINED_CONST`; a floor in the limit of small tolerances only: a few pieces
+    at the ends of the curvature's range are not in it) and the floor of pieces free
+    to jump (:data:`FREE_CONST`): ours, ArcWelder's where given, and their ratios."""
+    from _arcwelder import run_arcwelder
+    from curves import clothoid
+
+    _warm_up()
+    t = np.linspace(0.0, 2.0 * math.pi, 200_001)
+    a, b = 30.0, 15.0
+    speed = np.hypot(a * np.sin(t), b * np.cos(t))
+    dk = np.gradient(a * b / speed**3, t) / speed
+    w = np.gradient(t) * speed
+    cases = [("ellipse 30x15", *ellipse(0.2, a, b), dk, w, tol) for tol in (0.05, 0.01, 0.002)]
+    pts_c, _ = clothoid(0.2)
+    n_c = len(pts_c) - 1
+    cases += [("clothoid", pts_c, False, np.full(n_c, 0.1 / 200.0), np.full(n_c, 200.0 / n_c),
+               tol) for tol in (0.01, 0.002)]
+    print("Counts against the asymptotic floor (curvature varying linearly per piece)\n")
+    head = (f"{'curve':14s} {'tol':>6s} {'points':>6s} {'free':>6s} {'joined':>6s} {'ours':>5s}"
+            f" {'/joined':>7s}" + (f" {'AW':>5s} {'/joined':>7s}" if arcwelder else ""))
+    print(head)
+    print("-" * len(head))
+    for label, pts, closed, dkc, wc, tol in cases:
+        ours = len(fit_arcs(pts, tol, closed=closed).segments)
+        lo = floor_count(dkc, wc, tol, JOINED_CONST)
+        row = (f"{label:14s} {tol:6.3f} {len(pts):6d} {floor_count(dkc, wc, tol, FREE_CONST):6.1f}"
+               f" {lo:6.1f} {ours:5d} {ours / lo:7.2f}")
+        if arcwelder:
+            n_aw = len(run_arcwelder(arcwelder, pts, tol, closed)[0])
+            row += f" {n_aw:5d} {n_aw / lo:7.2f}"
+        print(row, flush=True)
+
+
 def load_mix(n: int) -> None:
     """The arc requests of ``bench/load.py`` (its body generators and coarse share,
     seeded), fitted in this process as the service's ``/v1/arcs`` does (a G-code
@@ -329,6 +395,10 @@ def main() -> None:
     ap.add_argument("--quick", action="store_true", help="skip the 1M-point run")
     ap.add_argument("--glyphs", action="store_true", help="glyph outlines benchmark only")
     ap.add_argument("--arcwelder", metavar="PATH", help="ArcWelder console (see README)")
+    ap.add_argument("--contours", action="store_true",
+                    help="with --glyphs: the contours where the counts differ")
+    ap.add_argument("--floor", action="store_true",
+                    help="only the counts against the asymptotic floor (smooth curves)")
     ap.add_argument("--load-mix", type=int, metavar="N",
                     help="only the arc requests of bench/load.py: N bodies, in-process")
     args = ap.parse_args()
@@ -337,7 +407,10 @@ def main() -> None:
         load_mix(args.load_mix)
         return
     if args.glyphs:
-        glyphs(args.quick, args.arcwelder)
+        glyphs(args.quick, args.arcwelder, args.contours)
+        return
+    if args.floor:
+        floor(args.arcwelder)
         return
     tol = 0.1
     _warm_up()

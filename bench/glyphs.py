@@ -21,13 +21,25 @@ from numpy.typing import NDArray
 
 FloatArray = NDArray[np.float64]
 
-__all__ = ["GLYPHS", "QUICK_GLYPHS", "Contour", "glyph_contours"]
+__all__ = ["ARCWELDER_GLYPH_REFERENCE", "GLYPHS", "QUICK_GLYPHS", "Contour", "glyph_contours"]
 
 #: glyphs of the benchmark (34 closed contours in DejaVu Sans) and the quick subset
 GLYPHS = "aBgRS&8@%kQbdeAM"
 QUICK_GLYPHS = "aS"
 
 Contour = tuple[str, FloatArray, FloatArray]  # (label, points (N, 2), corners (C, 2))
+
+#: ArcWelder 1.2.0's segments (its G1 runs merged) over all contours of :data:`GLYPHS`,
+#: per ``(sampling, tolerance)``, measured with ``bench_arcs.py --glyphs --arcwelder``
+#: (bench/README.md) and stored so the tests hold the fit to them without the binary.
+ARCWELDER_GLYPH_REFERENCE: dict[tuple[str, float], int] = {
+    ("even", 0.05): 661,
+    ("chordal", 0.05): 333,
+    ("noisy", 0.05): 374,
+    ("even", 0.01): 890,
+    ("chordal", 0.01): 563,
+    ("noisy", 0.01): 2066,
+}
 
 
 def _bezier(ctrl: FloatArray, t: FloatArray) -> FloatArray:
