@@ -456,7 +456,7 @@ class CuttingRegion:
             rows, cols, self.zp, self.cl, self.pa, self.pb, self.half, self.hh,
             np.ascontiguousarray(material, dtype=np.float64), blocks, CUT_BLOCK,
             np.ascontiguousarray(rest, dtype=np.float64), float(flute), skip, self._seen,
-            self._cut, np.int32(self._gen))
+            self._cut, self._gen)
         return int(count), float(layers)
 
     def last_region(self) -> B8:
