@@ -195,7 +195,7 @@ class _Reach:
             theirs = self.rest(prev, kp)
             zk = self.z[::kn, ::kn]
             if kp != kn:
-                theirs = _upsample_where(theirs, kp // kn, zk.shape, self.tol)
+                theirs = _upsample_where(theirs, self.z[::kp, ::kp], kp // kn, zk, self.tol)
             nodes = np.flatnonzero(theirs > self.tol)
             heights, blocks = material_grid(zk.shape, nodes,
                                             zk.ravel()[nodes] + theirs.ravel()[nodes])
@@ -283,8 +283,8 @@ def _pool_any(fine: B8, k: int) -> B8:
     return blocks[:my, :mx]
 
 
-@njit("void(f8[:, :], i8, f8, f8[:, :])", cache=True, nogil=True)
-def _upsample_kernel(coarse: F64, f: int, tol: float, out: F64) -> None:
+@njit("void(f8[:, :], f8[:, :], f8[:, :], i8, f8, f8[:, :])", cache=True, nogil=True)
+def _upsample_kernel(coarse: F64, zc: F64, zf: F64, f: int, tol: float, out: F64) -> None:
     my, mx = coarse.shape
     ny, nx = out.shape
     for i in range(ny):
@@ -298,19 +298,28 @@ def _upsample_kernel(coarse: F64, f: int, tol: float, out: F64) -> None:
             c00, c01 = coarse[a0, b0], coarse[a0, b1]
             c10, c11 = coarse[a1, b0], coarse[a1, b1]
             if c00 > tol or c01 > tol or c10 > tol or c11 > tol:
-                top = c00 * (1.0 - wb) + c01 * wb
-                low = c10 * (1.0 - wb) + c11 * wb
-                out[i, k] = top * (1.0 - wa) + low * wa
+                w00, w01 = (1.0 - wa) * (1.0 - wb), (1.0 - wa) * wb
+                w10, w11 = wa * (1.0 - wb), wa * wb
+                rest = c00 * w00 + c01 * w01 + c10 * w10 + c11 * w11
+                closed = ((zc[a0, b0] + c00) * w00 + (zc[a0, b1] + c01) * w01
+                          + (zc[a1, b0] + c10) * w10 + (zc[a1, b1] + c11) * w11)
+                out[i, k] = min(rest, max(closed - zf[i, k], 0.0))
             else:
                 out[i, k] = 0.0
 
 
-def _upsample_where(coarse: F64, f: int, shape: tuple[int, int], tol: float) -> F64:
-    """``bilinear_at_fine_nodes(coarse, f, shape)`` where a cell corner exceeds ``tol``,
-    0 elsewhere (there the interpolant is at most ``tol`` anyway): ``(my, mx)`` lattice
-    rest to ``shape``, in one compiled pass without index temporaries."""
-    out = np.empty(shape)
-    _upsample_kernel(np.ascontiguousarray(coarse, dtype=np.float64), int(f), float(tol), out)
+def _upsample_where(coarse: F64, zc: F64, f: int, zf: F64, tol: float) -> F64:
+    """A coarse lattice's rest ``(my, mx)`` (over the part ``zc`` there) at the fine
+    lattice's nodes ``zf`` ``(ny, nx)`` (``f`` times finer), where a cell corner exceeds
+    ``tol`` (0 elsewhere: there the interpolant is at most ``tol`` anyway), in one
+    compiled pass: the lesser of the rest interpolated bilinearly and the closing
+    (part plus rest) interpolated bilinearly less the fine part. Each alone makes up
+    material: the rest interpolated across a narrow slot's edge stands over the plate
+    beside it, the closing's chord over a concave wall stands above the wall."""
+    out = np.empty(zf.shape)
+    _upsample_kernel(np.ascontiguousarray(coarse, dtype=np.float64),
+                     np.ascontiguousarray(zc, dtype=np.float64),
+                     np.ascontiguousarray(zf, dtype=np.float64), int(f), float(tol), out)
     return out
 
 
