@@ -8,7 +8,9 @@ and the ratios after/before and 1025²/513², and the known-answer parts' finish
 regions, cut-length factors and what is left (``tests/test_reach.py``); then
 Mount Rushmore (../shared/data) with this tree: the tool sequence, each finishing
 ball's region area, and the finishing cut length against finishing the whole part with
-the smallest ball (both region area over the flat pick-feed that holds the tolerance).
+the smallest ball (both region area over the flat pick-feed that holds the tolerance);
+each checkout's child also plans Mount Rushmore once (its finishing chain, factor, what
+is left and CPU seconds, before and after in one run).
 With ``--forced`` it also plans Mount Rushmore with the finishing chains Ø3 > Ø1 and
 Ø2 > Ø1 (the estimate's ranking replaced for those runs) and prints the simulated regions.
 Usage: ``python bench/bench_reach.py [--before ../zwplan-old] [--sizes 513 1025]
@@ -105,7 +107,31 @@ def _child(sizes: list[int], repeat: int) -> None:
         out[n] = {"seconds": best, "cpu": cpu, "phases": phases, "passes": len(plan.stages),
                   "tools": list(plan.tool_sequence), "regions": regions, "factor": factor}
     out["known"] = _known()
+    out["rushmore"] = _rushmore_child()
     print(json.dumps(out))
+
+
+def _rushmore_child() -> dict[str, object] | None:
+    """Mount Rushmore planned once with the code on ``sys.path`` (CPU seconds: the machine
+    is shared), its finishing chain, factor and what is left."""
+    import numpy as np
+
+    from zwcore import ZMap
+    from zwcore.scanline.planner import plan_scanline
+
+    if not DATA.exists():
+        return None
+    zmap = ZMap(np.load(DATA).astype(np.float64), dx=0.1, dy=0.1)
+    c = time.process_time()
+    plan = plan_scanline(zmap)
+    cpu = time.process_time() - c
+    fin = [s for s in plan.stages if s.level == plan.depth and s.pass_index == 1]
+    r = plan.reach
+    return {"cpu": cpu, "passes": len(plan.stages),
+            "finishing": " > ".join(f"{s.tool.id} {100 * s.region_area_fraction:.1f} % "
+                                    f"({s.pass_count} passes)" for s in fin),
+            "factor": r.smallest_ball_cut_length / r.finishing_cut_length,
+            "left": f"{r.unreachable_area:.0f} mm² up to {r.unreachable_max_height:.2f} mm"}
 
 
 def _run(tree: str, sizes: list[int], repeat: int) -> dict[str, dict]:
@@ -139,6 +165,14 @@ def _sizes(before: str | None, sizes: list[int], repeat: int) -> None:
         for name, run in runs.items():
             lo, hi = run[str(sizes[0])]["seconds"], run[str(sizes[-1])]["seconds"]
             print(f"{name}: {sizes[-1]}² / {sizes[0]}²: {hi / lo:.2f}")
+    print("\n| code | Mount Rushmore finishing | passes | factor | left above the tolerance "
+          "| plan s (CPU) |")
+    print("| --- | --- | --- | --- | --- | --- |")
+    for name, run in runs.items():
+        r = run.get("rushmore")
+        if r is not None:
+            print(f"| {name} | {r['finishing']} | {r['passes']} | {r['factor']:.2f} "
+                  f"| {r['left']} | {r['cpu']:.2f} |")
     print("\n| code | part | finishing regions | factor | left above the tolerance |")
     print("| --- | --- | --- | --- | --- |")
     for part in runs["after"]["known"]:
