@@ -1,7 +1,7 @@
 """The reach estimate's ranking of finishing chains by the positions that really cut.
 
-The compiled cutting test (:func:`zwcore.scanline._reach.cutting_positions`,
-:class:`~zwcore.scanline._reach.CuttingRegion`) is checked against a brute force written
+The compiled cutting test (:func:`zwcore.scanline._reach_cut.cutting_positions`,
+:class:`~zwcore.scanline._reach_cut.CuttingRegion`) is checked against a brute force written
 here (every node offset of the ball, numpy), the rest carried to a finer lattice against
 the fine lattice's own rest, and the pruned chain search against the full one.
 """
@@ -19,12 +19,8 @@ from hypothesis import strategies as st
 from zwcore.grid.tools import Tool, default_tools
 from zwcore.grid.zmap import ZMap
 from zwcore.scanline import _regions
-from zwcore.scanline._reach import (
-    CuttingRegion,
-    ball_reach,
-    cutting_positions,
-    material_grid,
-)
+from zwcore.scanline._reach import ball_reach
+from zwcore.scanline._reach_cut import CuttingRegion, cutting_positions, material_grid
 
 BALLS = list(default_tools("ball"))
 

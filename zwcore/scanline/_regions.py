@@ -3,12 +3,17 @@
 The finishing sequence is a *chain* of library balls ``b_0 > b_1 > ... > b_n``:
 
 - ``b_0`` (the main finishing ball) machines the whole part;
-- each later ball ``b_i`` machines only its rest region: the nodes where the previous
-  ball ``b_{i-1}`` leaves more than ``tolerance`` above the part *and* ``b_i`` does
-  better there by more than ``tolerance`` (``rest_{i-1} - rest_i > tolerance``), grown
-  by ``b_i``'s radius so that every position reaching that material is in it. The
-  comparison discounts position cusps (see :mod:`._reach`): they are common to both
-  balls (larger for the smaller one), so they never send a small ball along a wall.
+- each later ball ``b_i`` machines only its rest region. Its seed: the nodes where the
+  previous ball ``b_{i-1}`` leaves more than ``tolerance`` above the part *and* ``b_i``
+  does better there by more than ``tolerance`` (``rest_{i-1} - rest_i > tolerance``; the
+  comparison discounts position cusps, see :mod:`._reach`: they are common to both
+  balls, larger for the smaller one, so they never send a small ball along a wall). Its
+  region: the positions within ``b_i``'s radius of the seed whose ball, at its nodal CL
+  on the part, cuts into the material ``b_{i-1}`` leaves
+  (:class:`zwcore.scanline._reach_cut.CuttingRegion`), as the plan's rest rule
+  (:mod:`zwcore.scanline._rest`) takes it on the simulated stock: not the whole seed
+  grown by the radius, which counts positions beside a crease or across a wall that cut
+  nothing.
 - the chain ends where no smaller library ball does better anywhere.
 
 Rest comes from :func:`zwcore.scanline._reach.ball_reach` (nodal closing). A ball of
@@ -17,14 +22,16 @@ radius ``R`` is evaluated on every ``k``-th node, ``k`` the largest power of two
 ball that large does not see detail finer than ``R / 8`` anyway); nodes closer than
 ``k`` cells to a point sharper than ``k`` cells (detail the lattice can miss) are added
 to its rest region, so nothing a coarse lattice skips is left unassigned. A pair of
-balls is compared on the coarser ball's lattice.
+balls is compared on the smaller ball's (finer) lattice, the larger ball's rest carried
+there as the lesser of two bilinear interpolants (rest; closing less the fine part).
 
 Which chain: the one with the shortest estimated finishing cut length,
 ``sum over balls of region area x passes / pick-feed`` (the pick-feed that holds
 ``tolerance`` on a flat, ``2 sqrt(2 R tol - tol²)``; a rest ball takes the material
 the previous ball left in layers of its flute length, so a node under a deep rest
 counts once per layer) plus :data:`TOOL_CHANGE_MM` per tool change, by dynamic
-programming over (previous ball, next ball) pairs.
+programming over (previous ball, next ball) pairs, a pair skipped when a lower bound of
+its cost (its cost after a smaller previous ball) cannot win.
 """
 
 from __future__ import annotations
@@ -38,13 +45,8 @@ from numpy.typing import NDArray
 from scipy import ndimage
 
 from zwcore.grid.tools import Tool
-from zwcore.scanline._reach import (
-    CuttingRegion,
-    ball_reach,
-    concave_radii,
-    material_grid,
-    within_distance,
-)
+from zwcore.scanline._reach import ball_reach, concave_radii, within_distance
+from zwcore.scanline._reach_cut import CuttingRegion, material_grid
 from zwcore.sim import RegionBox
 
 __all__ = ["TOOL_CHANGE_MM", "Chain", "MainBall", "finishing_chain", "flat_pick_feed",
