@@ -36,6 +36,12 @@ F64 = NDArray[np.float64]
 B8 = NDArray[np.bool_]
 
 
+def _plain(a: NDArray[np.floating]) -> F64:
+    """``a`` as a writable C-ordered float64 array (the kernels' signatures; a read-only
+    grid, a stored z-map say, is copied)."""
+    return np.require(a, dtype=np.float64, requirements=["C", "W"])
+
+
 def _ball_offsets(radius: float, dx: float, dy: float) -> tuple[NDArray[np.int64], F64]:
     """Half-width in columns of the ball's nodes on each row offset ``(2A + 1,)`` (-1: none)
     and ``h`` at each offset ``(2A + 1, 2B + 1)`` (+inf outside): the nodes within the
@@ -117,8 +123,8 @@ def cutting_positions(material: F64, cl: F64, radius: float, dx: float, dy: floa
     b = CUT_BLOCK
     blocks = material_blocks(material)
     half, hh = _ball_offsets(radius, dx, dy)
-    _cuts_kernel(np.ascontiguousarray(material, dtype=np.float64), blocks, b,
-                 np.ascontiguousarray(cl, dtype=np.float64), half, hh, rows.astype(np.int64),
+    _cuts_kernel(_plain(material), blocks, b,
+                 _plain(cl), half, hh, rows.astype(np.int64),
                  cols.astype(np.int64), out)
     return out
 
@@ -251,8 +257,8 @@ class CuttingRegion:
         rows, cols = np.divmod(seeds.astype(np.int64), self.shape[1])
         count, layers = _region_kernel(
             rows, cols, self.zp, self.cl, self.pa, self.pb, self.half, self.hh,
-            np.ascontiguousarray(material, dtype=np.float64), blocks, CUT_BLOCK,
-            np.ascontiguousarray(rest, dtype=np.float64), float(flute), skip, self._seen,
+            _plain(material), blocks, CUT_BLOCK,
+            _plain(rest), float(flute), skip, self._seen,
             self._cut, self._gen)
         return int(count), float(layers)
 
@@ -287,7 +293,7 @@ def material_grid(shape: tuple[int, int], nodes: NDArray[np.int64], heights: F64
     b = CUT_BLOCK
     grid = np.full(shape, -np.inf)
     blocks = np.full((-(-shape[0] // b), -(-shape[1] // b)), -np.inf)
-    _material_kernel(nodes.astype(np.int64), np.ascontiguousarray(heights, dtype=np.float64),
+    _material_kernel(nodes.astype(np.int64), _plain(heights),
                      b, grid, blocks)
     return grid, blocks
 

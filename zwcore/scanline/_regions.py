@@ -310,6 +310,12 @@ def _upsample_kernel(coarse: F64, zc: F64, zf: F64, f: int, tol: float, out: F64
                 out[i, k] = 0.0
 
 
+def _plain(a: NDArray[np.floating]) -> F64:
+    """``a`` as a writable C-ordered float64 array (the kernels' signatures; a read-only
+    grid, a stored z-map say, is copied)."""
+    return np.require(a, dtype=np.float64, requirements=["C", "W"])
+
+
 def _upsample_where(coarse: F64, zc: F64, f: int, zf: F64, tol: float) -> F64:
     """A coarse lattice's rest ``(my, mx)`` (over the part ``zc`` there) at the fine
     lattice's nodes ``zf`` ``(ny, nx)`` (``f`` times finer), where a cell corner exceeds
@@ -319,9 +325,7 @@ def _upsample_where(coarse: F64, zc: F64, f: int, zf: F64, tol: float) -> F64:
     material: the rest interpolated across a narrow slot's edge stands over the plate
     beside it, the closing's chord over a concave wall stands above the wall."""
     out = np.empty(zf.shape)
-    _upsample_kernel(np.ascontiguousarray(coarse, dtype=np.float64),
-                     np.ascontiguousarray(zc, dtype=np.float64),
-                     np.ascontiguousarray(zf, dtype=np.float64), int(f), float(tol), out)
+    _upsample_kernel(_plain(coarse), _plain(zc), _plain(zf), int(f), float(tol), out)
     return out
 
 
