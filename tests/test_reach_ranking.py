@@ -119,8 +119,10 @@ def test_cutting_region_is_the_brute_force_region(seed: int, ny: int, nx: int, h
     # (the CL kept from the first call, the stamps renewed).
     rng = np.random.default_rng(seed)
     z = _surface(rng, ny, nx, h)
+    z.setflags(write=False)  # a stored grid: read-only inputs are accepted
     cl = brute_cl(z, radius, h, h)
     known = np.where(rng.random(z.shape) < 0.3, cl, np.nan)  # some CL given up front
+    known.setflags(write=False)
     cutter = CuttingRegion(z, h, h, radius, known)
     offs = _offsets(radius, h, h)
     for _ in range(2):
@@ -133,6 +135,8 @@ def test_cutting_region_is_the_brute_force_region(seed: int, ny: int, nx: int, h
         np.testing.assert_array_equal(grid, ref_grid)
         seeds = nodes[rng.random(nodes.size) < 0.5]
         skip = rng.random(z.shape) < 0.1
+        grid.setflags(write=False)
+        rest.setflags(write=False)
         count, layers = cutter.layers(seeds, grid, blocks, rest, flute, skip)
         near = np.zeros(z.shape, dtype=bool)
         for s in seeds:
