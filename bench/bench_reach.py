@@ -181,7 +181,7 @@ def _sizes(before: str | None, sizes: list[int], repeat: int) -> None:
             print(f"| {name} | {part} | {k['regions']} | {k['factor']:.2f} | {k['left']} |")
 
 
-def _rushmore(forced: bool) -> None:
+def _rushmore(forced: bool, roughing: bool = False) -> None:
     import numpy as np
 
     sys.path.insert(0, str(ROOT))
@@ -213,6 +213,8 @@ def _rushmore(forced: bool) -> None:
         print(f"left above the tolerance: {r.unreachable_area:.0f} mm², up to "
               f"{r.unreachable_max_height:.2f} mm")
     _why(z, 0.1, plan.tolerance)
+    if roughing:
+        _roughing(z)
     if forced:
         _forced(z, [["BEM-D3", "BEM-D1"], ["BEM-D2", "BEM-D1"]])
 
@@ -249,6 +251,39 @@ def _forced(z: object, chains: list[list[str]]) -> None:
                   f"| {r.unreachable_area:.0f} mm² up to {r.unreachable_max_height:.2f} mm |")
     finally:
         _regions._plan = ranked
+
+
+def _roughing(z: object) -> None:
+    """Per roughing stage of the Mount Rushmore plan, the share of the part where the stock
+    before the stage (the plan's passes replayed) already lies within the stage's
+    allowance (a quarter of the next stage's flute length) above the stage's model: what
+    a roughing region rule could skip."""
+    import numpy as np
+
+    from zwcore import ZMap
+    from zwcore.scanline._stock import StockSim, run_pass
+    from zwcore.scanline.planner import plan_scanline
+    from zwcore.scanline.replay import _guard, _targets
+    from zwcore.scanline.results import stage_at_nodes
+
+    part = ZMap(np.asarray(z), dx=0.1, dy=0.1)
+    plan = plan_scanline(part)
+    sim = StockSim(part, plan.stock_top)
+    guard = _guard(part, plan)
+    stages = plan.stages
+    print("\n| roughing stage | level | allowance mm | stock before within it % of the part |")
+    print("| --- | --- | --- | --- |")
+    for i, (s, target) in enumerate(zip(stages, _targets(plan), strict=True)):
+        if s.pass_index == 1 and s.level != plan.depth:
+            nxt = next(t for t in stages[i:] if t.level != s.level)
+            allowance = 0.25 * nxt.tool.flute_length
+            model = stage_at_nodes(stages[i + s.pass_count - 1], part)
+            within = float((sim.stock - model <= allowance).mean())
+            print(f"| {s.tool.id} | {s.level} | {allowance:g} | {100 * within:.1f} |")
+        along = part.dx if s.lines.direction == "x" else part.dy
+        stride = max(1, round(s.sim_position_spacing / along))
+        run_pass(sim, target.copy(), s.spacing, s.tool, s.lines, stride, s.region, guard,
+                 lift=s.sim_flute_rule_ok)
 
 
 def _why(z: object, d: float, tol: float) -> None:
@@ -303,6 +338,8 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=1)
     ap.add_argument("--child", action="store_true")
     ap.add_argument("--no-rushmore", action="store_true")
+    ap.add_argument("--roughing", action="store_true",
+                    help="also print what a roughing region rule could skip on Mount Rushmore")
     ap.add_argument("--forced", action="store_true",
                     help="also plan Mount Rushmore with the chains D3 > D1 and D2 > D1")
     args = ap.parse_args()
@@ -312,7 +349,7 @@ def main() -> None:
     if args.sizes:
         _sizes(args.before, args.sizes, args.repeat)
     if not args.no_rushmore:
-        _rushmore(args.forced)
+        _rushmore(args.forced, args.roughing)
 
 
 if __name__ == "__main__":
