@@ -163,8 +163,9 @@ def _sizes(before: str | None, sizes: list[int], repeat: int) -> None:
               f"CPU {a['cpu'] / b['cpu']:.2f}")
     if len(sizes) > 1:
         for name, run in runs.items():
-            lo, hi = run[str(sizes[0])]["seconds"], run[str(sizes[-1])]["seconds"]
-            print(f"{name}: {sizes[-1]}² / {sizes[0]}²: {hi / lo:.2f}")
+            lo, hi = run[str(sizes[0])], run[str(sizes[-1])]
+            print(f"{name}: {sizes[-1]}² / {sizes[0]}²: wall {hi['seconds'] / lo['seconds']:.2f}, "
+                  f"CPU {hi['cpu'] / lo['cpu']:.2f}")
     print("\n| code | Mount Rushmore finishing | passes | factor | left above the tolerance "
           "| plan s (CPU) |")
     print("| --- | --- | --- | --- | --- | --- |")
