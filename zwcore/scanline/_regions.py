@@ -131,7 +131,7 @@ def lattice(radius: float, dx: float, dy: float) -> int:
 class _Material:
     """What one ball leaves, on a (finer) lattice: its rest ``(my, mx)``, the flat indices
     of the nodes where that exceeds the tolerance, the material's heights there (-inf
-    elsewhere) and their block maxima (:func:`material_blocks`)."""
+    elsewhere) and their block maxima (:func:`~zwcore.scanline._reach_cut.material_grid`)."""
 
     rest: F64
     nodes: NDArray[np.int64]
@@ -187,9 +187,10 @@ class _Reach:
         return grown[np.ix_(rows, cols)]
 
     def material(self, prev: float, kn: int) -> _Material:
-        """What ``prev`` leaves, on lattice ``kn`` (its rest interpolated bilinearly
-        between its own lattice nodes: rest, not surface, so a chord of the surface over a
-        concave wall is no rest); cached for the latest ``prev`` only (full-size arrays)."""
+        """What ``prev`` leaves, on lattice ``kn`` (from its own coarser lattice by
+        :func:`_upsample_where`: the lesser of its rest and its closing less the part,
+        both interpolated bilinearly); cached for the latest ``prev`` only (full-size
+        arrays)."""
         if self._last_prev != prev:
             self._last_prev, self._material = prev, {}
         if kn not in self._material:
