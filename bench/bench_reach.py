@@ -8,7 +8,9 @@ and the ratios after/before and 1025²/513², and the known-answer parts' finish
 regions, cut-length factors and what is left (``tests/test_reach.py``); then
 Mount Rushmore (../shared/data) with this tree: the tool sequence, each finishing
 ball's region area, and the finishing cut length against finishing the whole part with
-the smallest ball (both region area over the flat pick-feed that holds the tolerance).
+the smallest ball (both region area over the flat pick-feed that holds the tolerance);
+each checkout's child also plans Mount Rushmore once (its finishing chain, factor, what
+is left and CPU seconds, before and after in one run).
 With ``--forced`` it also plans Mount Rushmore with the finishing chains Ø3 > Ø1 and
 Ø2 > Ø1 (the estimate's ranking replaced for those runs) and prints the simulated regions.
 Usage: ``python bench/bench_reach.py [--before ../zwplan-old] [--sizes 513 1025]
@@ -87,11 +89,12 @@ def _child(sizes: list[int], repeat: int) -> None:
     out = {}
     for n in sizes:
         zmap = synthetic(n)
-        best, phases = float("inf"), {}
+        best, cpu, phases = float("inf"), float("inf"), {}
         for _ in range(repeat):
-            t = time.perf_counter()
+            t, c = time.perf_counter(), time.process_time()
             plan = plan_scanline(zmap)
             took = time.perf_counter() - t
+            cpu = min(cpu, time.process_time() - c)
             if took < best:
                 best = took
                 phases = {}
@@ -101,10 +104,34 @@ def _child(sizes: list[int], repeat: int) -> None:
                    if s.level == plan.depth and s.region_area_fraction is not None}
         factor = (plan.reach.smallest_ball_cut_length / plan.reach.finishing_cut_length
                   if plan.reach is not None else None)
-        out[n] = {"seconds": best, "phases": phases, "passes": len(plan.stages),
+        out[n] = {"seconds": best, "cpu": cpu, "phases": phases, "passes": len(plan.stages),
                   "tools": list(plan.tool_sequence), "regions": regions, "factor": factor}
     out["known"] = _known()
+    out["rushmore"] = _rushmore_child()
     print(json.dumps(out))
+
+
+def _rushmore_child() -> dict[str, object] | None:
+    """Mount Rushmore planned once with the code on ``sys.path`` (CPU seconds: the machine
+    is shared), its finishing chain, factor and what is left."""
+    import numpy as np
+
+    from zwcore import ZMap
+    from zwcore.scanline.planner import plan_scanline
+
+    if not DATA.exists():
+        return None
+    zmap = ZMap(np.load(DATA).astype(np.float64), dx=0.1, dy=0.1)
+    c = time.process_time()
+    plan = plan_scanline(zmap)
+    cpu = time.process_time() - c
+    fin = [s for s in plan.stages if s.level == plan.depth and s.pass_index == 1]
+    r = plan.reach
+    return {"cpu": cpu, "passes": len(plan.stages),
+            "finishing": " > ".join(f"{s.tool.id} {100 * s.region_area_fraction:.1f} % "
+                                    f"({s.pass_count} passes)" for s in fin),
+            "factor": r.smallest_ball_cut_length / r.finishing_cut_length,
+            "left": f"{r.unreachable_area:.0f} mm² up to {r.unreachable_max_height:.2f} mm"}
 
 
 def _run(tree: str, sizes: list[int], repeat: int) -> dict[str, dict]:
@@ -119,23 +146,34 @@ def _sizes(before: str | None, sizes: list[int], repeat: int) -> None:
     runs = {"after": _run(str(ROOT), sizes, repeat)}
     if before is not None:
         runs = {"before": _run(before, sizes, repeat), **runs}
-    print("| code | cells | plan s | passes | tools | finishing regions % | factor | phases (s) |")
-    print("| --- | --- | --- | --- | --- | --- | --- | --- |")
+    print("| code | cells | plan s (wall) | plan s (CPU) | passes | tools | finishing regions % "
+          "| factor | phases (s, wall) |")
+    print("| --- | --- | --- | --- | --- | --- | --- | --- | --- |")
     for name, run in runs.items():
         for n in sizes:
             r = run[str(n)]
             ph = ", ".join(f"{k} {v:.2f}" for k, v in r["phases"].items() if v >= 0.01)
             reg = ", ".join(f"{k} {v:g}" for k, v in r.get("regions", {}).items())
             fac = f"{r['factor']:.2f}" if r.get("factor") is not None else "-"
-            print(f"| {name} | {n}² | {r['seconds']:.2f} | {r['passes']} | "
+            print(f"| {name} | {n}² | {r['seconds']:.2f} | {r['cpu']:.2f} | {r['passes']} | "
                   f"{' > '.join(r['tools'])} | {reg} | {fac} | {ph} |")
     for n in sizes if "before" in runs else []:
-        b, a = runs["before"][str(n)]["seconds"], runs["after"][str(n)]["seconds"]
-        print(f"after / before at {n}²: {a / b:.2f}")
+        b, a = runs["before"][str(n)], runs["after"][str(n)]
+        print(f"after / before at {n}²: wall {a['seconds'] / b['seconds']:.2f}, "
+              f"CPU {a['cpu'] / b['cpu']:.2f}")
     if len(sizes) > 1:
         for name, run in runs.items():
-            lo, hi = run[str(sizes[0])]["seconds"], run[str(sizes[-1])]["seconds"]
-            print(f"{name}: {sizes[-1]}² / {sizes[0]}²: {hi / lo:.2f}")
+            lo, hi = run[str(sizes[0])], run[str(sizes[-1])]
+            print(f"{name}: {sizes[-1]}² / {sizes[0]}²: wall {hi['seconds'] / lo['seconds']:.2f}, "
+                  f"CPU {hi['cpu'] / lo['cpu']:.2f}")
+    print("\n| code | Mount Rushmore finishing | passes | factor | left above the tolerance "
+          "| plan s (CPU) |")
+    print("| --- | --- | --- | --- | --- | --- |")
+    for name, run in runs.items():
+        r = run.get("rushmore")
+        if r is not None:
+            print(f"| {name} | {r['finishing']} | {r['passes']} | {r['factor']:.2f} "
+                  f"| {r['left']} | {r['cpu']:.2f} |")
     print("\n| code | part | finishing regions | factor | left above the tolerance |")
     print("| --- | --- | --- | --- | --- |")
     for part in runs["after"]["known"]:
@@ -144,7 +182,7 @@ def _sizes(before: str | None, sizes: list[int], repeat: int) -> None:
             print(f"| {name} | {part} | {k['regions']} | {k['factor']:.2f} | {k['left']} |")
 
 
-def _rushmore(forced: bool) -> None:
+def _rushmore(forced: bool, roughing: bool = False) -> None:
     import numpy as np
 
     sys.path.insert(0, str(ROOT))
@@ -155,11 +193,12 @@ def _rushmore(forced: bool) -> None:
         return
     z = np.load(DATA).astype(np.float64)
     zmap = ZMap(z, dx=0.1, dy=0.1)
-    t = time.perf_counter()
+    t, c = time.perf_counter(), time.process_time()
     plan = plan_scanline(zmap)
-    took = time.perf_counter() - t
+    took, cpu = time.perf_counter() - t, time.process_time() - c
     area = z.size * 0.01
-    print(f"\nMount Rushmore {z.shape[0]} x {z.shape[1]} at 0.1 mm: plan {took:.2f} s, "
+    print(f"\nMount Rushmore {z.shape[0]} x {z.shape[1]} at 0.1 mm: plan {took:.2f} s "
+          f"({cpu:.2f} s CPU), "
           f"{len(plan.stages)} passes, {' > '.join(plan.tool_sequence)}")
     print("phases: " + ", ".join(f"{k} {v:.2f}" for k, v in plan.timings if v >= 0.01))
     for s in plan.stages:
@@ -175,6 +214,8 @@ def _rushmore(forced: bool) -> None:
         print(f"left above the tolerance: {r.unreachable_area:.0f} mm², up to "
               f"{r.unreachable_max_height:.2f} mm")
     _why(z, 0.1, plan.tolerance)
+    if roughing:
+        _roughing(z)
     if forced:
         _forced(z, [["BEM-D3", "BEM-D1"], ["BEM-D2", "BEM-D1"]])
 
@@ -213,11 +254,45 @@ def _forced(z: object, chains: list[list[str]]) -> None:
         _regions._plan = ranked
 
 
+def _roughing(z: object) -> None:
+    """Per roughing stage of the Mount Rushmore plan, the share of the part where the stock
+    before the stage (the plan's passes replayed) already lies within the stage's
+    allowance (a quarter of the next stage's flute length) above the stage's model: what
+    a roughing region rule could skip."""
+    import numpy as np
+
+    from zwcore import ZMap
+    from zwcore.scanline._stock import StockSim, run_pass
+    from zwcore.scanline.planner import plan_scanline
+    from zwcore.scanline.replay import _guard, _targets
+    from zwcore.scanline.results import stage_at_nodes
+
+    part = ZMap(np.asarray(z), dx=0.1, dy=0.1)
+    plan = plan_scanline(part)
+    sim = StockSim(part, plan.stock_top)
+    guard = _guard(part, plan)
+    stages = plan.stages
+    print("\n| roughing stage | level | allowance mm | stock before within it % of the part |")
+    print("| --- | --- | --- | --- |")
+    for i, (s, target) in enumerate(zip(stages, _targets(plan), strict=True)):
+        if s.pass_index == 1 and s.level != plan.depth:
+            nxt = next(t for t in stages[i:] if t.level != s.level)
+            allowance = 0.25 * nxt.tool.flute_length
+            model = stage_at_nodes(stages[i + s.pass_count - 1], part)
+            within = float((sim.stock - model <= allowance).mean())
+            print(f"| {s.tool.id} | {s.level} | {allowance:g} | {100 * within:.1f} |")
+        along = part.dx if s.lines.direction == "x" else part.dy
+        stride = max(1, round(s.sim_position_spacing / along))
+        run_pass(sim, target.copy(), s.spacing, s.tool, s.lines, stride, s.region, guard,
+                 lift=s.sim_flute_rule_ok)
+
+
 def _why(z: object, d: float, tol: float) -> None:
-    """Why the estimate finishes Mount Rushmore with the smallest ball alone: per candidate
-    main ball, where it leaves more than the tolerance, where the smallest ball does better
-    by more than it (the seed), that seed grown by the small ball's radius, and the chain's
-    estimated cut length, also with the seed alone (a bound no region rule can beat)."""
+    """What the estimate sees on Mount Rushmore: per candidate main ball, where it leaves
+    more than the tolerance, where the smallest ball does better by more than it (the
+    seed), that seed grown by the small ball's radius (the region the ranking used before)
+    and the positions within it that cut the material (the region the ranking uses now,
+    as the plan's rest rule), with the two-ball chain's estimated cut length each way."""
     import numpy as np
 
     from zwcore.grid.tools import default_tools
@@ -230,20 +305,31 @@ def _why(z: object, d: float, tol: float) -> None:
     area = reach.z.size * d * d
     pf_s = flat_pick_feed(small.radius, tol)
     alone = area / pf_s
-    print(f"\nwhy (nodal estimate, tolerance {tol:g}): {small.id} alone {alone:.0f} mm")
+    print(f"\nwhy (nodal estimate, tolerance {tol:g}): {small.id} alone {alone:.0f} mm; "
+          f"the chain main > {small.id} (one layer) with {small.id}'s region as the seed grown "
+          "by its radius (the ranking before) and as the positions that cut (the ranking now)")
     print(f"| main | leaves > tol % | seed for {small.id} % | seed grown by R % "
-          f"| chain cut mm (one layer) | factor | factor, seed alone |")
-    print("| --- | --- | --- | --- | --- | --- | --- |")
+          f"| positions that cut % | chain cut mm, grown | factor | chain cut mm, cutting "
+          f"| factor |")
+    print("| --- | --- | --- | --- | --- | --- | --- | --- | --- |")
     for b in balls[:-1]:
         rest_b = reach.rest(b.radius, lattice(b.radius, d, d))
-        better, _, kn = reach._compare(b.radius, small.radius)
+        nodes, mat, kn = reach._compare(b.radius, small.radius)
+        better = np.zeros(mat.rest.shape, dtype=bool)
+        better.flat[nodes] = True
         grown = within_distance(better, small.radius, kn * d, kn * d)
+        reach.cost(b.radius, small)
+        cutting = reach.cutter(small.radius, kn).last_region()
+        safe = reach._safe_region(lattice(b.radius, d, d), kn, small.radius)
+        if safe is not None:
+            grown |= safe[0]
+            cutting |= safe[0]
         main = area / flat_pick_feed(b.radius, tol) + TOOL_CHANGE_MM
         chain = main + grown.mean() * area / pf_s
-        bound = main + better.mean() * area / pf_s
+        cut = main + cutting.mean() * area / pf_s
         print(f"| {b.id} | {100 * (rest_b > tol).mean():.1f} | {100 * better.mean():.1f} "
-              f"| {100 * grown.mean():.1f} | {chain:.0f} | {alone / chain:.2f} "
-              f"| {alone / bound:.2f} |")
+              f"| {100 * grown.mean():.1f} | {100 * cutting.mean():.1f} | {chain:.0f} "
+              f"| {alone / chain:.2f} | {cut:.0f} | {alone / cut:.2f} |")
 
 
 def main() -> None:
@@ -253,6 +339,8 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=1)
     ap.add_argument("--child", action="store_true")
     ap.add_argument("--no-rushmore", action="store_true")
+    ap.add_argument("--roughing", action="store_true",
+                    help="also print what a roughing region rule could skip on Mount Rushmore")
     ap.add_argument("--forced", action="store_true",
                     help="also plan Mount Rushmore with the chains D3 > D1 and D2 > D1")
     args = ap.parse_args()
@@ -262,7 +350,7 @@ def main() -> None:
     if args.sizes:
         _sizes(args.before, args.sizes, args.repeat)
     if not args.no_rushmore:
-        _rushmore(args.forced)
+        _rushmore(args.forced, args.roughing)
 
 
 if __name__ == "__main__":

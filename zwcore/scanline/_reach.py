@@ -54,12 +54,16 @@ class BallReach:
         Nodes where the rest was computed (elsewhere it is 0 by the tight-node bound).
     positions : int
         CL positions computed.
+    cl : (ny, nx) float64 or None
+        The nodal drop-cutter CL at the positions computed inside the grid (NaN at the
+        others; None when none was).
     """
 
     radius: float
     rest: F64
     band: B8
     positions: int
+    cl: F64 | None = None
 
 
 @njit("void(f8[:, :], f8, f8, f8[:, :])", cache=True, nogil=True)
@@ -229,4 +233,6 @@ def ball_reach(z: F64, dx: float, dy: float, radius: float, tolerance: float,
     closed = nodal_closing(zp, cl, radius, dx, dy, bandp, stop=STOP_SHARE * tolerance)
     np.maximum(closed[pa:pa + z.shape[0], pb:pb + z.shape[1]] - z, 0.0, out=rest)
     refine_rest(z, dx, dy, radius, rest, rest > tolerance, tolerance)
-    return BallReach(radius, rest, band, int(positions.sum()))
+    inner = cl[pa:pa + z.shape[0], pb:pb + z.shape[1]]
+    return BallReach(radius, rest, band, int(positions.sum()),
+                     np.where(np.isfinite(inner), inner, np.nan))

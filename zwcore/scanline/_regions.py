@@ -3,12 +3,17 @@
 The finishing sequence is a *chain* of library balls ``b_0 > b_1 > ... > b_n``:
 
 - ``b_0`` (the main finishing ball) machines the whole part;
-- each later ball ``b_i`` machines only its rest region: the nodes where the previous
-  ball ``b_{i-1}`` leaves more than ``tolerance`` above the part *and* ``b_i`` does
-  better there by more than ``tolerance`` (``rest_{i-1} - rest_i > tolerance``), grown
-  by ``b_i``'s radius so that every position reaching that material is in it. The
-  comparison discounts position cusps (see :mod:`._reach`): they are common to both
-  balls (larger for the smaller one), so they never send a small ball along a wall.
+- each later ball ``b_i`` machines only its rest region. Its seed: the nodes where the
+  previous ball ``b_{i-1}`` leaves more than ``tolerance`` above the part *and* ``b_i``
+  does better there by more than ``tolerance`` (``rest_{i-1} - rest_i > tolerance``; the
+  comparison discounts position cusps, see :mod:`._reach`: they are common to both
+  balls, larger for the smaller one, so they never send a small ball along a wall). Its
+  region: the positions within ``b_i``'s radius of the seed whose ball, at its nodal CL
+  on the part, cuts into the material ``b_{i-1}`` leaves
+  (:class:`zwcore.scanline._reach_cut.CuttingRegion`), as the plan's rest rule
+  (:mod:`zwcore.scanline._rest`) takes it on the simulated stock: not the whole seed
+  grown by the radius, which counts positions beside a crease or across a wall that cut
+  nothing.
 - the chain ends where no smaller library ball does better anywhere.
 
 Rest comes from :func:`zwcore.scanline._reach.ball_reach` (nodal closing). A ball of
@@ -17,14 +22,16 @@ radius ``R`` is evaluated on every ``k``-th node, ``k`` the largest power of two
 ball that large does not see detail finer than ``R / 8`` anyway); nodes closer than
 ``k`` cells to a point sharper than ``k`` cells (detail the lattice can miss) are added
 to its rest region, so nothing a coarse lattice skips is left unassigned. A pair of
-balls is compared on the coarser ball's lattice.
+balls is compared on the smaller ball's (finer) lattice, the larger ball's rest carried
+there as the lesser of two bilinear interpolants (rest; closing less the fine part).
 
 Which chain: the one with the shortest estimated finishing cut length,
 ``sum over balls of region area x passes / pick-feed`` (the pick-feed that holds
 ``tolerance`` on a flat, ``2 sqrt(2 R tol - tol²)``; a rest ball takes the material
 the previous ball left in layers of its flute length, so a node under a deep rest
 counts once per layer) plus :data:`TOOL_CHANGE_MM` per tool change, by dynamic
-programming over (previous ball, next ball) pairs.
+programming over (previous ball, next ball) pairs, a pair skipped when a lower bound of
+its cost (its cost after a smaller previous ball) cannot win.
 """
 
 from __future__ import annotations
@@ -39,6 +46,7 @@ from scipy import ndimage
 
 from zwcore.grid.tools import Tool
 from zwcore.scanline._reach import ball_reach, concave_radii, within_distance
+from zwcore.scanline._reach_cut import CuttingRegion, material_grid
 from zwcore.sim import RegionBox
 
 __all__ = ["TOOL_CHANGE_MM", "Chain", "MainBall", "finishing_chain", "flat_pick_feed",
@@ -119,6 +127,18 @@ def lattice(radius: float, dx: float, dy: float) -> int:
     return k
 
 
+@dataclass(eq=False)
+class _Material:
+    """What one ball leaves, on a (finer) lattice: its rest ``(my, mx)``, the flat indices
+    of the nodes where that exceeds the tolerance, the material's heights there (-inf
+    elsewhere) and their block maxima (:func:`~zwcore.scanline._reach_cut.material_grid`)."""
+
+    rest: F64
+    nodes: NDArray[np.int64]
+    heights: F64
+    blocks: F64
+
+
 class _Reach:
     """Rest maps per (ball, lattice), computed once."""
 
@@ -126,11 +146,14 @@ class _Reach:
         self.z, self.dx, self.dy, self.tol = z, dx, dy, tolerance
         self.rho = concave_radii(z, dx, dy)
         self._rest: dict[tuple[float, int], F64] = {}
+        self._cutting: dict[tuple[float, int], CuttingRegion] = {}
+        self._cl: dict[tuple[float, int], F64 | None] = {}
+        self._safe: dict[tuple[int, int, float], tuple[B8, NDArray[np.int64]] | None] = {}
         self._rho: dict[int, F64] = {1: self.rho}
         self._safety: dict[int, B8] = {}
         self._pooled: dict[tuple[int, int], B8] = {}
         self._last_prev = math.nan
-        self._upsampled_prev: dict[int, F64] = {}
+        self._material: dict[int, _Material] = {}
 
     def rest(self, radius: float, k: int) -> F64:
         key = (radius, k)
@@ -138,8 +161,9 @@ class _Reach:
             zk = self.z[::k, ::k]
             if k not in self._rho:
                 self._rho[k] = concave_radii(zk, k * self.dx, k * self.dy)
-            self._rest[key] = ball_reach(zk, k * self.dx, k * self.dy, radius, self.tol,
-                                         self._rho[k]).rest
+            got = ball_reach(zk, k * self.dx, k * self.dy, radius, self.tol, self._rho[k])
+            self._rest[key] = got.rest
+            self._cl[key] = got.cl
         return self._rest[key]
 
     def safety(self, k: int) -> B8:
@@ -162,42 +186,90 @@ class _Reach:
         cols = np.minimum(-(-np.arange(nx) // k), coarse.shape[1] - 1)
         return grown[np.ix_(rows, cols)]
 
-    def _compare(self, prev: float, nxt: float) -> tuple[B8, F64, int]:
-        """On the smaller ball's (finer) lattice ``kn``: where ``nxt`` does better than
-        ``prev`` by more than the tolerance, and ``prev``'s rest there.
+    def material(self, prev: float, kn: int) -> _Material:
+        """What ``prev`` leaves, on lattice ``kn`` (from its own coarser lattice by
+        :func:`_upsample_where`: the lesser of its rest and its closing less the part,
+        both interpolated bilinearly); cached for the latest ``prev`` only (full-size
+        arrays)."""
+        if self._last_prev != prev:
+            self._last_prev, self._material = prev, {}
+        if kn not in self._material:
+            kp = lattice(prev, self.dx, self.dy)
+            theirs = self.rest(prev, kp)
+            zk = self.z[::kn, ::kn]
+            if kp != kn:
+                theirs = _upsample_where(theirs, self.z[::kp, ::kp], kp // kn, zk, self.tol)
+            nodes = np.flatnonzero(theirs > self.tol)
+            heights, blocks = material_grid(zk.shape, nodes,
+                                            zk.ravel()[nodes] + theirs.ravel()[nodes])
+            self._material[kn] = _Material(theirs, nodes, heights, blocks)
+        return self._material[kn]
 
-        The larger ball's rest is interpolated bilinearly between its lattice nodes
-        (rest, not surface: a chord of the surface over a concave wall is no rest)."""
-        kp = lattice(prev, self.dx, self.dy)
+    def _compare(self, prev: float, nxt: float) -> tuple[NDArray[np.int64], _Material, int]:
+        """On the smaller ball's (finer) lattice ``kn``: the flat indices of the nodes where
+        ``nxt`` does better than ``prev`` by more than the tolerance, and what ``prev``
+        leaves there."""
         kn = lattice(nxt, self.dx, self.dy)
-        theirs = self.rest(prev, kp)
-        mine = self.rest(nxt, kn)
-        if kp != kn:  # cached for the latest larger ball only (full-size arrays)
-            if self._last_prev != prev:
-                self._last_prev, self._upsampled_prev = prev, {}
-            if kn not in self._upsampled_prev:
-                self._upsampled_prev[kn] = _upsample_where(theirs, kp // kn, mine.shape,
-                                                           self.tol)
-            theirs = self._upsampled_prev[kn]
-        return (theirs - mine) > self.tol, theirs, kn
+        mat = self.material(prev, kn)
+        mine = self.rest(nxt, kn).ravel()
+        nodes = mat.nodes
+        better = nodes[mat.rest.ravel()[nodes] - mine[nodes] > self.tol]
+        return better, mat, kn
+
+    def _safe_region(self, kp: int, kn: int, nxt: float
+                     ) -> tuple[B8, NDArray[np.int64]] | None:
+        """Lattice ``kn`` positions within ``nxt`` of detail lattice ``kp`` may skip (mask
+        and flat indices; None: none)."""
+        if kp == 1:
+            return None
+        key = (kp, kn, nxt)
+        if key not in self._safe:
+            if (kp, kn) not in self._pooled:  # the fine safety nodes, on the lattice
+                fine = self.safety(kp)
+                self._pooled[kp, kn] = _pool_any(fine, kn) if kn > 1 else fine
+            pooled = self._pooled[kp, kn]
+            got = None
+            if pooled.any():
+                mask = within_distance(pooled, nxt, kn * self.dx, kn * self.dy)
+                got = (mask, np.flatnonzero(mask))
+            self._safe[key] = got
+        return self._safe[key]
+
+    def cutter(self, radius: float, k: int) -> CuttingRegion:
+        """The ball's :class:`CuttingRegion` on lattice ``k`` (its CL kept across calls)."""
+        key = (radius, k)
+        if key not in self._cutting:
+            self.rest(radius, k)
+            self._cutting[key] = CuttingRegion(self.z[::k, ::k], k * self.dx, k * self.dy,
+                                               radius, self._cl[key])
+        return self._cutting[key]
 
     def cost(self, prev: float, nxt: Tool) -> float | None:
         """Estimated node passes (times the cell area: mm²) of ball ``nxt`` over its rest
         region after ``prev``, on ``nxt``'s lattice (None: no region): one pass per node,
-        or as many as its flutes need for the rest ``prev`` leaves there."""
-        better, theirs, kn = self._compare(prev, nxt.radius)
-        kp = lattice(prev, self.dx, self.dy)
-        if kp > 1:
-            key = (kp, kn)
-            if key not in self._pooled:  # the fine safety nodes, on the lattice
-                fine = self.safety(kp)
-                self._pooled[key] = _pool_any(fine, kn) if kn > 1 else fine
-            better = better | self._pooled[key]
-        if not better.any():
+        or as many as its flutes need for the rest ``prev`` leaves there.
+
+        The region is what the plan's rest rule (:mod:`zwcore.scanline._rest`) cuts: of
+        the positions within ``nxt``'s radius of the nodes where it does better, those
+        whose ball, at its nodal CL on the part, cuts into the material ``prev`` leaves
+        more than the tolerance above the part (:class:`CuttingRegion`); plus, near detail
+        ``prev``'s lattice may have skipped, every position within the radius."""
+        better, mat, kn = self._compare(prev, nxt.radius)
+        safe = self._safe_region(lattice(prev, self.dx, self.dy), kn, nxt.radius)
+        count, layers = 0, 0.0
+        if safe is not None:
+            rest = mat.rest.ravel()[safe[1]]
+            count = safe[1].size
+            layers = float(np.maximum(np.ceil(rest / nxt.flute_length), 1.0).sum())
+        if better.size:
+            got, more = self.cutter(nxt.radius, kn).layers(
+                better, mat.heights, mat.blocks, mat.rest, nxt.flute_length,
+                None if safe is None else safe[0])
+            count += got
+            layers += more
+        if count == 0:
             return None
-        region = within_distance(better, nxt.radius, kn * self.dx, kn * self.dy)
-        passes = np.maximum(np.ceil(theirs[region] / nxt.flute_length), 1.0)
-        return float(passes.sum()) * kn * kn * self.dx * self.dy
+        return layers * kn * kn * self.dx * self.dy
 
 
 def _pool_any(fine: B8, k: int) -> B8:
@@ -214,8 +286,8 @@ def _pool_any(fine: B8, k: int) -> B8:
     return blocks[:my, :mx]
 
 
-@njit("void(f8[:, :], i8, f8, f8[:, :])", cache=True, nogil=True)
-def _upsample_kernel(coarse: F64, f: int, tol: float, out: F64) -> None:
+@njit("void(f8[:, :], f8[:, :], f8[:, :], i8, f8, f8[:, :])", cache=True, nogil=True)
+def _upsample_kernel(coarse: F64, zc: F64, zf: F64, f: int, tol: float, out: F64) -> None:
     my, mx = coarse.shape
     ny, nx = out.shape
     for i in range(ny):
@@ -229,19 +301,32 @@ def _upsample_kernel(coarse: F64, f: int, tol: float, out: F64) -> None:
             c00, c01 = coarse[a0, b0], coarse[a0, b1]
             c10, c11 = coarse[a1, b0], coarse[a1, b1]
             if c00 > tol or c01 > tol or c10 > tol or c11 > tol:
-                top = c00 * (1.0 - wb) + c01 * wb
-                low = c10 * (1.0 - wb) + c11 * wb
-                out[i, k] = top * (1.0 - wa) + low * wa
+                w00, w01 = (1.0 - wa) * (1.0 - wb), (1.0 - wa) * wb
+                w10, w11 = wa * (1.0 - wb), wa * wb
+                rest = c00 * w00 + c01 * w01 + c10 * w10 + c11 * w11
+                closed = ((zc[a0, b0] + c00) * w00 + (zc[a0, b1] + c01) * w01
+                          + (zc[a1, b0] + c10) * w10 + (zc[a1, b1] + c11) * w11)
+                out[i, k] = min(rest, max(closed - zf[i, k], 0.0))
             else:
                 out[i, k] = 0.0
 
 
-def _upsample_where(coarse: F64, f: int, shape: tuple[int, int], tol: float) -> F64:
-    """``bilinear_at_fine_nodes(coarse, f, shape)`` where a cell corner exceeds ``tol``,
-    0 elsewhere (there the interpolant is at most ``tol`` anyway): ``(my, mx)`` lattice
-    rest to ``shape``, in one compiled pass without index temporaries."""
-    out = np.empty(shape)
-    _upsample_kernel(np.ascontiguousarray(coarse, dtype=np.float64), int(f), float(tol), out)
+def _plain(a: NDArray[np.floating]) -> F64:
+    """``a`` as a writable C-ordered float64 array (the kernels' signatures; a read-only
+    grid, a stored z-map say, is copied)."""
+    return np.require(a, dtype=np.float64, requirements=["C", "W"])
+
+
+def _upsample_where(coarse: F64, zc: F64, f: int, zf: F64, tol: float) -> F64:
+    """A coarse lattice's rest ``(my, mx)`` (over the part ``zc`` there) at the fine
+    lattice's nodes ``zf`` ``(ny, nx)`` (``f`` times finer), where a cell corner exceeds
+    ``tol`` (0 elsewhere: there the interpolant is at most ``tol`` anyway), in one
+    compiled pass: the lesser of the rest interpolated bilinearly and the closing
+    (part plus rest) interpolated bilinearly less the fine part. Each alone makes up
+    material: the rest interpolated across a narrow slot's edge stands over the plate
+    beside it, the closing's chord over a concave wall stands above the wall."""
+    out = np.empty(zf.shape)
+    _upsample_kernel(_plain(coarse), _plain(zc), _plain(zf), int(f), float(tol), out)
     return out
 
 
@@ -262,23 +347,36 @@ def region_boxes(region: B8, dx: float, dy: float) -> tuple[int, tuple[RegionBox
     return int(count), tuple(out)
 
 
-def _plan(balls: list[Tool], reach: _Reach, area: float) -> list[int]:
-    """The chain (indices into ``balls``, largest first) of least estimated cut length."""
+def _plan(balls: list[Tool], reach: _Reach, area: float, bound: bool = True) -> list[int]:
+    """The chain (indices into ``balls``, largest first) of least estimated cut length.
+
+    Dynamic programming from the smallest ball up: ``best[j]`` is the least cut length of
+    the balls after ``j``. A pair's region cost is computed only when it may beat the
+    best option found so far for ``j``: candidates go in order of a lower bound, ``cost
+    after a smaller previous ball / pick-feed + tool change + best[i]`` (``bound``; a
+    larger previous ball leaves at least the material a smaller one leaves, so its rest
+    region is no smaller: the closing grows with the ball), else of ``tool change +
+    best[i]`` alone, and the search stops at the first whose bound is not below it.
+    """
     tol = reach.tol
     n = len(balls)
     pf = [flat_pick_feed(b.radius, tol) for b in balls]
     best: list[float] = [math.inf] * n
     after: list[int | None] = [None] * n
+    floor = [0.0] * n  # per next ball: its cost after the largest previous ball so far
     for j in range(n - 1, -1, -1):
         options: list[tuple[float, int | None]] = []
-        # cheapest continuations first: once a tool change plus the rest of the chain
-        # alone costs more than the best option, no later ball can win
-        for i in sorted(range(j + 1, n), key=lambda m: (best[m], m)):
+
+        def low(m: int) -> float:
+            return (floor[m] if bound else 0.0) / pf[m] + TOOL_CHANGE_MM + best[m]
+
+        for i in sorted(range(j + 1, n), key=lambda m: (low(m), m)):
             least = min((o[0] for o in options), default=math.inf)
-            if TOOL_CHANGE_MM + best[i] >= least:
+            if low(i) >= least:
                 break
             passes = reach.cost(balls[j].radius, balls[i])
             if passes is not None:
+                floor[i] = max(floor[i], passes)
                 options.append((passes / pf[i] + TOOL_CHANGE_MM + best[i], i))
         if not options:
             options.append((0.0, None))
