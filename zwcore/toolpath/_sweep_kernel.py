@@ -19,6 +19,9 @@ I64 = NDArray[np.int64]
 #: A block is skipped only when its bound is below minus this (mm): float rounding of the
 #: bound is orders of magnitude smaller.
 MARGIN = 1e-9
+#: Nodes this far (mm) ahead of a move's trailing line are still swept (the line's own
+#: rounding is orders of magnitude smaller).
+TRAIL_MARGIN = 1e-9
 #: The tangent plane is not used where the ball meets the block centre this close to its
 #: rim (``sqrt(R² - d²) < RIM * R``: a steep, badly conditioned gradient).
 RIM = 1e-3
@@ -227,6 +230,27 @@ def _row_span(qy: float, x0: float, dx: float, ka0: int, kb1: int, sx: float, sy
 
 
 @njit(cache=True, nogil=True, fastmath={"contract", "arcp", "reassoc"})
+def _trail_span(qy: float, x0: float, dx: float, ka: int, kb: int, sx: float, sy: float,
+                ux: float, uy: float, lim: float) -> tuple[int, int]:
+    """``ka..kb`` cut to the nodes of the row at ``qy`` with ``(q - s).u > lim`` (one column
+    kept on the far side of the line: rounding never drops a node ahead of it)."""
+    rest = lim - (qy - sy) * uy  # (qx - sx) ux > rest
+    if abs(ux) <= 1e-12:
+        return (ka, kb) if rest < 0.0 else (0, -1)
+    if ux > 0.0:
+        return max(ka, math.floor((sx + rest / ux - x0) / dx)), kb
+    return ka, min(kb, math.ceil((sx + rest / ux - x0) / dx))
+
+
+@njit(cache=True, nogil=True, fastmath={"contract", "arcp", "reassoc"})
+def _behind(bx: float, by: float, hx: float, hy: float, sx: float, sy: float, ux: float,
+            uy: float, lim: float) -> bool:
+    """True when every point of the block (centre ``bx, by``, half extents ``hx, hy``) lies
+    on or behind the trailing line: ``(q - s).u <= lim``."""
+    return (bx - sx) * ux + (by - sy) * uy + abs(ux) * hx + abs(uy) * hy <= lim
+
+
+@njit(cache=True, nogil=True, fastmath={"contract", "arcp", "reassoc"})
 def _envelopes(m: int, wxs: F64, wys: F64, sx: float, sy: float, sz: float, ax: float,
                ay: float, vz: float, rr: float, ball: bool, env: F64) -> None:
     """``env[j]`` of the ``m`` gathered nodes for one move: :func:`node_envelope` per node
@@ -245,13 +269,16 @@ def _envelopes(m: int, wxs: F64, wys: F64, sx: float, sy: float, sz: float, ax: 
 def _gather(x0: float, y0: float, dx: float, dy: float, nx: int, b: int, bi: int, bk: int,
             i0: int, i1: int, k0: int, k1: int, sx: float, sy: float, ax: float, ay: float,
             ylo: float, yhi: float, rr: float, t: int, wxs: F64, wys: F64, idx: I64,
-            owner: I64, mcount: int) -> int:
+            owner: I64, mcount: int, ux: float, uy: float, lim: float) -> int:
     """Append the nodes of block ``(bi, bk)`` inside the box ``i0..i1, k0..k1`` that lie
-    within ``rr`` of the move's xy shadow; returns the new count."""
+    within ``rr`` of the move's xy shadow and ahead of the trailing line (``(q - s).u >
+    lim``; ``lim = -inf``: no trailing line); returns the new count."""
     kk0, kk1 = max(k0, bk * b), min(k1, bk * b + b - 1)
     for i in range(max(i0, bi * b), min(i1, bi * b + b - 1) + 1):
         qy = y0 + i * dy
         ka, kb = _row_span(qy, x0, dx, kk0, kk1, sx, sy, ax, ay, ylo, yhi, rr)
+        if lim > -math.inf:
+            ka, kb = _trail_span(qy, x0, dx, ka, kb, sx, sy, ux, uy, lim)
         if kb < ka:  # never a range from a huge negative bound (it would wrap around)
             continue
         for k in range(ka, kb + 1):
@@ -268,7 +295,7 @@ def sweep_kernel(x0: float, y0: float, dx: float, dy: float, p0: F64, p1: F64, r
                  ball: bool, apply: NDArray[np.bool_], stock: F64, ref: F64,
                  over_stock: F64, over_ref: F64, row_lo: int, row_hi: int, b: int, f: int,
                  cx: F64, cy: F64, hx: F64, hy: F64, st: F64, ccx: F64, ccy: F64, chx: F64,
-                 chy: F64, cst: F64, remeasure: bool, test: bool) -> None:
+                 chy: F64, cst: F64, remeasure: bool, test: bool, trail: F64) -> None:
     """Moves in order over the rows ``row_lo..row_hi - 1`` (a band of whole coarse blocks:
     bands are independent).
 
@@ -277,7 +304,9 @@ def sweep_kernel(x0: float, y0: float, dx: float, dy: float, p0: F64, p1: F64, r
     within R of the move's xy shadow gathered (row by row), the envelope over all of them
     in one flat loop, then the stock compared and lowered; with ``remeasure`` the blocks
     the move lowered, and their coarse blocks, are measured again. Without ``test`` no
-    block is tested (one block over the whole grid: the plain sweep)."""
+    block is tested (one block over the whole grid: the plain sweep). Where ``trail[s] >=
+    0`` the nodes at or behind ``(q - p0).u = -trail[s] - TRAIL_MARGIN`` (``u`` the move's
+    unit xy direction) are left out (:func:`~zwcore.toolpath.sweep.trailing_cuts`)."""
     nx = stock.shape[1]
     sflat = stock.reshape(-1)
     rflat = ref.reshape(-1)
@@ -303,16 +332,26 @@ def sweep_kernel(x0: float, y0: float, dx: float, dy: float, p0: F64, p1: F64, r
             wxs, wys, env = np.empty(cap), np.empty(cap), np.empty(cap)
             idx, owner = np.empty(cap, np.int64), np.empty(cap, np.int64)
         ylo, yhi = min(sy, sy + ay), max(sy, sy + ay)
+        lim, ux, uy = -math.inf, 0.0, 0.0
+        if trail[s] >= 0.0:
+            norm = math.sqrt(ax * ax + ay * ay)
+            ux, uy, lim = ax / norm, ay / norm, -trail[s] - TRAIL_MARGIN
         mcount = 0
         nt = 0
         for ci in range(i0 // big, i1 // big + 1):
             for ck in range(k0 // big, k1 // big + 1):
+                if lim > -math.inf and _behind(ccx[ck], ccy[ci], chx[ck], chy[ci], sx, sy,
+                                               ux, uy, lim):
+                    continue
                 if test and skip_block(ccx[ck], ccy[ci], chx[ck], chy[ci], cst[ci, ck, 0],
                                        cst[ci, ck, 1], cst[ci, ck, 2], cst[ci, ck, 3], sx, sy,
                                        sz, ax, ay, vz, rr, ball):
                     continue
                 for bi in range(max(i0 // b, ci * f), min(i1 // b, ci * f + f - 1) + 1):
                     for bk in range(max(k0 // b, ck * f), min(k1 // b, ck * f + f - 1) + 1):
+                        if lim > -math.inf and _behind(cx[bk], cy[bi], hx[bk], hy[bi], sx,
+                                                       sy, ux, uy, lim):
+                            continue
                         if test and skip_block(cx[bk], cy[bi], hx[bk], hy[bi],
                                                st[bi, bk, 0], st[bi, bk, 1], st[bi, bk, 2],
                                                st[bi, bk, 3], sx, sy, sz, ax, ay, vz, rr,
@@ -322,7 +361,7 @@ def sweep_kernel(x0: float, y0: float, dx: float, dy: float, p0: F64, p1: F64, r
                         nt += 1
                         mcount = _gather(x0, y0, dx, dy, nx, b, bi, bk, i0, i1, k0, k1, sx,
                                          sy, ax, ay, ylo, yhi, rr, nt - 1, wxs, wys, idx,
-                                         owner, mcount)
+                                         owner, mcount, ux, uy, lim)
         _envelopes(mcount, wxs, wys, sx, sy, sz, ax, ay, vz, rr, ball, env)
         best_s, best_r = -math.inf, -math.inf
         if apply[s]:
