@@ -218,6 +218,46 @@ def test_region_stretches_follow_the_mask():
     np.testing.assert_allclose(b, [5.0, 5.0])
 
 
+@pytest.mark.parametrize("direction", ["x", "y"])
+def test_cl_on_the_lines_rows_only_gives_the_same_path(monkeypatch, direction):
+    """The default drop-cutter computes only the model rows (columns) a stage's lines read:
+    on passes whose lines skip rows, the path is the one from the whole CL grid, and it is
+    clear of the part (swept exactly, independently of the path's own lift)."""
+    import dataclasses
+
+    import zwcore.sim.cutting as cutting
+    from zwcore.scanline.results import ScanLines
+    from zwcore.toolpath.plans import tool_numbers
+    from zwcore.toolpath.scanline_paths import scanline_stage_path, sim_cl_heights
+
+    monkeypatch.setattr(cutting, "PRUNE_FOOTPRINT", 0)  # every tool by the pruned method
+    part = wavy_part(49, 0.25, 5)
+    plan = plan_scanline(part, default_tools("ball"), tolerance=0.05)
+    data = tool_numbers(list(dict.fromkeys(s.tool for s in plan.stages)), None)
+    frame = GridFrame(part.x0, part.y0, part.dx, part.dy, part.shape)
+    for i, stage in enumerate(plan.stages):
+        ln = stage.lines
+        keep = np.arange(len(ln.offset)) % 3 == 0  # lines on every third model row or so
+        half = 0.5 * stage.spacing[1 if direction == "x" else 0]
+        off = ln.offset[keep] + np.where(np.arange(keep.sum()) % 2 == 1, half, 0.0)
+        lines = ScanLines(direction, off, ln.start[keep], ln.stop[keep])
+        st_ = dataclasses.replace(stage, lines=lines, scan_direction=direction)
+        kw = dict(clearance=plan.stock_top + 5, chord_tolerance=0.0125,
+                  stock_top=plan.stock_top)
+        a = scanline_stage_path(part, st_, i, data[stage.tool.id], sim_cl_heights, **kw)
+        b = scanline_stage_path(part, st_, i, data[stage.tool.id],
+                                lambda m, t: sim_cl_heights(m, t), **kw)
+        if direction == "x":
+            np.testing.assert_array_equal(a.moves.end, b.moves.end)
+        else:  # the transposed surface's rounding may differ in the last bit
+            np.testing.assert_allclose(a.moves.end, b.moves.end, rtol=0, atol=2e-4)
+        feed = a.moves.kind != 0
+        p0 = np.vstack([a.start[None], a.moves.end[:-1]])[feed]
+        _, below = sweep_moves(frame, p0, a.moves.end[feed], stage.tool.radius, True,
+                               part.z.copy(), ref=part.z, apply=False)
+        assert below.max() <= 1e-9
+
+
 def test_a_region_mask_restricts_the_cut_and_keeps_every_guarantee():
     part = wavy_part(65, 0.25, 11)
     plan = plan_scanline(part, default_tools("ball"), tolerance=0.05)
