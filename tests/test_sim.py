@@ -322,6 +322,32 @@ def test_pruned_drop_cutter_is_the_exact_dilation(seed: int, n: int, dx: float, 
         assert (cl - reference_cl(z, dx, radius, kind, m=3)).min() >= 0.0
 
 
+@settings(max_examples=15, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.integers(12, 40), st.floats(0.5, 3.0),
+       st.lists(st.integers(0, 39), min_size=1, max_size=8))
+def test_pruned_drop_cutter_on_some_rows_is_the_whole_grid_there(seed: int, n: int,
+                                                                 radius: float,
+                                                                 rows: list[int]) -> None:
+    """``rows``: those rows exactly as in the whole grid (and the transposed surface's rows
+    are the whole grid's columns), the others NaN."""
+    rng = np.random.default_rng(seed)
+    y, x = np.mgrid[0:n, 0:n + 3] * 0.2
+    z = 2.0 * np.sin(x * rng.uniform(0.2, 2)) * np.cos(y * rng.uniform(0.2, 2))
+    tool = Tool("t", "ball", 2 * radius, 10.0)
+    part = ZMap(z, dx=0.2, dy=0.25)
+    whole = drop_cutter(part, tool, method="pruned")
+    want = np.unique(np.asarray(rows) % n)
+    some = drop_cutter(part, tool, method="pruned", rows=want)
+    np.testing.assert_array_equal(some[want], whole[want])
+    assert np.isnan(np.delete(some, want, axis=0)).all()
+    cols = np.unique(np.asarray(rows) % (n + 3))
+    tr = drop_cutter(ZMap(np.ascontiguousarray(z.T), dx=0.25, dy=0.2), tool, method="pruned",
+                     rows=cols)
+    np.testing.assert_allclose(tr[cols].T, whole[:, cols], rtol=0, atol=1e-12)
+    with pytest.raises(ValueError):
+        drop_cutter(part, tool, method="pruned", rows=np.array([n]))
+
+
 def test_drop_cutter_methods_agree_and_a_bad_method_names_the_field() -> None:
     rng = np.random.default_rng(5)
     z = np.cumsum(rng.standard_normal((40, 40)), axis=1) * 0.05

@@ -27,6 +27,7 @@ from zwcore.toolpath import (
     program_text,
     scanline_toolpaths,
 )
+from zwcore.toolpath._sweep_kernel import node_envelope
 from zwcore.toolpath.program import ARC_CCW, ARC_CW, RAPID
 from zwcore.toolpath.sweep import GridFrame, sweep_moves
 
@@ -117,6 +118,34 @@ def test_sweep_is_the_exact_lower_envelope(coords, r, ball):
     slack = step + (math.sqrt(max(2 * r * step, 0.0)) if ball else abs(p1[2] - p0[2]) / 4000)
     hit = np.isfinite(exact)
     assert np.all(exact[hit & reached] >= oracle[hit & reached] - slack - 1e-9)
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.lists(st.floats(-3, 3), min_size=5, max_size=5), st.floats(0.3, 2.0), st.booleans())
+def test_sweep_along_a_row_is_the_exact_lower_envelope(coords, r, ball):
+    """Moves along x (``ay = 0`` exactly: each row's root comes once from the gathering)
+    against the sampled envelope and the per-node closed form."""
+    frame = GridFrame(-4.0, -4.0, 0.25, 0.25, (33, 33))
+    p0 = np.array(coords[:3])
+    p1 = np.array([coords[3], coords[1], coords[4]])
+    stock = np.full(frame.shape, 100.0)
+    sweep_moves(frame, p0[None], p1[None], r, ball, stock)
+    oracle = sampled_envelope(frame, p0, p1, r, ball)
+    reached = np.isfinite(oracle)
+    exact = np.where(stock < 100.0, stock, np.inf)
+    assert np.all(exact[reached] <= oracle[reached] + 1e-9)
+    step = np.linalg.norm(p1 - p0) / 4000
+    slack = step + (math.sqrt(max(2 * r * step, 0.0)) if ball else abs(p1[2] - p0[2]) / 4000)
+    hit = np.isfinite(exact)
+    assert np.all(exact[hit & reached] >= oracle[hit & reached] - slack - 1e-9)
+    ny, nx = frame.shape
+    closed = np.array([[node_envelope(frame.x0 + k * frame.dx, frame.y0 + i * frame.dy,
+                                      *p0, *(p1 - p0), r, ball) for k in range(nx)]
+                       for i in range(ny)])
+    closed = np.where(closed < 100.0, closed, np.inf)
+    np.testing.assert_array_equal(np.isfinite(exact), np.isfinite(closed))
+    both = np.isfinite(closed)
+    np.testing.assert_allclose(exact[both], closed[both], rtol=0, atol=1e-9)
 
 
 # ---------------------------------------------------------------- writer and parser

@@ -104,6 +104,47 @@ def test_skipped_blocks_change_no_stock_and_no_positive_figure(seed, block, ball
         np.testing.assert_allclose(a, c, rtol=0, atol=1e-12)
 
 
+@settings(max_examples=30, deadline=None)
+@given(st.integers(0, 10_000), st.sampled_from([2, 4, 8]), st.floats(0.3, 4.0),
+       st.sampled_from([0.05, 0.3, 2.0]), st.booleans())
+def test_trailing_nodes_left_out_change_no_stock_and_no_figure_that_counts(
+        seed, block, radius, step, threads):
+    """Polylines (moves that continue each other: along rows, across, steep, with breaks,
+    air moves and repeats back), swept with ``trail`` against the plain kernel that sweeps
+    every node: the stock to 1e-12 mm, ``over_stock`` wherever it says a move met material,
+    and the deepest ``over_ref`` (a node a move leaves out is its predecessor's, as deep)."""
+    part = wavy_part(71, 0.2, seed)
+    frame = GridFrame(part.x0, part.y0, part.dx, part.dy, part.shape)
+    rng = np.random.default_rng(seed)
+    n = 500
+    d = rng.normal(0.0, step, (n, 3))
+    d[rng.random(n) < 0.4, 1] = 0.0  # along a row
+    d[rng.random(n) < 0.1, :2] = 0.0  # vertical
+    d[:, 2] *= rng.choice([0.1, 1.0, 5.0])
+    pts = np.array([part.x0 + 7.0, part.y0 + 7.0, part.z.max()]) + np.cumsum(d, axis=0)
+    pts[:, :2] = np.clip(pts[:, :2], part.x0 - 1, part.x0 + 15)
+    pts[:, 2] = np.clip(pts[:, 2], part.z.min() - 0.3, part.z.max() + 1.0)
+    p0, p1 = pts[:-1].copy(), pts[1:].copy()
+    brk = rng.random(n - 1) < 0.05  # a jump: the next move does not continue this one
+    p0[1:][brk[:-1]] += 0.5
+    flags = rng.random(n - 1) < 0.9
+    top = part.z.max() + 0.5
+    plain, trailed = np.full(part.shape, top), np.full(part.shape, top)
+    with pytest.MonkeyPatch.context() as mp:
+        if threads:
+            mp.setattr(sweep_mod, "MIN_MOVES_PER_THREAD", 50)
+            mp.setattr(sweep_mod, "SWEEP_THREADS", 3)
+        a_s, a_r = sweep_moves(frame, p0, p1, radius, True, plain, ref=part.z, apply=flags)
+        b_s, b_r = sweep_moves(frame, p0, p1, radius, True, trailed, ref=part.z, apply=flags,
+                               bounds=BlockBounds(frame, trailed, part.z, block), trail=True)
+    assert (sweep_mod.trailing_cuts(p0, p1, np.full(n - 1, radius), flags) >= 0).any()
+    np.testing.assert_allclose(trailed, plain, rtol=0, atol=1e-12)
+    eps = 1e-9
+    np.testing.assert_allclose(np.maximum(b_s, eps), np.maximum(a_s, eps), rtol=0, atol=1e-11)
+    assert np.all(b_r <= np.maximum(a_r, -1e-11) + 1e-11)
+    assert abs(max(b_r.max(), 0.0) - max(a_r.max(), 0.0)) <= 1e-11
+
+
 @pytest.mark.parametrize("apply", [True, False])
 def test_threaded_sweep_is_the_single_thread_sweep(monkeypatch, apply):
     part = wavy_part(81, 0.2, 3)
@@ -175,6 +216,46 @@ def test_region_stretches_follow_the_mask():
     np.testing.assert_array_equal(li, [0, 2])
     np.testing.assert_allclose(a, [2.0, 2.0])
     np.testing.assert_allclose(b, [5.0, 5.0])
+
+
+@pytest.mark.parametrize("direction", ["x", "y"])
+def test_cl_on_the_lines_rows_only_gives_the_same_path(monkeypatch, direction):
+    """The default drop-cutter computes only the model rows (columns) a stage's lines read:
+    on passes whose lines skip rows, the path is the one from the whole CL grid, and it is
+    clear of the part (swept exactly, independently of the path's own lift)."""
+    import dataclasses
+
+    import zwcore.sim.cutting as cutting
+    from zwcore.scanline.results import ScanLines
+    from zwcore.toolpath.plans import tool_numbers
+    from zwcore.toolpath.scanline_paths import scanline_stage_path, sim_cl_heights
+
+    monkeypatch.setattr(cutting, "PRUNE_FOOTPRINT", 0)  # every tool by the pruned method
+    part = wavy_part(49, 0.25, 5)
+    plan = plan_scanline(part, default_tools("ball"), tolerance=0.05)
+    data = tool_numbers(list(dict.fromkeys(s.tool for s in plan.stages)), None)
+    frame = GridFrame(part.x0, part.y0, part.dx, part.dy, part.shape)
+    for i, stage in enumerate(plan.stages):
+        ln = stage.lines
+        keep = np.arange(len(ln.offset)) % 3 == 0  # lines on every third model row or so
+        half = 0.5 * stage.spacing[1 if direction == "x" else 0]
+        off = ln.offset[keep] + np.where(np.arange(keep.sum()) % 2 == 1, half, 0.0)
+        lines = ScanLines(direction, off, ln.start[keep], ln.stop[keep])
+        st_ = dataclasses.replace(stage, lines=lines, scan_direction=direction)
+        kw = dict(clearance=plan.stock_top + 5, chord_tolerance=0.0125,
+                  stock_top=plan.stock_top)
+        a = scanline_stage_path(part, st_, i, data[stage.tool.id], sim_cl_heights, **kw)
+        b = scanline_stage_path(part, st_, i, data[stage.tool.id],
+                                lambda m, t: sim_cl_heights(m, t), **kw)
+        if direction == "x":
+            np.testing.assert_array_equal(a.moves.end, b.moves.end)
+        else:  # the transposed surface's rounding may differ in the last bit
+            np.testing.assert_allclose(a.moves.end, b.moves.end, rtol=0, atol=2e-4)
+        feed = a.moves.kind != 0
+        p0 = np.vstack([a.start[None], a.moves.end[:-1]])[feed]
+        _, below = sweep_moves(frame, p0, a.moves.end[feed], stage.tool.radius, True,
+                               part.z.copy(), ref=part.z, apply=False)
+        assert below.max() <= 1e-9
 
 
 def test_a_region_mask_restricts_the_cut_and_keeps_every_guarantee():

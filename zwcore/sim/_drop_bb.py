@@ -151,8 +151,8 @@ def _exact(zp: F64, s: F64, v: int, pi: int, pk: int, a0: int, a1: int, b0: int,
 @njit(cache=True, nogil=True)
 def _rows(zp: F64, s: F64, w1: F64, w2: F64, g1: F64, err1: F64, max1: F64, g2: F64,
           err2: F64, max2: F64, h1: tuple[float, float], h2: tuple[float, float],
-          row_lo: int, row_hi: int, nx: int, out: F64) -> None:
-    """Rows ``row_lo..row_hi - 1`` of the pruned dilation into ``out``.
+          which: I64, row_lo: int, row_hi: int, nx: int, out: F64) -> None:
+    """Rows ``which[row_lo..row_hi - 1]`` of the pruned dilation into ``out``.
 
     ``zp``: the surface padded with -inf (offset ``(a, b)`` of node ``(i, k)`` is
     ``zp[i + a, k + b]``, ``a, b`` from 0); ``s`` padded to whole tiles; ``w1, w2``: the
@@ -164,7 +164,8 @@ def _rows(zp: F64, s: F64, w1: F64, w2: F64, g1: F64, err1: F64, max1: F64, g2: 
     arg = np.zeros(2, np.int64)
     bounds = np.empty(n1a * n1b)
     last = np.zeros((nv, 2), np.int64)
-    for i in range(row_lo, row_hi):
+    for n in range(row_lo, row_hi):
+        i = which[n]
         for v in range(nv):  # start at the element's centre
             last[v, 0], last[v, 1] = (s.shape[1] - 1) // 2, (s.shape[2] - 1) // 2
         for k in range(nx):
@@ -227,7 +228,8 @@ def _tile_planes(s: F64, t: int, dx: float, dy: float, radius: float
             np.ascontiguousarray(tiles.max(axis=(3, 4))))
 
 
-def drop_cutter_pruned(part: ZMap, tool: Tool) -> F64:
+def drop_cutter_pruned(part: ZMap, tool: Tool, rows: NDArray[np.integer] | None = None
+                       ) -> F64:
     """Bilinear drop-cutter CL of a (large) tool by branch and bound (module docstring).
 
     Parameters
@@ -235,13 +237,17 @@ def drop_cutter_pruned(part: ZMap, tool: Tool) -> F64:
     part : ZMap
         ``(ny, nx)`` nodes.
     tool : Tool
+    rows : (m,) int, optional
+        Only these rows (each node's value depends on the surface alone, not on other
+        rows: they are the same numbers as in the whole grid); default all.
 
     Returns
     -------
     cl : (ny, nx) float64
         Never below the exact dilation by :func:`~zwcore.sim._profiles.drop_profile`'s
         ``bilinear`` functions (so never below the true drop-cutter height over the
-        continuous surface); above it by at most a float64 rounding bound.
+        continuous surface); above it by at most a float64 rounding bound. With ``rows``,
+        the other rows are NaN.
     """
     s0 = np.asarray(drop_profile(tool, part.dx, part.dy, "bilinear"), np.float64)
     s0 = s0[None] if s0.ndim == 2 else s0
@@ -265,12 +271,16 @@ def drop_cutter_pruned(part: ZMap, tool: Tool) -> F64:
     sub_g, sub_err, sub_max = _tile_planes(s, T2, part.dx, part.dy, tool.radius)
     h1 = (0.5 * (T1 - 1) * part.dx, 0.5 * (T1 - 1) * part.dy)
     h2 = (0.5 * (T2 - 1) * part.dx, 0.5 * (T2 - 1) * part.dy)
-    out = np.empty((ny, nx))
-    cut = np.linspace(0, ny, min(THREADS, ny) + 1).astype(np.int64)
+    which = (np.arange(ny, dtype=np.int64) if rows is None
+             else np.unique(np.asarray(rows, np.int64)))
+    if len(which) and (which[0] < 0 or which[-1] >= ny):
+        raise ValueError(f"rows must lie in 0..{ny - 1}")
+    out = np.empty((ny, nx)) if rows is None else np.full((ny, nx), np.nan)
+    cut = np.linspace(0, len(which), max(1, min(THREADS, len(which))) + 1).astype(np.int64)
 
     def band(j: int) -> None:
         _rows(zp, s, w1, w2, tile_g, tile_err, tile_max, sub_g, sub_err, sub_max,
-              h1, h2, int(cut[j]), int(cut[j + 1]), nx, out)
+              h1, h2, which, int(cut[j]), int(cut[j + 1]), nx, out)
 
     with ThreadPoolExecutor(len(cut) - 1) as pool:
         list(pool.map(band, range(len(cut) - 1)))

@@ -62,7 +62,7 @@ def _check(tool: Tool, dx: float, dy: float, interpolation: str) -> None:
 
 
 def drop_cutter(part: ZMap, tool: Tool, interpolation: Interpolation = "bilinear",
-                method: str = "dilation") -> F64:
+                method: str = "dilation", rows: NDArray[np.integer] | None = None) -> F64:
     """Drop-cutter CL surface: the lowest tip height at each node that clears the part.
 
     Parameters
@@ -82,6 +82,10 @@ def drop_cutter(part: ZMap, tool: Tool, interpolation: Interpolation = "bilinear
         2e-5 mm, under the ``dilation`` result); ``auto``: ``pruned`` for ``bilinear``
         elements of more than :data:`PRUNE_FOOTPRINT` nodes (a Ø20 ball at 0.1 mm: about
         1/10 of the time), else ``dilation``.
+    rows : (m,) int, optional
+        Rows that are needed (e.g. a raster's lines): the ``pruned`` method computes only
+        these (the same values as in the whole grid) and leaves the others NaN; the
+        ``dilation`` method computes every row whatever ``rows`` says.
 
     Returns
     -------
@@ -99,7 +103,7 @@ def drop_cutter(part: ZMap, tool: Tool, interpolation: Interpolation = "bilinear
     if method != "dilation" and interpolation == "bilinear":
         A, B = footprint(tool, part.dx, part.dy)
         if method == "pruned" or (2 * A + 1) * (2 * B + 1) > PRUNE_FOOTPRINT:
-            return drop_cutter_pruned(part, tool)
+            return drop_cutter_pruned(part, tool, rows)
     return dilate(part.z, drop_profile(tool, part.dx, part.dy, interpolation))
 
 

@@ -19,6 +19,9 @@ I64 = NDArray[np.int64]
 #: A block is skipped only when its bound is below minus this (mm): float rounding of the
 #: bound is orders of magnitude smaller.
 MARGIN = 1e-9
+#: Nodes this far (mm) ahead of a move's trailing line are still swept (the line's own
+#: rounding is orders of magnitude smaller).
+TRAIL_MARGIN = 1e-9
 #: The tangent plane is not used where the ball meets the block centre this close to its
 #: rim (``sqrt(R² - d²) < RIM * R``: a steep, badly conditioned gradient).
 RIM = 1e-3
@@ -83,6 +86,31 @@ def flat_envelope(m: int, wxs: F64, wys: F64, sz: float, ax: float, ay: float, v
         else:
             e = sz + vz * (lo if vz >= 0.0 else hi)
         env[j] = e if (w2 > 0.0 and lo <= hi) else math.inf
+
+
+@njit(cache=True, nogil=True, fastmath={"contract", "arcp", "reassoc", "nsz"})
+def row_envelope(m: int, wxs: F64, wys: F64, sws: F64, sz: float, ax: float, vz: float,
+                 r: float, ball: bool, inv_a: float, inv_sa: float, kz: float, env: F64
+                 ) -> None:
+    """:func:`flat_envelope` of a move along x (``ay = 0``): a node's distance from the
+    move's line is ``|w_y|``, and ``sws[j] = sqrt(R² (1 - 1e-10) - w_y²)`` (clamped at 0)
+    comes once per row from the gathering, so one root per node is left."""
+    a = 1.0 / inv_a
+    reach2 = r * r * (1.0 - 1e-10)
+    for j in range(m):
+        wy = wys[j]
+        t0 = -ax * wxs[j] * inv_a
+        dmin2 = wy * wy
+        sw = sws[j]
+        half = sw * inv_sa
+        lo, hi = max(0.0, t0 - half), min(1.0, t0 + half)
+        if ball:
+            ts = min(max(t0 - vz * sw * kz, lo), hi)
+            d2 = a * (ts - t0) ** 2 + dmin2
+            e = sz + vz * ts + r - math.sqrt(max(r * r - d2, 0.0))
+        else:
+            e = sz + vz * (lo if vz >= 0.0 else hi)
+        env[j] = e if (dmin2 < reach2 and lo <= hi) else math.inf
 
 
 @njit(cache=True, nogil=True)
@@ -227,14 +255,40 @@ def _row_span(qy: float, x0: float, dx: float, ka0: int, kb1: int, sx: float, sy
 
 
 @njit(cache=True, nogil=True, fastmath={"contract", "arcp", "reassoc"})
-def _envelopes(m: int, wxs: F64, wys: F64, sx: float, sy: float, sz: float, ax: float,
-               ay: float, vz: float, rr: float, ball: bool, env: F64) -> None:
+def _trail_span(qy: float, x0: float, dx: float, ka: int, kb: int, sx: float, sy: float,
+                ux: float, uy: float, lim: float) -> tuple[int, int]:
+    """``ka..kb`` cut to the nodes of the row at ``qy`` with ``(q - s).u > lim`` (one column
+    kept on the far side of the line: rounding never drops a node ahead of it)."""
+    rest = lim - (qy - sy) * uy  # (qx - sx) ux > rest
+    if abs(ux) <= 1e-12:
+        return (ka, kb) if rest < 0.0 else (0, -1)
+    if ux > 0.0:
+        return max(ka, math.floor((sx + rest / ux - x0) / dx)), kb
+    return ka, min(kb, math.ceil((sx + rest / ux - x0) / dx))
+
+
+@njit(cache=True, nogil=True, fastmath={"contract", "arcp", "reassoc"})
+def _behind(bx: float, by: float, hx: float, hy: float, sx: float, sy: float, ux: float,
+            uy: float, lim: float) -> bool:
+    """True when every point of the block (centre ``bx, by``, half extents ``hx, hy``) lies
+    on or behind the trailing line: ``(q - s).u <= lim``."""
+    return (bx - sx) * ux + (by - sy) * uy + abs(ux) * hx + abs(uy) * hy <= lim
+
+
+@njit(cache=True, nogil=True, fastmath={"contract", "arcp", "reassoc"})
+def _envelopes(m: int, wxs: F64, wys: F64, sws: F64, sx: float, sy: float, sz: float,
+               ax: float, ay: float, vz: float, rr: float, ball: bool, env: F64) -> None:
     """``env[j]`` of the ``m`` gathered nodes for one move: :func:`node_envelope` per node
-    for a vertical move, else :func:`flat_envelope`."""
+    for a vertical move, :func:`row_envelope` along x (``sws`` from the gathering), else
+    :func:`flat_envelope`."""
     a = ax * ax + ay * ay
     if a <= 1e-18:
         for j in range(m):
             env[j] = node_envelope(sx - wxs[j], sy - wys[j], sx, sy, sz, ax, ay, vz, rr, ball)
+    elif m and ay == 0.0:
+        inv_a = 1.0 / a
+        row_envelope(m, wxs, wys, sws, sz, ax, vz, rr, ball, inv_a, math.sqrt(inv_a),
+                     1.0 / math.sqrt(a * (a + vz * vz)), env)
     elif m:
         inv_a = 1.0 / a
         flat_envelope(m, wxs, wys, sz, ax, ay, vz, rr, ball, inv_a, math.sqrt(inv_a),
@@ -242,21 +296,41 @@ def _envelopes(m: int, wxs: F64, wys: F64, sx: float, sy: float, sz: float, ax: 
 
 
 @njit(cache=True, nogil=True, fastmath={"contract", "arcp", "reassoc"})
-def _gather(x0: float, y0: float, dx: float, dy: float, nx: int, b: int, bi: int, bk: int,
-            i0: int, i1: int, k0: int, k1: int, sx: float, sy: float, ax: float, ay: float,
-            ylo: float, yhi: float, rr: float, t: int, wxs: F64, wys: F64, idx: I64,
-            owner: I64, mcount: int) -> int:
-    """Append the nodes of block ``(bi, bk)`` inside the box ``i0..i1, k0..k1`` that lie
-    within ``rr`` of the move's xy shadow; returns the new count."""
-    kk0, kk1 = max(k0, bk * b), min(k1, bk * b + b - 1)
-    for i in range(max(i0, bi * b), min(i1, bi * b + b - 1) + 1):
+def _spans(x0: float, y0: float, dx: float, dy: float, i0: int, i1: int, k0: int, k1: int,
+           sx: float, sy: float, ax: float, ay: float, rr: float, ux: float, uy: float,
+           lim: float, rka: I64, rkb: I64, rsw: F64) -> None:
+    """Per row ``i0..i1`` of a move's box (at ``i - i0``): the columns ``rka..rkb`` of the
+    nodes within ``rr`` of the move's xy shadow and ahead of its trailing line (``(q - s).u
+    > lim``; ``lim = -inf``: none), and ``rsw`` (:func:`row_envelope`); once per move, not
+    per block."""
+    ylo, yhi = min(sy, sy + ay), max(sy, sy + ay)
+    for i in range(i0, i1 + 1):
         qy = y0 + i * dy
-        ka, kb = _row_span(qy, x0, dx, kk0, kk1, sx, sy, ax, ay, ylo, yhi, rr)
+        ka, kb = _row_span(qy, x0, dx, k0, k1, sx, sy, ax, ay, ylo, yhi, rr)
+        if lim > -math.inf:
+            ka, kb = _trail_span(qy, x0, dx, ka, kb, sx, sy, ux, uy, lim)
+        wy = sy - qy
+        rka[i - i0], rkb[i - i0] = ka, kb
+        rsw[i - i0] = math.sqrt(max(rr * rr * (1.0 - 1e-10) - wy * wy, 0.0))
+
+
+@njit(cache=True, nogil=True, fastmath={"contract", "arcp", "reassoc"})
+def _gather(x0: float, y0: float, dx: float, dy: float, nx: int, b: int, bi: int, bk: int,
+            i0: int, i1: int, sx: float, sy: float, rka: I64, rkb: I64, rsw: F64, t: int,
+            wxs: F64, wys: F64, sws: F64, idx: I64, owner: I64, mcount: int) -> int:
+    """Append the nodes of block ``(bi, bk)`` in the rows ``i0..i1`` of the move's box
+    within each row's span (:func:`_spans`); returns the new count."""
+    kk0, kk1 = bk * b, bk * b + b - 1
+    for i in range(max(i0, bi * b), min(i1, bi * b + b - 1) + 1):
+        ka, kb = max(kk0, rka[i - i0]), min(kk1, rkb[i - i0])
         if kb < ka:  # never a range from a huge negative bound (it would wrap around)
             continue
+        wy = sy - (y0 + i * dy)
+        sw = rsw[i - i0]
         for k in range(ka, kb + 1):
             wxs[mcount] = sx - (x0 + k * dx)
-            wys[mcount] = sy - qy
+            wys[mcount] = wy
+            sws[mcount] = sw
             idx[mcount] = i * nx + k
             owner[mcount] = t
             mcount += 1
@@ -268,7 +342,7 @@ def sweep_kernel(x0: float, y0: float, dx: float, dy: float, p0: F64, p1: F64, r
                  ball: bool, apply: NDArray[np.bool_], stock: F64, ref: F64,
                  over_stock: F64, over_ref: F64, row_lo: int, row_hi: int, b: int, f: int,
                  cx: F64, cy: F64, hx: F64, hy: F64, st: F64, ccx: F64, ccy: F64, chx: F64,
-                 chy: F64, cst: F64, remeasure: bool, test: bool) -> None:
+                 chy: F64, cst: F64, remeasure: bool, test: bool, trail: F64) -> None:
     """Moves in order over the rows ``row_lo..row_hi - 1`` (a band of whole coarse blocks:
     bands are independent).
 
@@ -277,16 +351,20 @@ def sweep_kernel(x0: float, y0: float, dx: float, dy: float, p0: F64, p1: F64, r
     within R of the move's xy shadow gathered (row by row), the envelope over all of them
     in one flat loop, then the stock compared and lowered; with ``remeasure`` the blocks
     the move lowered, and their coarse blocks, are measured again. Without ``test`` no
-    block is tested (one block over the whole grid: the plain sweep)."""
+    block is tested (one block over the whole grid: the plain sweep). Where ``trail[s] >=
+    0`` the nodes at or behind ``(q - p0).u = -trail[s] - TRAIL_MARGIN`` (``u`` the move's
+    unit xy direction) are left out (:func:`~zwcore.toolpath.sweep.trailing_cuts`)."""
     nx = stock.shape[1]
     sflat = stock.reshape(-1)
     rflat = ref.reshape(-1)
     cap = 1024
-    wxs, wys, env = np.empty(cap), np.empty(cap), np.empty(cap)
+    wxs, wys, env, sws = np.empty(cap), np.empty(cap), np.empty(cap), np.empty(cap)
     idx = np.empty(cap, np.int64)
     touched = np.empty((st.shape[0] * st.shape[1], 2), np.int64)
     owner = np.empty(cap, np.int64)  # per gathered node, its block in ``touched``
     lowered = np.zeros(st.shape[0] * st.shape[1], np.bool_)
+    rka, rkb = np.empty(stock.shape[0], np.int64), np.empty(stock.shape[0], np.int64)
+    rsw = np.empty(stock.shape[0])
     dirty = np.zeros((cst.shape[0], cst.shape[1]), np.bool_)
     big = b * f
     for s in range(p0.shape[0]):
@@ -300,19 +378,29 @@ def sweep_kernel(x0: float, y0: float, dx: float, dy: float, p0: F64, p1: F64, r
         box = (k1 - k0 + 1) * (i1 - i0 + 1)
         if box > cap:
             cap = 2 * box
-            wxs, wys, env = np.empty(cap), np.empty(cap), np.empty(cap)
+            wxs, wys, env, sws = np.empty(cap), np.empty(cap), np.empty(cap), np.empty(cap)
             idx, owner = np.empty(cap, np.int64), np.empty(cap, np.int64)
-        ylo, yhi = min(sy, sy + ay), max(sy, sy + ay)
+        lim, ux, uy = -math.inf, 0.0, 0.0
+        if trail[s] >= 0.0:
+            norm = math.sqrt(ax * ax + ay * ay)
+            ux, uy, lim = ax / norm, ay / norm, -trail[s] - TRAIL_MARGIN
+        _spans(x0, y0, dx, dy, i0, i1, k0, k1, sx, sy, ax, ay, rr, ux, uy, lim, rka, rkb, rsw)
         mcount = 0
         nt = 0
         for ci in range(i0 // big, i1 // big + 1):
             for ck in range(k0 // big, k1 // big + 1):
+                if lim > -math.inf and _behind(ccx[ck], ccy[ci], chx[ck], chy[ci], sx, sy,
+                                               ux, uy, lim):
+                    continue
                 if test and skip_block(ccx[ck], ccy[ci], chx[ck], chy[ci], cst[ci, ck, 0],
                                        cst[ci, ck, 1], cst[ci, ck, 2], cst[ci, ck, 3], sx, sy,
                                        sz, ax, ay, vz, rr, ball):
                     continue
                 for bi in range(max(i0 // b, ci * f), min(i1 // b, ci * f + f - 1) + 1):
                     for bk in range(max(k0 // b, ck * f), min(k1 // b, ck * f + f - 1) + 1):
+                        if lim > -math.inf and _behind(cx[bk], cy[bi], hx[bk], hy[bi], sx,
+                                                       sy, ux, uy, lim):
+                            continue
                         if test and skip_block(cx[bk], cy[bi], hx[bk], hy[bi],
                                                st[bi, bk, 0], st[bi, bk, 1], st[bi, bk, 2],
                                                st[bi, bk, 3], sx, sy, sz, ax, ay, vz, rr,
@@ -320,10 +408,9 @@ def sweep_kernel(x0: float, y0: float, dx: float, dy: float, p0: F64, p1: F64, r
                             continue
                         touched[nt, 0], touched[nt, 1] = bi, bk
                         nt += 1
-                        mcount = _gather(x0, y0, dx, dy, nx, b, bi, bk, i0, i1, k0, k1, sx,
-                                         sy, ax, ay, ylo, yhi, rr, nt - 1, wxs, wys, idx,
-                                         owner, mcount)
-        _envelopes(mcount, wxs, wys, sx, sy, sz, ax, ay, vz, rr, ball, env)
+                        mcount = _gather(x0, y0, dx, dy, nx, b, bi, bk, i0, i1, sx, sy, rka,
+                                         rkb, rsw, nt - 1, wxs, wys, sws, idx, owner, mcount)
+        _envelopes(mcount, wxs, wys, sws, sx, sy, sz, ax, ay, vz, rr, ball, env)
         best_s, best_r = -math.inf, -math.inf
         if apply[s]:
             for j in range(mcount):
@@ -367,7 +454,7 @@ def plain_kernel(x0: float, y0: float, dx: float, dy: float, p0: F64, p1: F64, r
     sflat = stock.reshape(-1)
     rflat = ref.reshape(-1)
     cap = 1024
-    wxs, wys, env = np.empty(cap), np.empty(cap), np.empty(cap)
+    wxs, wys, env, sws = np.empty(cap), np.empty(cap), np.empty(cap), np.empty(cap)
     idx = np.empty(cap, np.int64)
     for s in range(p0.shape[0]):
         sx, sy, sz = p0[s, 0], p0[s, 1], p0[s, 2]
@@ -380,7 +467,7 @@ def plain_kernel(x0: float, y0: float, dx: float, dy: float, p0: F64, p1: F64, r
         box = (k1 - k0 + 1) * (i1 - i0 + 1)
         if box > cap:
             cap = 2 * box
-            wxs, wys, env = np.empty(cap), np.empty(cap), np.empty(cap)
+            wxs, wys, env, sws = np.empty(cap), np.empty(cap), np.empty(cap), np.empty(cap)
             idx = np.empty(cap, np.int64)
         ylo, yhi = min(sy, sy + ay), max(sy, sy + ay)
         m = 0
@@ -389,12 +476,15 @@ def plain_kernel(x0: float, y0: float, dx: float, dy: float, p0: F64, p1: F64, r
             ka, kb = _row_span(qy, x0, dx, k0, k1, sx, sy, ax, ay, ylo, yhi, rr)
             if kb < ka:  # never a range from a huge negative bound (it would wrap around)
                 continue
+            wy = sy - qy
+            sw = math.sqrt(max(rr * rr * (1.0 - 1e-10) - wy * wy, 0.0))
             for k in range(ka, kb + 1):
                 wxs[m] = sx - (x0 + k * dx)
-                wys[m] = sy - qy
+                wys[m] = wy
+                sws[m] = sw
                 idx[m] = i * nx + k
                 m += 1
-        _envelopes(m, wxs, wys, sx, sy, sz, ax, ay, vz, rr, ball, env)
+        _envelopes(m, wxs, wys, sws, sx, sy, sz, ax, ay, vz, rr, ball, env)
         best_s, best_r = -math.inf, -math.inf
         if apply[s]:
             for j in range(m):

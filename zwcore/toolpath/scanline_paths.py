@@ -48,19 +48,51 @@ F64 = NDArray[np.float64]
 CLHeights = Callable[[ZMap, Tool], F64]
 
 
-def sim_cl_heights(model: ZMap, tool: Tool) -> F64:
+def sim_cl_heights(model: ZMap, tool: Tool, rows: NDArray[np.integer] | None = None) -> F64:
     """The default :data:`CLHeights`: :func:`zwcore.sim.drop_cutter` on the bilinear model
     (never below the true drop-cutter height), by branch and bound for large tools
-    (``method="auto"``: a Ø20 ball at the input's 0.1 mm spans 43,000 nodes)."""
-    return drop_cutter(model, tool, "bilinear", method="auto")
+    (``method="auto"``: a Ø20 ball at the input's 0.1 mm spans 43,000 nodes); with
+    ``rows``, a large tool's CL on those rows only (the others may be NaN)."""
+    return drop_cutter(model, tool, "bilinear", method="auto", rows=rows)
+
+
+def _line_rows(offset: F64, spacing: float, n: int) -> NDArray[np.int64]:
+    """The model rows (or columns) that lines at ``offset`` (mm) read: the one each lies on
+    or the two it lies between."""
+    f = offset / spacing
+    lo = np.clip(np.floor(f).astype(np.int64), 0, n - 1)
+    hi = np.where(f > lo, np.minimum(lo + 1, n - 1), lo)
+    return np.unique(np.concatenate([lo, hi]))
+
+
+def _stage_cl(part: ZMap, stage: ScanlineStage, mdl: F64, sx: float, sy: float,
+              cl_heights: CLHeights, whole: bool) -> F64:
+    """The stage's CL grid on its model, ``(my, mx)``. With the default drop-cutter, only the
+    rows (a pass along x) or columns (along y, on the transposed model) the stage's lines
+    read are computed (the pruned method's values there are those of the whole grid; the
+    others are NaN and never read); ``whole``: every node (the scallop pass compares with
+    the CL on all of them)."""
+    if cl_heights is not sim_cl_heights or whole or not len(stage.lines.offset):
+        return cl_heights(ZMap(mdl, part.x0, part.y0, sx, sy), stage.tool)
+    if stage.scan_direction == "x":
+        rows = _line_rows(stage.lines.offset, sy, mdl.shape[0])
+        return sim_cl_heights(ZMap(mdl, part.x0, part.y0, sx, sy), stage.tool, rows)
+    cols = _line_rows(stage.lines.offset, sx, mdl.shape[1])
+    # the ball and the pruned bounds are symmetric in x and y: the transposed model's rows
+    return sim_cl_heights(ZMap(np.ascontiguousarray(mdl.T), part.y0, part.x0, sy, sx),
+                          stage.tool, cols).T
 
 
 def _raster(cl: F64, rows: F64) -> F64:
     """CL heights on fractional rows (linear between the grid rows; the lift makes it safe)."""
     r0 = np.clip(np.floor(rows).astype(np.int64), 0, cl.shape[0] - 1)
-    r1 = np.minimum(r0 + 1, cl.shape[0] - 1)
-    t = (rows - r0)[:, None]
-    return (1.0 - t) * cl[r0] + t * cl[r1]
+    t = rows - r0
+    r1 = np.where(t > 0.0, np.minimum(r0 + 1, cl.shape[0] - 1), r0)  # a line on a row: one
+    t = t[:, None]
+    out = (1.0 - t) * cl[r0] + t * cl[r1]
+    if np.isnan(out).any():  # a row the CL left out (:func:`_stage_cl`): a bug, not input
+        raise RuntimeError("a scan line reads a CL row that was not computed")
+    return out
 
 
 def _segment_points(cl: F64, offset: F64, start: F64, stop: F64, sx: float, sy: float
@@ -87,7 +119,7 @@ def _segment_points(cl: F64, offset: F64, start: F64, stop: F64, sx: float, sy: 
     u[first + sizes - 1] = stop
     rows = offset / sy
     r0 = np.clip(np.floor(rows).astype(np.int64), 0, nr - 1)
-    r1 = np.minimum(r0 + 1, nr - 1)
+    r1 = np.where(rows > r0, np.minimum(r0 + 1, nr - 1), r0)  # a segment on a row: one
     t = (rows - r0)[owner]
     k = np.clip(np.floor(u / sx).astype(np.int64), 0, max(nc - 2, 0))
     f = np.clip(u / sx - k, 0.0, 1.0)
@@ -384,7 +416,8 @@ def scanline_stage_path(part: ZMap, stage: ScanlineStage, index: int, cutting: C
     tool = stage.tool
     mdl = stage.model if model is None else model
     sx, sy = stage.spacing if spacing is None else spacing
-    cl = cl_heights(ZMap(mdl, part.x0, part.y0, sx, sy), tool)
+    cl = _stage_cl(part, stage, mdl, sx, sy, cl_heights,
+                   whole=scallop_tolerance is not None and region is None)
     # the CL on the part's own nodes (a finishing pass): the scallop pass can compare with it
     on_nodes = (abs(sx - part.dx) <= 1e-9 * part.dx and abs(sy - part.dy) <= 1e-9 * part.dy
                 and cl.shape[0] >= part.shape[0] and cl.shape[1] >= part.shape[1])

@@ -42,6 +42,11 @@ SKIP_REPEATS = True
 #: Skip blocks of nodes a move provably leaves alone (:class:`~zwcore.toolpath.sweep.
 #: BlockBounds`): the stock and every figure are the same (a test compares).
 SKIP_BLOCKS = True
+#: Leave out of a feed move that continues the one before it the nodes only its start's
+#: sphere reaches (:func:`~zwcore.toolpath.sweep.trailing_cuts`: the move before cut them at
+#: least as low). The stock and every figure are the same (to float rounding; a node below
+#: the part there counts for the move before); a test compares.
+SKIP_TRAILING = True
 #: A rapid touching the stock by less than this (mm) is a tie (a retract from the position
 #: that just cut there), not a rapid through material.
 TIE_EPS = 1e-6
@@ -178,7 +183,8 @@ def simulate_stretch(stock: F64, part: ZMap, prog: ParsedProgram, a: int, b: int
               if SKIP_BLOCKS and tool.radius >= sweep_mod.MIN_BLOCK_RADIUS * spacing else None)
     over_stock[new], over_part[new] = sweep_moves(frame, p0[new], p1[new], radius[new],
                                                   tool.kind == "ball", stock, ref=part.z,
-                                                  apply=~rapid[new], bounds=bounds)
+                                                  apply=~rapid[new], bounds=bounds,
+                                                  trail=SKIP_TRAILING)
     rep = np.flatnonzero(src >= 0)
     over_part[rep] = over_part[src[rep]]
     met = np.zeros(b - a, bool)

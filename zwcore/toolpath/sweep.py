@@ -63,7 +63,8 @@ from numpy.typing import NDArray
 
 from zwcore.toolpath._sweep_kernel import measure_all, plain_kernel, sweep_kernel
 
-__all__ = ["BlockBounds", "GridFrame", "arc_chords", "block_size", "sweep_moves"]
+__all__ = ["BlockBounds", "GridFrame", "arc_chords", "block_size", "sweep_moves",
+           "trailing_cuts"]
 
 #: Threads of a sweep (the kernel releases the GIL): bands of rows for moves that cut,
 #: chunks of moves for measurements only.
@@ -161,7 +162,7 @@ def _centres(frame: GridFrame, b: int) -> tuple[F64, F64, F64, F64]:
 
 def sweep_moves(frame: GridFrame, p0: F64, p1: F64, radius: F64 | float, ball: bool,
                 stock: F64, ref: F64 | None = None, apply: NDArray[np.bool_] | bool = True,
-                bounds: BlockBounds | None = None) -> tuple[F64, F64]:
+                bounds: BlockBounds | None = None, trail: bool = False) -> tuple[F64, F64]:
     """Sweep a tool along straight moves, in order, over a stock grid.
 
     Parameters
@@ -183,6 +184,13 @@ def sweep_moves(frame: GridFrame, p0: F64, p1: F64, radius: F64 | float, ball: b
         Built on ``stock`` and ``ref`` as they are now (updated in place): blocks a move
         leaves alone are skipped (module docstring). Without it every node within reach
         is swept.
+    trail : bool
+        With ``bounds`` and a ball: leave out, of a move that continues the one before it
+        (:func:`trailing_cuts`), the nodes its start's sphere alone reaches (the move
+        before already cut them at least as low). The stock is the same to float rounding
+        (the same sphere computed from either move); ``over_stock`` and ``over_ref`` are
+        exact where ``> 0`` except that such a node's value is counted with the move
+        before only.
 
     Returns
     -------
@@ -219,8 +227,10 @@ def sweep_moves(frame: GridFrame, p0: F64, p1: F64, radius: F64 | float, ball: b
     if bounds is not None:
         bb = bounds
         kernel, unit = sweep_kernel, bb.block * bb.coarse  # bands of whole coarse blocks
+        cuts = (trailing_cuts(p0, p1, r, app) if trail and ball
+                else np.full(n, -1.0))
         tail = (int(bb.block), int(bb.coarse), bb.cx, bb.cy, bb.hx, bb.hy, bb.st, bb.ccx,
-                bb.ccy, bb.chx, bb.chy, bb.cst, bool(bb.remeasure), bool(bb.test))
+                bb.ccy, bb.chx, bb.chy, bb.cst, bool(bb.remeasure), bool(bb.test), cuts)
     rows = -(-ny // unit)
     threads = min(SWEEP_THREADS, max(1, n // MIN_MOVES_PER_THREAD), rows)
     if threads == 1:
@@ -241,6 +251,43 @@ def sweep_moves(frame: GridFrame, p0: F64, p1: F64, radius: F64 | float, ball: b
     if app.any():
         over_s, over_r = outs[:, 0].max(axis=0), outs[:, 1].max(axis=0)
     return over_s, over_r
+
+
+def trailing_cuts(p0: F64, p1: F64, radius: F64, apply: NDArray[np.bool_]) -> F64:
+    """Per ball move, how far behind its start its trailing line lies (mm; -1: none).
+
+    A move ``k`` that removes material and starts exactly where move ``k - 1`` ended, with
+    the same radius, after that move removed material too, reaches a node ``q`` whose
+    projection on its xy direction ``u`` is ``(q - p0).u <= -R |sin(slope)|`` only with
+    its start's sphere: the clamped minimiser is ``t* <= t0 + |v_z| R / (|a| sqrt(|a|² +
+    v_z²)) <= 0`` there (``t0`` the projection in move units; the radical under the
+    reach is at most ``R``), or it does not reach ``q`` at all (its nearest point is the
+    start). Move ``k - 1``'s envelope is at most its end's sphere, the same sphere, and the
+    stock after it is at most its envelope: move ``k`` cannot lower such a node. On a
+    finishing line the trailing half of each disc is that region.
+
+    Parameters
+    ----------
+    p0, p1 : (n, 3) float64
+    radius : (n,) float64
+    apply : (n,) bool
+
+    Returns
+    -------
+    (n,) float64
+        ``R |v_z| / sqrt(|a|² + v_z²)`` where it applies, else -1.
+    """
+    out = np.full(len(p0), -1.0)
+    if len(p0) < 2:
+        return out
+    d = p1 - p0
+    a2 = d[:, 0] ** 2 + d[:, 1] ** 2
+    ok = np.zeros(len(p0), bool)
+    ok[1:] = ((p1[:-1] == p0[1:]).all(axis=1) & (radius[:-1] == radius[1:]) & apply[:-1]
+              & apply[1:] & (a2[1:] > 1e-18))
+    i = np.flatnonzero(ok)
+    out[i] = radius[i] * np.abs(d[i, 2]) / np.sqrt(a2[i] + d[i, 2] ** 2)
+    return out
 
 
 def arc_chords(start: F64, end: F64, center: F64, ccw: NDArray[np.bool_], sagitta: float
