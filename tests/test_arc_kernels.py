@@ -195,6 +195,24 @@ def test_dense_deviations_bound_the_brute_force(case, closed, bend):
         np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-12)
 
 
+def test_dense_deviation_of_a_segment_peaking_at_its_last_point():
+    """A polyline segment whose line passes closest to the arc's centre past its end (the
+    closed form's middle candidate is the last point itself) peaks at its last point,
+    0.0764 from the arc, against 0.0292 at its first: the measure once dropped the last
+    point with the middle candidate and reported the first point's figure."""
+    kappa, length = 0.1, 10.0
+    p = np.array([-5.0, 10.0 - math.sqrt(75.0)])
+    t = np.array([10.0 - p[1], p[0]]) / 10.0  # (centre (0, 10): across the radius)
+    end = arc_point(p, t, kappa, length)
+    samples = np.array([[-3.0, 0.43], [-2.0, 0.28]])
+    pieces = [Piece(p, t, kappa, length, 0, 1, end, t, 0.0)]
+    for tol in (1.0, 0.05):
+        d_p, _ = deviations(samples, pieces, tol)
+        truth, _ = _brute_deviations(samples, pieces, tol / 20.0)
+        assert truth > 0.07
+        assert abs(d_p - truth) <= HAIR * tol
+
+
 def _within_two_sided(pieces: list[Piece], covered: np.ndarray, near: np.ndarray,
                       tol: float) -> bool:
     """Brute force: every dense point of the polyline ``covered`` within ``tol`` of the
