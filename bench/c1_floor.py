@@ -40,6 +40,9 @@ from numpy.typing import NDArray
 from scipy.optimize import linprog, minimize
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from zwcore.arcs._geometry import points_to_segments_distance
 
 FloatArray = NDArray[np.float64]
 
@@ -226,11 +229,7 @@ def _c1_arcs(x: FloatArray, start: FloatArray, n: int, per: int = 24) -> FloatAr
 
 def _to_polyline(q: FloatArray, poly: FloatArray) -> FloatArray:
     """Distance of each point of ``q`` ``(Q, 2)`` to the polyline ``poly`` ``(K, 2)``."""
-    a, b = poly[:-1], poly[1:]
-    ab = b - a
-    t = np.clip(((q[:, None] - a[None]) * ab[None]).sum(2)
-                / np.maximum((ab * ab).sum(1), 1e-30)[None], 0.0, 1.0)
-    return np.hypot(*(q[:, None] - a[None] - t[..., None] * ab[None]).transpose(2, 0, 1)).min(1)
+    return points_to_segments_distance(q, poly[:-1], poly[1:]).min(axis=1)
 
 
 def c1_minimax(label: str, i0: int, i1: int, tol: float, exe: str) -> None:

@@ -33,7 +33,12 @@ from zwcore.arcs.verify import _densify_idx
 
 FloatArray = NDArray[np.float64]
 
+#: Relative slack past a piece's end within which a segment's later foot is still on the
+#: arc (:func:`segments_within`; ``_END_SLACK`` of :mod:`zwcore.arcs._kernels`).
+END_SLACK = 1e-12
+
 __all__ = [
+    "END_SLACK",
     "biarc",
     "circle_gap",
     "deviations",
@@ -140,7 +145,7 @@ def samples_within(
 def segments_within(
     u: FloatArray, v: FloatArray, sig: FloatArray, sig_end: float, p: FloatArray,
     t: FloatArray, end: FloatArray, kappa: float, tol: float, dense_first: bool,
-    end_slack: float = 0.0,
+    end_slack: float = END_SLACK,
 ) -> bool:
     """True when the interiors of the polyline segments are within ``tol`` of the arc
     (``kappa != 0``): the farthest point from a circle on a segment is an end point or
@@ -150,9 +155,8 @@ def segments_within(
     A segment counts as inside the arc when its later foot is at most ``sig_end * (1 +
     end_slack)``: the bound of a segment reaching past the end is far coarser, so the
     decision jumps where a foot lies at the end (a sample the piece ends on), and which
-    side of it an ulp of ``arctan2`` puts the foot on is rounding, not geometry. A
-    positive ``end_slack`` takes such feet as on the arc, a negative one as past it: the
-    two sides of that rounding for :func:`biarc`'s agreement test."""
+    side of it an ulp of ``arctan2`` puts the foot on is rounding, not geometry: the
+    default :data:`END_SLACK` takes such feet as on the arc, as the kernel does."""
     du = np.diff(u)
     dv = np.diff(v)
     den = du * du + dv * dv
@@ -219,7 +223,7 @@ def arc_near_polyline(samples: FloatArray, tol: float, dense_step: float, p: Flo
 def verify(samples: FloatArray, tol: float, dense_step: float, p: FloatArray,
            t: FloatArray, kappa: float, k: int, j: int, e_k: float,
            sig_end: float | None = None, dense_first: bool = False,
-           end_slack: float = 0.0) -> tuple[float, FloatArray, float] | None:
+           end_slack: float = END_SLACK) -> tuple[float, FloatArray, float] | None:
     """:meth:`zwcore.arcs._pieces.ToleranceBand.verify` in numpy (``end_slack``: see
     :func:`segments_within`)."""
     pts = samples[k : j + 1]
@@ -461,7 +465,7 @@ def _arc_through(kmin: float, kcap: float, p: FloatArray, t: FloatArray, q: Floa
 def biarc(samples: FloatArray, tol: float, dense_step: float, kmin: float, kcap: float,
           p0: FloatArray, t0: FloatArray, k: int, e: float, b: int, t1: FloatArray,
           p1: FloatArray | None, splits: tuple[float, ...],
-          end_slack: float = 0.0) -> list[Piece] | None:
+          end_slack: float = END_SLACK) -> list[Piece] | None:
     """:meth:`zwcore.arcs._pieces.ToleranceBand.biarc` in numpy (with :func:`verify`;
     ``end_slack``: see :func:`segments_within`)."""
 

@@ -195,6 +195,24 @@ def test_dense_deviations_bound_the_brute_force(case, closed, bend):
         np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-12)
 
 
+def test_dense_deviation_of_a_segment_peaking_at_its_last_point():
+    """A polyline segment whose line passes closest to the arc's centre past its end (the
+    closed form's middle candidate is the last point itself) peaks at its last point,
+    0.0764 from the arc, against 0.0292 at its first: the measure once dropped the last
+    point with the middle candidate and reported the first point's figure."""
+    kappa, length = 0.1, 10.0
+    p = np.array([-5.0, 10.0 - math.sqrt(75.0)])
+    t = np.array([10.0 - p[1], p[0]]) / 10.0  # (centre (0, 10): across the radius)
+    end = arc_point(p, t, kappa, length)
+    samples = np.array([[-3.0, 0.43], [-2.0, 0.28]])
+    pieces = [Piece(p, t, kappa, length, 0, 1, end, t, 0.0)]
+    for tol in (1.0, 0.05):
+        d_p, _ = deviations(samples, pieces, tol)
+        truth, _ = _brute_deviations(samples, pieces, tol / 20.0)
+        assert truth > 0.07
+        assert abs(d_p - truth) <= HAIR * tol
+
+
 def _within_two_sided(pieces: list[Piece], covered: np.ndarray, near: np.ndarray,
                       tol: float) -> bool:
     """Brute force: every dense point of the polyline ``covered`` within ``tol`` of the
@@ -237,8 +255,8 @@ def test_biarc_second_arc_gets_its_start_distance():
 @settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(junctions(), st.integers(2, 40), st.floats(-0.3, 0.3), st.booleans())
 # the second arc ends on sample 26, whose foot numpy's arctan2 puts an ulp past the arc's
-# end and libm's on it: the end-slack sandwich below (brute force: the pair is 0.1963
-# from the polyline at tolerance 0.2590)
+# end and libm's on it: both must take it as on the arc (END_SLACK; brute force: the
+# pair is 0.1963 from the polyline at tolerance 0.2590)
 @example(_junction(_wavy(27, 0.5, 1.5, 12.546875, 0.0, 0), 0.25903191485168087, 10,
                    0.046875, -0.7578125), 16, 0.3, False)
 def test_biarc_agrees_with_the_reference(case, ahead, turn, off_sample):
@@ -253,23 +271,21 @@ def test_biarc_agrees_with_the_reference(case, ahead, turn, off_sample):
     e = float(np.hypot(*(pts[k] - p)))
     got = band.biarc(p, t, k, e, b, t1, p1)
 
-    def reference(scale: float, end_slack: float = 0.0) -> list[Piece] | None:
+    def reference(scale: float) -> list[Piece] | None:
         return ref.biarc(pts, tol * scale, band.dense_step, band.kmin, band.kcap, p, t, k, e,
-                         b, t1, p1, band.BIARC_SPLITS, end_slack)
+                         b, t1, p1, band.BIARC_SPLITS)
 
     # (a biarc's junction is ill-conditioned where its tangents are nearly parallel:
     # numpy's and libm's last bits move its curvatures by some 1e-7, so the decisions
-    # agree up to a wider hair than a single piece's; and the second arc ends on sample
-    # b, whose foot each puts on the arc's end or an ulp past it, where the segment test
-    # jumps: the reference takes such feet on the arc for the wider side and past it for
-    # the narrower one, see ref.segments_within; what the kernel accepts is measured by
-    # brute force below)
+    # agree up to a wider hair than a single piece's; the second arc ends on sample b,
+    # whose foot each puts on the arc's end or an ulp past it, which both take as on the
+    # arc, see ref.segments_within; what the kernel accepts is measured by brute force
+    # below)
     hair = 1e-5
-    end_slack = 1e-12
     if got is None:
-        assert reference(1 - hair, -end_slack) is None
+        assert reference(1 - hair) is None
         return
-    assert reference(1 + hair, end_slack) is not None
+    assert reference(1 + hair) is not None
     want = reference(1.0)
     if want is not None and [(a.k, a.j) for a in want] == [(a.k, a.j) for a in got] and (
             np.hypot(*(want[0].end - got[0].end)) <= 1e-6 * tol):

@@ -176,13 +176,14 @@ def biarc(samples: FloatArray, p0: FloatArray, t0: FloatArray, k: int, e: float,
         tex, tey = c * tjx - s * tjy, s * tjx + c * tjy
         if abs(tex * t1[1] - tey * t1[0]) > 1e-9 or tex * t1[0] + tey * t1[1] < 0.0:
             continue
-        # the running bounds narrow: k1 leaves them at one index for good, and the
-        # first arc fails their test when its last sample lies at or past it, so the
-        # foot scan stops there (most tried splits fail this way)
+        # the running bounds narrow: k1 leaves them at index ``fail`` for good, so the
+        # first arc fails their test exactly when its last sample ``m`` has
+        # ``m - k - 1 >= fail``, and the foot scan stops there (most tried splits fail
+        # this way)
         fail = _first_outside(lo_t, up_t, k1)
         limit = fail + 1 if fail <= n - 3 else n
         m = _last_on_first_arc(uu, vv, k1, s1, k, b, limit)
-        if m < 0 or (m > k and not lo_t[m - k - 1] <= k1 <= up_t[m - k - 1]):
+        if m < 0 or m - k > fail:
             continue
         r1 = verify_piece(samples, p0[0], p0[1], t0[0], t0[1], k1, k, m, e, s1, True, False,
                           tol, step0)

@@ -159,8 +159,11 @@ def _segment_max(samples: FloatArray, off: IntArray, s: int, hi: int, geo: Float
     best_d = d0
     single = len(qs) == 1
     c3 = min(c2 + 1, i1)
-    for c in (i1, c2, c3):
-        if c == i0 or (c == c2 and c2 == i1) or (c == c3 and (c3 == c2 or c3 == i1)):
+    # the candidates after i0 in the order (i1, c2, c3), each measured once: a slot
+    # repeating an earlier one is dropped (-1), never the last point itself
+    for c in (i1, c2 if c2 != i0 and c2 != i1 else -1,
+              c3 if c3 != i0 and c3 != c2 and c3 != i1 else -1):
+        if c < 0:
             continue
         x, y = _dense_point(samples, off, s, c)
         if c == i1:

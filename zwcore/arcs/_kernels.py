@@ -29,6 +29,12 @@ __all__ = ["arc_near_polyline", "chord_circle_gap", "foot_positions", "kappa_fit
            "line_reaches", "line_spread", "piece_bounds", "reach_lines", "verify_piece"]
 
 _TWO_PI = 2.0 * math.pi
+#: Relative slack past a piece's end within which a segment's later foot still counts
+#: as on the arc (:func:`_segments_within`): a piece given its length (a biarc's second
+#: arc, ending where sample ``j`` stands) puts that sample's foot on its end or, by an
+#: ulp of ``atan2``, past it, where the segment test would jump to its far coarser bound
+#: (``end_slack`` of ``tests/arc_reference.py``'s ``segments_within``).
+_END_SLACK = 1e-12
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -266,7 +272,8 @@ def _segments_within(u: FloatArray, v: FloatArray, sig: FloatArray, sig_end: flo
                      dense_first: bool) -> bool:
     """``segments_within`` of ``tests/arc_reference.py``; ``e0..e3``: the end point's offsets
     from the start times the tangent's components, ``(ex-px)tx, (ey-py)ty, (ey-py)tx,
-    (ex-px)ty`` (the order of its arithmetic kept)."""
+    (ex-px)ty`` (the order of its arithmetic kept); a later foot within
+    :data:`_END_SLACK` past ``sig_end`` counts as on the arc."""
     rk = 1.0 / kappa
     for i in range(len(u) - 1):
         if dense_first and i == 0:
@@ -280,7 +287,7 @@ def _segments_within(u: FloatArray, v: FloatArray, sig: FloatArray, sig_end: flo
         xu = u[i] + ts * du
         xv = v[i] + ts * dv
         gx = abs(circle_gap1(xu, xv, kappa))
-        if sig[i] >= 0.0 and sig[i + 1] <= sig_end:
+        if sig[i] >= 0.0 and sig[i + 1] <= sig_end * (1.0 + _END_SLACK):
             dx = gx
         else:
             xe = math.hypot(xu - e0 - e1, xv - e2 + e3)

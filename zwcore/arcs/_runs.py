@@ -99,8 +99,9 @@ class _RunFitter:
 
     def run(self, a: int, b: int, t_start: FloatArray | None) -> RunFit:
         loop = self.prep.loop
+        work = work_share(self.max_radius)
         if self._band is None:
-            self._band = self.fitter(work_share(self.max_radius), []).band
+            self._band = self.fitter(work, []).band
         if self.closed_form and t_start is None:
             # a coarse polygon: the filleted polygon (checked densely by fit_arcs; the
             # refit without closed forms uses the beam)
@@ -109,9 +110,8 @@ class _RunFitter:
                 return poly, []
         self.all_closed_form = False
         pins = {"pin_start": t_start is None and not loop, "pin_end": not loop}
-        work = work_share(self.max_radius)
         got = self._refit(a, b, t_start, work, pins)
-        if work != WORK_CAPPED and not self.prep.closed and self._n_flat(got[0]):
+        if self.max_radius is None and not self.prep.closed and self._n_flat(got[0]):
             # the scans at WORK may leave a flat arc that the refit along straight runs
             # cannot replace at its price and the scans at WORK_CAPPED do not lay (NACA
             # 2412 at 0.05: radius 43,000 mm at the trailing edge, sagitta 0.21 tol):
