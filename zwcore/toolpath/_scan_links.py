@@ -122,10 +122,14 @@ class StockBound:
     radius : float
     stock_top : float
         The stock before the program (an upper bound everywhere).
+    before : (n_v, n_u) float64, optional
+        An upper bound of the stock before the stage (the stock only falls, so the bound
+        after the stage is the lesser of it and the whole lines' own).
     """
 
     def __init__(self, line_v: F64, line_paths: list[F64], du: float, dv: float,
-                 shape_uv: tuple[int, int], radius: float, stock_top: float):
+                 shape_uv: tuple[int, int], radius: float, stock_top: float,
+                 before: F64 | None = None):
         n_u, n_v = shape_uv
         z_line = np.empty((len(line_paths), n_u))
         for j, path in enumerate(line_paths):
@@ -135,6 +139,8 @@ class StockBound:
         self.grid = np.empty((n_v, n_u))
         _bound_grid(np.ascontiguousarray(line_v, np.float64), z_line, float(dv),
                     float(radius), float(stock_top), self.grid)
+        if before is not None:
+            np.minimum(self.grid, before, out=self.grid)
         self.block = max(1, int(radius / max(du, dv)))
         self._coarse: F64 | None = None
         self.du, self.dv, self.radius = float(du), float(dv), float(radius)

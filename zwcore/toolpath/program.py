@@ -196,6 +196,10 @@ class StagePath:
     moves : Moves
     figures : dict
         Path figures (lengths by kind, counts, air-cut estimates), for the response.
+    stock_after : (ny, nx) float64 or None
+        An upper bound of the stock after this stage on the part's nodes (scan-line
+        stages: from their whole lines and the bound they were given), for the next
+        stage's links and entries; ``None``: not known.
     """
 
     index: int
@@ -205,6 +209,7 @@ class StagePath:
     start: F64
     moves: Moves
     figures: dict[str, float] = field(default_factory=dict)
+    stock_after: F64 | None = None
 
     def lengths(self) -> dict[str, float]:
         """Rapid, feed and plunge path lengths, mm."""

@@ -303,13 +303,15 @@ class _Entered:
     def __init__(self, part: ZMap, tool: Tool, cl: F64, sx: float, sy: float, poly: _Polyline,
                  along_x: bool, line_v: F64, per_line: list[F64],
                  grid: tuple[float, float, tuple[int, int]], stock_top: float,
-                 clearance: float, decimals: int, cutting: CuttingData, rapid_feed: float):
+                 clearance: float, decimals: int, cutting: CuttingData, rapid_feed: float,
+                 before: F64 | None = None):
         self.part, self.tool, self.cl, self.sx, self.sy, self.poly = part, tool, cl, sx, sy, poly
         self.along_x, self.line_v, self.per_line, self.grid = along_x, line_v, per_line, grid
         self.stock_top, self.clearance, self.decimals = stock_top, clearance, decimals
         self.cutting, self.rapid_feed = cutting, rapid_feed
         du, dv, shape_uv = grid
-        self.bound = StockBound(line_v, per_line, du, dv, shape_uv, tool.radius, stock_top)
+        self.bound = StockBound(line_v, per_line, du, dv, shape_uv, tool.radius, stock_top,
+                                before)
         self.points: list[tuple[F64, NDArray[np.int64]]] = []
         self.max_lift, self.n_raw = 0.0, 0
         self.stays = self.lifts = 0
@@ -363,7 +365,8 @@ def scanline_stage_path(part: ZMap, stage: ScanlineStage, index: int, cutting: C
                         model: F64 | None = None, spacing: tuple[float, float] | None = None,
                         region: NDArray[np.bool_] | None = None,
                         scallop_tolerance: float | None = None, decimals: int = 4,
-                        rapid_feed: float = 15_000.0) -> StagePath:
+                        rapid_feed: float = 15_000.0,
+                        stock_before: F64 | None = None) -> StagePath:
     """Tool path of one scan-line stage.
 
     Parameters
@@ -398,6 +401,11 @@ def scanline_stage_path(part: ZMap, stage: ScanlineStage, index: int, cutting: C
     rapid_feed : float
         Rapid rate, mm/min: a link between segments stays down or lifts, whichever the
         time estimate favours.
+    stock_before : (ny, nx) float64, optional
+        An upper bound of the stock before this stage on the part's nodes (the previous
+        stage's :attr:`StagePath.stock_after`): links and entries come down to just above
+        it instead of the stock top (a rest stage with no whole lines of its own would
+        otherwise plunge from the stock top into every stretch). Default: the stock top.
     scallop_tolerance : float, optional
         For a finishing pass on the input's nodes, without a region: the pass's moves are
         swept over the part's nodes and segments added where they leave more than this
@@ -451,9 +459,10 @@ def scanline_stage_path(part: ZMap, stage: ScanlineStage, index: int, cutting: C
     pts, max_lift, n_raw, per_line = _full_lines(cl, lines.offset[full] / sy, sx, sy, extent,
                                                  ext, poly)
     parts = [Moves.lines(pts[:1], kind=RAPID), Moves.lines(pts[1:])] if len(pts) else []
+    before = None if stock_before is None else (stock_before if along_x else stock_before.T)
     entered = _Entered(part, tool, cl, sx, sy, poly, along_x, lines.offset[full], per_line,
                        (du, dv, shape_uv), stock_top, clearance, decimals, cutting,
-                       rapid_feed)
+                       rapid_feed, before)
     seg_off, seg_a, seg_b = merge_stretches(seg_off, seg_a, seg_b)
     if len(seg_off):
         if len(pts):  # up from the last whole line's exit
@@ -487,4 +496,5 @@ def scanline_stage_path(part: ZMap, stage: ScanlineStage, index: int, cutting: C
                "points_before_thinning": float(n_raw),
                "points": float(len(moves)), "max_lift": max_lift,
                "links_down": float(entered.stays), "links_lifted": float(entered.lifts)}
-    return StagePath(index, "scanline", tool, cutting, start, moves, figures)
+    after = entered.bound.grid if along_x else entered.bound.grid.T
+    return StagePath(index, "scanline", tool, cutting, start, moves, figures, after)
