@@ -436,9 +436,17 @@ def test_rest_stages_enter_above_the_stock_the_stages_before_really_leave():
     frame = GridFrame(part.x0, part.y0, part.dx, part.dy, part.shape)  # in material
     stock = np.full(part.shape, plan.stock_top)
     data = tool_numbers(list(dict.fromkeys(s.tool for s in plan.stages)), None)
-    rest = 0
-    for i, sp in enumerate(tp.stages):
-        before = tp.stages[i - 1].stock_after if i else None
+    before, rest = None, 0
+    def path(i, stage, bound):
+        return scanline_stage_path(
+            part, stage, i, data[stage.tool.id], brute_cl, clearance=tp.settings.clearance,
+            chord_tolerance=CHORD_FRACTION * plan.tolerance, stock_top=plan.stock_top,
+            refine_tolerance=_refine_tolerance(plan, stage), region=stage.region,
+            stock_before=bound)
+
+    for i, stage in enumerate(plan.stages):
+        sp = path(i, stage, before)
+        assert np.array_equal(sp.moves.end, tp.stages[i].moves.end)  # as the program has it
         if before is not None:
             # an upper bound of what the paths before really left (swept here, move by move;
             # the bound's rise R - sqrt(R² - d²) and the sweep's envelope round apart by
@@ -446,17 +454,14 @@ def test_rest_stages_enter_above_the_stock_the_stages_before_really_leave():
             assert np.all(before >= stock - 1e-6)
         if i and sp.figures["lines"] == 0 and sp.figures["segments"] > 0:
             rest += 1
-            st = plan.stages[i]
-            alone = scanline_stage_path(
-                part, st, i, data[st.tool.id], brute_cl, clearance=tp.settings.clearance,
-                chord_tolerance=CHORD_FRACTION * plan.tolerance, stock_top=plan.stock_top,
-                refine_tolerance=_refine_tolerance(plan, st), region=st.region)
+            alone = path(i, stage, None)
             # the same stretches, entered lower: less plunging, less time
             assert sp.figures["segments"] == alone.figures["segments"]
             assert sp.lengths()["plunge"] < alone.lengths()["plunge"]
             rate = tp.settings.rapid_feed
             assert sp.time_min(rate) < alone.time_min(rate)
         p0 = np.vstack([sp.start[None], sp.moves.end[:-1]])
-        sweep_moves(frame, p0, sp.moves.end, sp.tool.radius, True, stock,
+        sweep_moves(frame, p0, sp.moves.end, stage.tool.radius, True, stock,
                     apply=sp.moves.kind != RAPID)
+        before = sp.stock_after
     assert rest
