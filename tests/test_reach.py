@@ -508,3 +508,28 @@ def test_rest_region_work_bounds_only_grow_it(seed: int, small: float, left: flo
                    {"CUT_WORK": 0}):
         wider = region(**bounds)
         assert (wider | ~exact).all(), bounds
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), ny=st.integers(1, 30), nx=st.integers(1, 30),
+       density=st.sampled_from([0.005, 0.05, 0.3]),
+       sy=st.sampled_from([0.1, 0.25, 1 / 3]), sx=st.sampled_from([0.1, 0.25, 1 / 3]),
+       reach=st.one_of(st.sampled_from([0.0, 0.1, 0.25, 0.5]), st.floats(0.0, 4.0)))
+def test_near_kernel_is_the_brute_distance_test(seed: int, ny: int, nx: int, density: float,
+                                                sy: float, sx: float, reach: float) -> None:
+    """``_near_kernel`` (largest gap per row offset, integer compares) against every seed
+    node tried by the same rounded test, ``sqrt((dk sx)² + (di sy)²) <= reach``: equal,
+    ties on the reach included."""
+    from zwcore.scanline._reach import _near_kernel
+
+    rng = np.random.default_rng(seed)
+    mask = rng.random((ny, nx)) < density
+    out = np.empty((ny, nx), dtype=bool)
+    _near_kernel(mask, float(sy), float(sx), float(reach), out)
+    seeds = np.argwhere(mask)
+    brute = np.zeros((ny, nx), dtype=bool)
+    for i in range(ny):
+        for k in range(nx):
+            brute[i, k] = any(math.sqrt((abs(k - c) * sx) ** 2 + ((a - i) * sy) ** 2) <= reach
+                              for a, c in seeds)
+    assert np.array_equal(out, brute)

@@ -147,6 +147,7 @@ def test_stock_sim_gives_the_same_pass_with_either_kernel(
     monkeypatch.setattr(_sw, "cut_lines", counted)
     for share in (0.0, 1e9):  # never, always
         monkeypatch.setattr(_stock_lines, "SWEEP_SHARE", share)
+        monkeypatch.setattr(_stock_lines, "SWEEP_RUN_SHARE", share)
         sim = _stock.StockSim(part, float(part.z.max()) + 3.0)
         model = part.z.copy()
         done = _stock.run_pass(sim, model, (d, d), tool, lines, 1, None, 1e-9)

@@ -362,3 +362,36 @@ def test_drop_cutter_methods_agree_and_a_bad_method_names_the_field() -> None:
     with pytest.raises(InvalidInputError) as e:
         drop_cutter(part, tool, method="fast")
     assert e.value.field == "method"
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.integers(1, 40), st.integers(1, 40), st.integers(0, 7),
+       st.integers(0, 7), st.integers(1, 3), st.sampled_from([1.0, 1e4]))
+def test_dilation_kernel_is_the_plain_dilation(seed: int, ny: int, nx: int, A: int, B: int,
+                                               nv: int, scale: float) -> None:
+    """The compiled strip kernel of :func:`zwcore.sim._morph.dilate` against the plain
+    float64 dilation by shifts: a stack of mirror-symmetric functions sharing some offsets
+    and not others, -inf outside their elements; float32 (small span) and float64 (large
+    span, ``scale``) arithmetic. Never below the exact value, above it by at most the
+    rounding bound; the erosion likewise (its mirror)."""
+    from zwcore.sim._morph import _dilate_bounded, erode
+
+    rng = np.random.default_rng(seed)
+    base = rng.normal(size=(2 * A + 1, 2 * B + 1))
+    stack = np.stack([base + (v > 0) * rng.normal(size=base.shape)
+                      * (rng.random(base.shape) < 0.5) for v in range(nv)])
+    stack[rng.random(stack.shape) < 0.15] = -np.inf
+    # mirror-symmetric in both axes (-inf where any mirror is)
+    stack = np.minimum(stack, stack[:, ::-1])
+    stack = np.minimum(stack, stack[:, :, ::-1])
+    z = scale * rng.normal(size=(ny, nx))
+    out, delta = _dilate_bounded(z, stack)
+    exact = _dilation_brute(z, stack)
+    both = np.isfinite(exact)
+    assert np.array_equal(both, np.isfinite(out))
+    assert (out[both] - exact[both]).min(initial=0.0) >= 0.0
+    assert (out[both] - exact[both]).max(initial=0.0) <= 2.0 * delta
+    eroded = erode(z, -stack[0])
+    low = -_dilation_brute(-z, stack[:1])
+    fin = np.isfinite(low)
+    assert (eroded[fin] - low[fin]).min(initial=0.0) >= 0.0

@@ -135,12 +135,14 @@ def within_distance(seed: B8, distance: float, dx: float, dy: float) -> B8:
     return out
 
 
-@njit("void(b1[:, :], f8, f8, f8, b1[:, :])", cache=True, nogil=True)
+@njit("void(b1[:, ::1], f8, f8, f8, b1[:, ::1])", cache=True, nogil=True)
 def _near_kernel(seed: B8, sy: float, sx: float, reach: float, out: B8) -> None:
     """``out = distance to the nearest seed node <= reach`` (what
     ``ndimage.distance_transform_edt(~seed, sampling=(sy, sx)) <= reach`` gives, without
     its full-grid index arrays): per row the column gap to the nearest seed node in that
-    row, then the least ``sqrt((gap sx)² + (rows sy)²)`` over the rows within ``reach``."""
+    row, then whether ``sqrt((gap sx)² + (rows sy)²) <= reach`` for some row within
+    ``reach``: per row offset the largest gap passing that (rounded) test is found once,
+    so the rows are integer compares over whole rows."""
     ny, nx = seed.shape
     big = nx + 1  # no seed node in the row
     gap = np.empty((ny, nx), dtype=np.int64)
@@ -157,26 +159,32 @@ def _near_kernel(seed: B8, sy: float, sx: float, reach: float, out: B8) -> None:
             if last - k < gap[i, k]:
                 gap[i, k] = last - k
     rows = int(reach / sy) if sy > 0.0 else 0
+    # per row offset d the largest column gap within reach, by the same rounded test
+    # (monotone in the gap: every step rounds monotonically), -1 where none is
+    gmax = np.full(rows + 1, -1, dtype=np.int64)
+    for d in range(rows + 1):
+        v = d * sy
+        g = 0
+        while g <= nx and math.sqrt((g * sx) * (g * sx) + v * v) <= reach:
+            g += 1
+        gmax[d] = g - 1
     seeded = np.zeros(ny + 1, dtype=np.int64)  # rows with a seed node before row i
     for i in range(ny):
         seeded[i + 1] = seeded[i] + (1 if gap[i, 0] <= nx else 0)
     for i in range(ny):
         a0, a1 = max(0, i - rows), min(ny - 1, i + rows)
+        orow = out[i]
+        orow[:] = False
         if seeded[a1 + 1] == seeded[a0]:  # no seed row within reach: a sparse seed's
-            out[i, :] = False             # usual case, one row write
-            continue
-        for k in range(nx):
-            hit = False
-            for a in range(a0, a1 + 1):
-                g = gap[a, k]
-                if g > nx:
-                    continue
-                u = g * sx
-                v = (a - i) * sy
-                if math.sqrt(u * u + v * v) <= reach:
-                    hit = True
-                    break
-            out[i, k] = hit
+            continue                      # usual case, one row write
+        for a in range(a0, a1 + 1):
+            gm = gmax[abs(a - i)]
+            if gm < 0 or seeded[a + 1] == seeded[a]:
+                continue
+            grow = gap[a]
+            for k in range(nx):
+                if grow[k] <= gm:
+                    orow[k] = True
 
 
 def _within_box(seed: B8, distance: float, dx: float, dy: float) -> B8:

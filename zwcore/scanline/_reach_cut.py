@@ -70,10 +70,19 @@ def _cuts_at(material: F64, blocks: F64, b: int, t: float, i: int, k: int,
     i0, i1 = max(0, i - ra), min(ny - 1, i + ra)
     k0, k1 = max(0, k - rb), min(nx - 1, k + rb)
     for bi in range(i0 // b, i1 // b + 1):
+        q0, q1 = max(i0, bi * b), min(i1, bi * b + b - 1)
+        ea = 0 if q0 <= i <= q1 else min(abs(q0 - i), abs(q1 - i))
         for bk in range(k0 // b, k1 // b + 1):
             if blocks[bi, bk] <= t:
                 continue
-            for q in range(max(i0, bi * b), min(i1, bi * b + b - 1) + 1):
+            # h at the block's nearest offset is no more than at any of its nodes (the
+            # same rounded formula, monotone in |a| and |b|; +inf: none within R), so no
+            # node of a block whose maximum less it is at most t can cut
+            p0, p1 = max(k0, bk * b), min(k1, bk * b + b - 1)
+            eb = 0 if p0 <= k <= p1 else min(abs(p0 - k), abs(p1 - k))
+            if blocks[bi, bk] - hh[ea + ra, eb + rb] <= t:
+                continue
+            for q in range(q0, q1 + 1):
                 w = half[q - i + ra]
                 if w < 0:
                     continue

@@ -39,6 +39,7 @@ from scipy import ndimage
 from zwcore.grid.tools import Tool
 from zwcore.grid.zmap import ZMap
 from zwcore.scanline._reach import concave_radii, within_distance
+from zwcore.scanline._reach_cut import cutting_positions
 from zwcore.scanline._regions import TOOL_CHANGE_MM, flat_pick_feed
 from zwcore.sim import drop_cutter, envelope, nodal_drop_cutter, simulation_work
 
@@ -234,10 +235,13 @@ class RestRegion:
         if int(asked.sum()) * disc > CUT_WORK:
             self.cut_tested = False
             return grown
-        # the nodal drop on the stock sees every node of the grid: exact at every position
-        lowers, _ = nodal_drop_cutter(material, self.tool.radius, self.part.dx, self.part.dy,
-                                      asked)
-        return here | (asked & (cl < lowers))
+        # the nodal drop on the stock sees every node of the grid: exact at every position.
+        # Only whether it rises above the CL matters, so a query stops at its first node
+        # above it and skips blocks without such material (``far`` nodes never are: the
+        # same test as the whole drop, ``cl < max(material - h)``, far cheaper)
+        above = np.where(material > far, material, -np.inf)
+        return here | cutting_positions(above, cl, self.tool.radius, self.part.dx,
+                                        self.part.dy, asked)
 
     def _surely_over(self, grown: B8, material: F64, disc: float) -> bool:
         """Whether the cutting test would be over :data:`CUT_WORK`, judged on every

@@ -16,6 +16,7 @@ raised by the rounding bound, so the result is never below the exact max.
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 from numpy.typing import NDArray
 
 F64 = NDArray[np.float64]
@@ -48,32 +49,63 @@ def _dilate_rows(zp: NDArray[np.floating], s: NDArray[np.floating], ny: int, nx:
     dtype = zp.dtype
     acc = np.full((nv + 1, ny, nx), -np.inf, dtype=dtype)  # [0]: offsets all share
     rows = max(8, _STRIP_BYTES // (dtype.itemsize * max(nx, 1)))
-    quarter = s[:, A:, B:]
+    quarter = np.ascontiguousarray(s[:, A:, B:])
     alive = np.isfinite(quarter).any(axis=0)
     same = (quarter == quarter[:1]).all(axis=0) | ~np.isfinite(quarter).any(axis=0)
-    plan = [(b, [(a, bool(same[a, b])) for a in np.flatnonzero(alive[:, b])])
-            for b in range(B + 1)]
-    for r0 in range(0, ny, rows):
-        r1 = min(ny, r0 + rows)
-        h = r1 - r0
-        band = zp[r0:r1 + 2 * A]
-        X = np.empty((h + 2 * A, nx), dtype=dtype)
-        Y = np.empty((h, nx), dtype=dtype)
-        T = np.empty((h, nx), dtype=dtype)
-        for b, offsets in plan:
-            if not offsets:
-                continue
-            np.maximum(band[:, B + b:B + b + nx], band[:, B - b:B - b + nx], out=X)
-            for a, shared in offsets:
-                np.maximum(X[A + a:A + a + h], X[A - a:A - a + h], out=Y)
-                for v in range(1 if shared else nv):
-                    value = quarter[v, a, b]
-                    if not np.isfinite(value):
-                        continue
-                    np.add(Y, value, out=T)
-                    target = acc[0 if shared else v + 1, r0:r1]
-                    np.maximum(target, T, out=target)
+    # the live offsets column by column (``b`` ascending, then ``a``), as flat lists
+    ob, oa = np.nonzero(alive.T)
+    _dilate_kernel(np.ascontiguousarray(zp), quarter, ob.astype(np.int64),
+                   oa.astype(np.int64), same.T[ob, oa].copy(), int(ny), int(nx),
+                   int(rows), acc)
     return np.min(np.maximum(acc[0], acc[1:]), axis=0)
+
+
+@njit([f"void({t}[:, ::1], {t}[:, :, ::1], i8[::1], i8[::1], b1[::1], i8, i8, i8, {t}[:, :, ::1])"
+       for t in ("f4", "f8")], cache=True, nogil=True)
+def _dilate_kernel(zp: NDArray[np.floating], quarter: NDArray[np.floating],
+                   ob: NDArray[np.int64], oa: NDArray[np.int64], shared: NDArray[np.bool_],
+                   ny: int, nx: int, rows: int, acc: NDArray[np.floating]) -> None:
+    """Per strip of ``rows`` output rows and column offset ``b``: ``X_b`` (the padded grid
+    folded at ``±b``); then per output row and row offset ``a`` the fold of ``X_b`` at
+    ``±a`` once, and per function one add and max into its accumulator. The same
+    rounded adds, in the grid's own precision, as vector passes over whole strips would
+    make (max is exact), with the folds kept in the cache instead of strip temporaries."""
+    nv = quarter.shape[0]
+    A, B = (zp.shape[0] - ny) // 2, (zp.shape[1] - nx) // 2
+    X = np.empty((rows + 2 * A, nx), dtype=zp.dtype)
+    Y = np.empty(nx, dtype=zp.dtype)
+    for r0 in range(0, ny, rows):
+        h = min(ny, r0 + rows) - r0
+        n = 0
+        while n < ob.size:
+            b = ob[n]
+            for r in range(h + 2 * A):
+                zr = zp[r0 + r]
+                xr = X[r]
+                for k in range(nx):
+                    u, w = zr[B + b + k], zr[B - b + k]
+                    xr[k] = u if u > w else w
+            m = n
+            while m < ob.size and ob[m] == b:
+                m += 1
+            for r in range(h):
+                for j in range(n, m):
+                    a = oa[j]
+                    x1 = X[A + a + r]
+                    x2 = X[A - a + r]
+                    for k in range(nx):
+                        u, w = x1[k], x2[k]
+                        Y[k] = u if u > w else w
+                    for v in range(1 if shared[j] else nv):
+                        value = quarter[v, a, b]
+                        if not np.isfinite(value):
+                            continue
+                        tr = acc[0 if shared[j] else v + 1, r0 + r]
+                        for k in range(nx):
+                            t = Y[k] + value
+                            if t > tr[k]:
+                                tr[k] = t
+            n = m
 
 
 def _dilate_bounded(z: F64, s: F64) -> tuple[F64, float]:
