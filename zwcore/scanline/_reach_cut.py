@@ -29,6 +29,8 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+from zwcore.sim import ball_offsets
+
 __all__ = ["CUT_BLOCK", "CuttingRegion", "cutting_positions", "material_blocks",
            "material_grid"]
 
@@ -40,19 +42,6 @@ def _plain(a: NDArray[np.floating]) -> F64:
     """``a`` as a writable C-ordered float64 array (the kernels' signatures; a read-only
     grid, a stored z-map say, is copied)."""
     return np.require(a, dtype=np.float64, requirements=["C", "W"])
-
-
-def _ball_offsets(radius: float, dx: float, dy: float) -> tuple[NDArray[np.int64], F64]:
-    """Half-width in columns of the ball's nodes on each row offset ``(2A + 1,)`` (-1: none)
-    and ``h`` at each offset ``(2A + 1, 2B + 1)`` (+inf outside): the nodes within the
-    radius, ``d² <= R²``, as the nodal drop-cutter counts them."""
-    ra, rb = math.floor(radius / dy), math.floor(radius / dx)
-    a, b = np.mgrid[-ra:ra + 1, -rb:rb + 1]
-    d2 = (a * dy) ** 2 + (b * dx) ** 2
-    inside = d2 <= radius * radius
-    h = np.where(inside, radius - np.sqrt(np.maximum(radius * radius - d2, 0.0)), np.inf)
-    half = np.where(inside, np.abs(b), -1).max(axis=1).astype(np.int64)
-    return half, np.ascontiguousarray(h)
 
 
 #: Block size of the material maxima :func:`cutting_positions` skips blocks by.
@@ -131,7 +120,7 @@ def cutting_positions(material: F64, cl: F64, radius: float, dx: float, dy: floa
         return out
     b = CUT_BLOCK
     blocks = material_blocks(material)
-    half, hh = _ball_offsets(radius, dx, dy)
+    half, hh = ball_offsets(radius, dx, dy)
     _cuts_kernel(_plain(material), blocks, b,
                  _plain(cl), half, hh, rows.astype(np.int64),
                  cols.astype(np.int64), out)
@@ -230,7 +219,7 @@ class CuttingRegion:
                                               mode="edge"), dtype=np.float64)
         self.cl = (np.full(z.shape, np.nan) if cl is None
                    else np.array(cl, dtype=np.float64, order="C"))
-        self.half, self.hh = _ball_offsets(radius, dx, dy)
+        self.half, self.hh = ball_offsets(radius, dx, dy)
         self._seen = np.zeros(z.shape, dtype=np.int32)
         self._cut = np.zeros(z.shape, dtype=np.int32)
         self._gen = 0

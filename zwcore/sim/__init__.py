@@ -12,7 +12,7 @@
   balls between nodes; exported below).
 """
 
-from zwcore.sim._nodal import nodal_closing, nodal_drop_cutter, refine_rest
+from zwcore.sim._nodal import ball_offsets, nodal_closing, nodal_drop_cutter, refine_rest
 from zwcore.sim.cutting import MAX_FOOTPRINT, closing, drop_cutter, envelope, simulation_work
 from zwcore.sim.figures import (
     MAX_BOXES,
@@ -36,6 +36,7 @@ __all__ = [
     "RegionBox",
     "RestMaterial",
     "RestRegions",
+    "ball_offsets",
     "closing",
     "depth_of_cut",
     "drop_cutter",

@@ -207,7 +207,7 @@ def _close_kernel(z: F64, cl: F64, flat: F64, meta: I64, radius: float, dx: floa
 BRUTE_NODES = 800
 
 
-def _disc(radius: float, dx: float, dy: float) -> tuple[I64, F64]:
+def ball_offsets(radius: float, dx: float, dy: float) -> tuple[I64, F64]:
     """Half-width in columns of the ball's nodes on each row offset, and ``h`` there.
 
     Returns
@@ -309,7 +309,7 @@ def nodal_drop_cutter(z: F64, radius: float, dx: float, dy: float,
     rows, cols = np.nonzero(mask)
     cl = np.full(z.shape, np.inf)
     contact = np.full(z.shape, -1, dtype=np.int64)
-    half, hh = _disc(radius, dx, dy)
+    half, hh = ball_offsets(radius, dx, dy)
     if int((2 * half + 1).clip(0).sum()) <= BRUTE_NODES:
         _cl_brute(z, half, hh, rows.astype(np.int64), cols.astype(np.int64), cl, contact)
         return cl, contact
@@ -346,7 +346,7 @@ def nodal_closing(z: F64, cl: F64, radius: float, dx: float, dy: float,
     cl = _plain(cl)
     rows, cols = np.nonzero(nodes)
     out = z.copy()
-    half, hh = _disc(radius, dx, dy)
+    half, hh = ball_offsets(radius, dx, dy)
     if int((2 * half + 1).clip(0).sum()) <= BRUTE_NODES:
         _close_brute(cl, half, hh, rows.astype(np.int64),
                      cols.astype(np.int64), out)
