@@ -266,19 +266,28 @@ def test_convex_dome_is_finished_by_the_largest_ball_alone(tools: list[Tool] | N
     assert plan.reach.finishing_cut_length < plan.reach.smallest_ball_cut_length
 
 
+#: The rectangular pocket's node rows and columns: 30 x 20 mm, 5 mm deep, sharp edges.
+_RECT = (40, 120, 40, 160)
+
+
+def _rect_pocket(h: float = 0.25) -> ZMap:
+    r0, r1, c0, c1 = _RECT
+    z = np.zeros((161, 201))
+    z[r0:r1 + 1, c0:c1 + 1] = -5.0
+    return ZMap(z, dx=h, dy=h)
+
+
 def test_rectangular_pocket_gets_the_smallest_ball_only_in_its_corners() -> None:
     h = 0.25
-    z = np.zeros((161, 201))
-    r0, r1, c0, c1 = 40, 120, 40, 160  # 30 x 20 mm, 5 mm deep, sharp edges and corners
-    z[r0:r1 + 1, c0:c1 + 1] = -5.0
-    zmap = ZMap(z, dx=h, dy=h)
+    r0, r1, c0, c1 = _RECT
+    zmap = _rect_pocket(h)
     plan = plan_scanline(zmap)
     assert plan.checks.ok
     fin = _finishing(plan)
     assert fin[0].tool.radius > fin[-1].tool.radius
     assert fin[-1].tool.id == BALLS[-1].id
     # distance of every node to the pocket's floor-wall edges (the concave corners)
-    ii, kk = np.indices(z.shape)
+    ii, kk = np.indices(zmap.shape)
     inside_r = np.clip(ii, r0, r1)
     inside_c = np.clip(kk, c0, c1)
     to_wall = np.minimum.reduce([np.abs(ii - r0), np.abs(ii - r1), np.abs(kk - c0),

@@ -16,6 +16,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from tests.test_reach import _fillet, _pocket, _rect_pocket
+from tests.test_scanline_stock import _trench
 from zwcore.grid.tools import Tool, default_tools
 from zwcore.grid.zmap import ZMap
 from zwcore.scanline import _regions
@@ -28,25 +30,10 @@ BALLS = list(default_tools("ball"))
 def _known_parts() -> dict[str, ZMap]:
     """The known-answer parts of ``tests/test_reach.py`` and the trenches of
     ``tests/test_scanline_stock.py`` (as ``bench/bench_reach.py`` writes them out)."""
-    x = (np.arange(129) - 64) * 0.25
-    r = np.hypot(*np.meshgrid(x, x))
-    pocket = np.where(r < 8.0, 8.0 - np.sqrt(np.maximum(64.0 - r * r, 0.0)), 8.0)
-    al, h, rf = math.radians(45.0), 0.2, 3.0
-    xf = np.arange(0.0, 60.0 + 1e-9, h)
-    xt, zt = 20.0 + rf * math.sin(al), rf - rf * math.cos(al)
-    prof = np.where(xf < 20.0, 0.0,
-                    np.where(xf < xt, rf - np.sqrt(np.maximum(rf * rf - (xf - 20.0) ** 2, 0.0)),
-                             zt + math.tan(al) * (xf - xt)))
-    rect = np.zeros((161, 201))
-    rect[40:121, 40:161] = -5.0
-    parts = {"R 8 pocket": ZMap(pocket, dx=0.25, dy=0.25),
-             "45° fillet": ZMap(np.tile(np.minimum(prof, 25.0), (121, 1)), dx=h, dy=h),
-             "rectangular pocket": ZMap(rect, dx=0.25, dy=0.25)}
-    xs = np.arange(129) * 0.25
+    parts = {"R 8 pocket": _pocket(), "45° fillet": _fillet(45.0)[0],
+             "rectangular pocket": _rect_pocket()}
     for width in (2.0, 3.0):
-        z = np.zeros((129, 129))
-        z[:, np.abs(xs - xs[-1] / 2) <= width / 2] = -20.0
-        parts[f"trench {width:g} mm"] = ZMap(z, dx=0.25, dy=0.25)
+        parts[f"trench {width:g} mm"] = _trench(width=width)
     return parts
 
 

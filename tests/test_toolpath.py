@@ -103,11 +103,10 @@ def hemisphere_pocket(n: int = 97, dx: float = 0.25, radius: float = 8.0) -> ZMa
 
 # ---------------------------------------------------------------- the sweep kernel
 
-@settings(max_examples=25, deadline=None)
-@given(st.lists(st.floats(-3, 3), min_size=6, max_size=6), st.floats(0.3, 2.0), st.booleans())
-def test_sweep_is_the_exact_lower_envelope(coords, r, ball):
-    frame = GridFrame(-4.0, -4.0, 0.25, 0.25, (33, 33))
-    p0, p1 = np.array(coords[:3]), np.array(coords[3:])
+def _swept_against_sampled(frame: GridFrame, p0: np.ndarray, p1: np.ndarray, r: float,
+                           ball: bool) -> np.ndarray:
+    """One move swept over a high stock, checked against the sampled envelope; returns the
+    swept heights (``inf`` where the move does not reach)."""
     stock = np.full(frame.shape, 100.0)
     sweep_moves(frame, p0[None], p1[None], r, ball, stock)
     oracle = sampled_envelope(frame, p0, p1, r, ball)
@@ -120,6 +119,14 @@ def test_sweep_is_the_exact_lower_envelope(coords, r, ball):
     slack = step + (math.sqrt(max(2 * r * step, 0.0)) if ball else abs(p1[2] - p0[2]) / 4000)
     hit = np.isfinite(exact)
     assert np.all(exact[hit & reached] >= oracle[hit & reached] - slack - 1e-9)
+    return exact
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.lists(st.floats(-3, 3), min_size=6, max_size=6), st.floats(0.3, 2.0), st.booleans())
+def test_sweep_is_the_exact_lower_envelope(coords, r, ball):
+    frame = GridFrame(-4.0, -4.0, 0.25, 0.25, (33, 33))
+    _swept_against_sampled(frame, np.array(coords[:3]), np.array(coords[3:]), r, ball)
 
 
 @settings(max_examples=25, deadline=None)
@@ -130,16 +137,7 @@ def test_sweep_along_a_row_is_the_exact_lower_envelope(coords, r, ball):
     frame = GridFrame(-4.0, -4.0, 0.25, 0.25, (33, 33))
     p0 = np.array(coords[:3])
     p1 = np.array([coords[3], coords[1], coords[4]])
-    stock = np.full(frame.shape, 100.0)
-    sweep_moves(frame, p0[None], p1[None], r, ball, stock)
-    oracle = sampled_envelope(frame, p0, p1, r, ball)
-    reached = np.isfinite(oracle)
-    exact = np.where(stock < 100.0, stock, np.inf)
-    assert np.all(exact[reached] <= oracle[reached] + 1e-9)
-    step = np.linalg.norm(p1 - p0) / 4000
-    slack = step + (math.sqrt(max(2 * r * step, 0.0)) if ball else abs(p1[2] - p0[2]) / 4000)
-    hit = np.isfinite(exact)
-    assert np.all(exact[hit & reached] >= oracle[hit & reached] - slack - 1e-9)
+    exact = _swept_against_sampled(frame, p0, p1, r, ball)
     ny, nx = frame.shape
     closed = np.array([[node_envelope(frame.x0 + k * frame.dx, frame.y0 + i * frame.dy,
                                       *p0, *(p1 - p0), r, ball) for k in range(nx)]
