@@ -27,8 +27,9 @@ and region (on the ball's lattice, :mod:`zwcore.scanline._regions`):
   length, linked in air beside the stock);
 - **time** of a pass (:func:`zwcore.grid.feeds.machining_minutes`, the program's own
   formula): the cut length at the feed, per stretch a plunge from :data:`ENTRY_GAP`
-  above the stock (and the ball's radius of material around the start) at the plunge
-  feed, and the rapid up, across (:data:`ACROSS_MM`) and down.
+  above the stock at the plunge feed (in a rest region also through the ball's radius
+  and the mean material the ball before left there: the tool paths enter above the
+  stock around the start), and the rapid up, across (:data:`ACROSS_MM`) and down.
 """
 
 from __future__ import annotations
@@ -40,8 +41,12 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from zwcore.grid.feeds import DEFAULT_FEED, DEFAULT_PLUNGE_FEED, DEFAULT_RAPID_FEED, \
-    machining_minutes
+from zwcore.grid.feeds import (
+    DEFAULT_FEED,
+    DEFAULT_PLUNGE_FEED,
+    DEFAULT_RAPID_FEED,
+    machining_minutes,
+)
 from zwcore.grid.tools import Tool
 
 __all__ = ["ACROSS_MM", "ENTRY_GAP", "SCALLOP_FLUTE_SHARE", "BallTime", "Feeds", "ball_time",
@@ -132,9 +137,10 @@ def _direction(z: F64, path: F64, region: B8, whole: bool, along_x: bool, du: fl
     the tool paths take a region). Per cell: the nominal lines climb the tip's path
     (``sqrt(1 + a²)`` per mm, ``a`` the larger edge difference of ``path`` along the
     lines over ``du``), the extra ones, laid where the part is steep across the lines,
-    run along its contours (``du`` each). Every rise of the lines' count along a strip
-    starts a stretch (a whole-part pass: of the extra lines only; its nominal lines run
-    whole, linked in air beside the stock)."""
+    run along its contours (``du`` each), and each stretch a radius on at either end.
+    Every rise of the lines' count along a strip starts a stretch (a whole-part pass:
+    of the extra lines only; its nominal lines run whole, linked in air beside the
+    stock)."""
     ny, nx = z.shape
     nu, nv = (nx - 1, ny - 1) if along_x else (ny - 1, nx - 1)
     length, stretches = 0.0, 0.0
@@ -177,12 +183,14 @@ def _direction(z: F64, path: F64, region: B8, whole: bool, along_x: bool, du: fl
             if now > prev:
                 stretches += now - prev
             prev = now
-    return length, stretches
+    # an extra line runs a radius past the cells that need it at each end (a region's
+    # stretches too: the region holds the positions within the radius of where it cuts)
+    return length + stretches * 2.0 * reach * du, stretches
 
 
 def ball_time(z: F64, closing: F64, dx: float, dy: float, spacing: tuple[float, float],
-              tool: Tool, region: B8 | None, depth: float, tolerance: float, feeds: Feeds
-              ) -> BallTime:
+              tool: Tool, region: B8 | None, depth: float, tolerance: float, feeds: Feeds,
+              entry: float = 0.0) -> BallTime:
     """Estimated time of ``tool`` over ``region`` of the lattice ``z``.
 
     Parameters
@@ -204,6 +212,10 @@ def ball_time(z: F64, closing: F64, dx: float, dy: float, spacing: tuple[float, 
         Most material the ball meets in its region, mm.
     tolerance : float
     feeds : Feeds
+    entry : float
+        Depth of stock an entry plunges through below :data:`ENTRY_GAP`, mm (a rest
+        region's: the material the ball before left around it and the ball's radius;
+        a whole-part pass enters its extra lines just above its own whole lines: 0).
 
     Returns
     -------
@@ -231,7 +243,7 @@ def ball_time(z: F64, closing: F64, dx: float, dy: float, spacing: tuple[float, 
             cut, entered = _direction(zc, path, mask, whole, along_x, du, dv, pick, nominal,
                                       reach)
             each.append((cut, entered))
-            plunge = ENTRY_GAP + tool.radius
+            plunge = ENTRY_GAP + entry
             minutes += count * machining_minutes(
                 cut, entered * plunge, entered * (2.0 * plunge + ACROSS_MM), feed=feeds.feed,
                 plunge_feed=feeds.plunge_feed, rapid_feed=feeds.rapid_feed)

@@ -47,13 +47,13 @@ from numpy.typing import NDArray
 from scipy import ndimage
 
 from zwcore.grid.tools import Tool
-from zwcore.scanline._chain_time import BallTime, Feeds, ball_time
+from zwcore.scanline._chain_time import SCALLOP_FLUTE_SHARE, BallTime, Feeds, ball_time
 from zwcore.scanline._reach import ball_reach, concave_radii, within_distance
 from zwcore.scanline._reach_cut import CuttingRegion, material_grid
 from zwcore.sim import RegionBox
 
-__all__ = ["TOOL_CHANGE_MIN", "TOOL_CHANGE_MM", "Chain", "MainBall", "finishing_chain", "flat_pick_feed",
-           "region_boxes"]
+__all__ = ["TOOL_CHANGE_MIN", "TOOL_CHANGE_MM", "Chain", "MainBall", "finishing_chain",
+           "flat_pick_feed", "region_boxes"]
 
 F64 = NDArray[np.float64]
 B8 = NDArray[np.bool_]
@@ -296,8 +296,11 @@ class _Reach:
             return None
         zk = self.z[::kn, ::kn]
         depth = self.met(zk, kn, mat.rest, self.rest(nxt.radius, kn), nxt.radius, region)
+        # an entry comes down to the stock the ball before left around the start
+        entry = nxt.radius + float(mat.rest[region].mean())
         got_time = ball_time(zk, zk + self.rest(nxt.radius, kn), kn * self.dx, kn * self.dy,
-                             (self.dx, self.dy), nxt, region, depth, self.tol, self.feeds)
+                             (self.dx, self.dy), nxt, region, depth, self.tol, self.feeds,
+                             entry)
         self.times[prev, nxt.id] = got_time
         return got_time.minutes
 
@@ -320,7 +323,10 @@ class _Reach:
         """Estimated time of ``balls[j]`` over the whole part: it meets what the roughing
         before it leaves, taken as what the largest library ball of at most twice its
         diameter leaves (the roughing stage before it is one pyramid level coarser,
-        twice its spacing; the largest ball: nothing but its own cliffs)."""
+        twice its spacing), and up to half its own flute length the roughing may leave
+        over its stage model; the largest ball only its cliffs. Roughing is not counted,
+        for any main ball (the largest, which the plan lets rough at the finishing
+        level itself, included)."""
         tool = balls[j]
         k = lattice(tool.radius, self.dx, self.dy)
         zk = self.z[::k, ::k]
@@ -334,6 +340,8 @@ class _Reach:
             if kp != k:
                 theirs = _upsample_where(theirs, self.z[::kp, ::kp], kp // k, zk, self.tol)
         depth = self.met(zk, k, theirs, self.rest(tool.radius, k), tool.radius, None)
+        if j > 0:  # the roughing leaves up to half this ball's flutes over its own model
+            depth += SCALLOP_FLUTE_SHARE * tool.flute_length
         got = ball_time(zk, zk + self.rest(tool.radius, k), k * self.dx, k * self.dy,
                         (self.dx, self.dy), tool, None, depth, self.tol, self.feeds)
         self.times[math.inf, tool.id] = got
