@@ -19,6 +19,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from scipy import ndimage
 
 from tests.test_reach import _pocket, _rect_pocket
 from tests.test_scanline_stock import _trench
@@ -191,3 +192,31 @@ def test_ranked_chain_runs_as_fast_as_the_other_candidates_programs(
         times[got] = minutes
     assert len(times) > 1  # the candidates are other plans
     assert ranked <= (1.0 + MARGIN) * min(times.values()), times
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), n=st.integers(1, 40), r=st.integers(0, 6))
+def test_window_max_is_the_sliced_max(seed: int, n: int, r: int) -> None:
+    x = np.random.default_rng(seed).uniform(0.0, 5.0, n)
+    out, pre, suf = np.zeros(n), np.zeros(n + 2 * r), np.zeros(n + 2 * r)
+    _chain_time._window_max(x, r, out, pre, suf)
+    want = [x[max(0, u - r):u + r + 1].max() for u in range(n)]
+    np.testing.assert_array_equal(out, want)
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), ny=st.integers(1, 20), nx=st.integers(1, 20),
+       wy=st.integers(0, 4), wx=st.integers(0, 4), whole=st.booleans())
+def test_stock_met_is_the_square_window_max(seed: int, ny: int, nx: int, wy: int, wx: int,
+                                            whole: bool) -> None:
+    # The highest stock in the square about each region node less the tip there, at
+    # least 0, written out with ndimage.
+    rng = np.random.default_rng(seed)
+    z = rng.uniform(-10.0, 10.0, (ny, nx))
+    theirs, mine = rng.uniform(0.0, 3.0, (ny, nx)), rng.uniform(0.0, 3.0, (ny, nx))
+    region = None if whole else rng.random((ny, nx)) < 0.3
+    top = ndimage.maximum_filter(z + theirs, size=(2 * wy + 1, 2 * wx + 1), mode="nearest")
+    met = top - z - mine
+    want = max(float(met.max() if region is None else met[region].max(initial=0.0)), 0.0)
+    got = _chain_time.stock_met(z, theirs, mine, region, wy, wx)
+    assert got == pytest.approx(want, rel=1e-12, abs=1e-12)

@@ -50,7 +50,7 @@ from zwcore.grid.feeds import (
 from zwcore.grid.tools import Tool
 
 __all__ = ["ACROSS_MM", "ENTRY_GAP", "SCALLOP_FLUTE_SHARE", "BallTime", "Feeds", "ball_time",
-           "passes_for"]
+           "passes_for", "stock_met"]
 
 F64 = NDArray[np.float64]
 B8 = NDArray[np.bool_]
@@ -99,6 +99,8 @@ class BallTime:
         Cut length (mm) and stretches of the last pass (the finishing pick-feed).
     lifted : (float, float)
         The same of each lifted pass before it (0 when there is none).
+    along_x : bool
+        The scan direction of the estimate (lines along x).
     """
 
     minutes: float
@@ -109,6 +111,7 @@ class BallTime:
     depth: float
     last: tuple[float, float] = (0.0, 0.0)
     lifted: tuple[float, float] = (0.0, 0.0)
+    along_x: bool = True
 
 
 def passes_for(depth: float, flute: float) -> int:
@@ -124,9 +127,31 @@ def _pick(radius: float, scallop: float) -> float:
 
 
 @njit(cache=True, nogil=True)
-def _direction(z: F64, path: F64, region: B8, whole: bool, along_x: bool, du: float,
-               dv: float, pick: float, nominal: float, reach: int) -> tuple[float, float]:
-    """Cut length and stretches of one pass with lines along ``u`` (``x`` if ``along_x``).
+def _window_max(x: F64, r: int, out: F64, pre: F64, suf: F64) -> None:
+    """``out[u] = max(x[u - r : u + r + 1])`` (clipped at the ends) for ``x >= 0``, in
+    ``O(n)``: ``x`` padded by ``r`` zeros each side (``pre`` and ``suf`` hold
+    ``n + 2r``), prefix and suffix maxima in blocks of ``w = 2r + 1`` (van Herk /
+    Gil-Werman): every padded window ``[u, u + 2r]`` spans at most two blocks."""
+    n = x.size
+    w = 2 * r + 1
+    m = n + 2 * r
+    for t in range(m):
+        val = x[t - r] if r <= t < n + r else 0.0
+        pre[t] = val if t % w == 0 else max(pre[t - 1], val)
+    for t in range(m - 1, -1, -1):
+        val = x[t - r] if r <= t < n + r else 0.0
+        suf[t] = val if (t % w == w - 1 or t == m - 1) else max(suf[t + 1], val)
+    for u in range(n):
+        out[u] = max(suf[u], pre[u + 2 * r])
+
+
+@njit(cache=True, nogil=True)
+def _directions(z: F64, path: F64, region: B8, strips: B8, whole: bool, along_x: bool,
+                du: float, dv: float, picks: F64, nominals: F64, reach: int
+                ) -> tuple[F64, F64]:
+    """Cut length and stretches of passes with lines along ``u`` (``x`` if ``along_x``),
+    one per ``(picks[r], nominals[r])``, in one sweep over the strips that hold region
+    cells (``strips``).
 
     The plan's lines over the whole part, strip of cells by strip (:mod:`._passes`):
     ``dv / nominal`` nominal lines per strip, and where the part is steep across the
@@ -143,54 +168,146 @@ def _direction(z: F64, path: F64, region: B8, whole: bool, along_x: bool, du: fl
     stock)."""
     ny, nx = z.shape
     nu, nv = (nx - 1, ny - 1) if along_x else (ny - 1, nx - 1)
-    length, stretches = 0.0, 0.0
-    extra = np.zeros(max(nu, 0))
-    base = dv / nominal
+    runs = picks.size
+    length, stretches = np.zeros(runs), np.zeros(runs)
+    m = max(nu, 0)
+    steep, climb = np.zeros(m), np.zeros(m)
+    inside = np.zeros(m, dtype=np.bool_)
+    extra, grown = np.zeros(m), np.zeros(m)
+    pre, suf = np.zeros(m + 2 * reach), np.zeros(m + 2 * reach)
     for v in range(nv):
-        any_in = whole
-        for u in range(nu):
-            if any_in:
-                break
-            i, k = (v, u) if along_x else (u, v)
-            any_in = (region[i, k] or region[i + 1, k] or region[i, k + 1]
-                      or region[i + 1, k + 1])
-        if not any_in:
+        if not strips[v]:
             continue
         for u in range(nu):
             i, k = (v, u) if along_x else (u, v)
             if along_x:
                 b = max(abs(z[i + 1, k] - z[i, k]), abs(z[i + 1, k + 1] - z[i, k + 1])) / dv
+                a = max(abs(path[i, k + 1] - path[i, k]),
+                        abs(path[i + 1, k + 1] - path[i + 1, k])) / du
             else:
                 b = max(abs(z[i, k + 1] - z[i, k]), abs(z[i + 1, k + 1] - z[i + 1, k])) / dv
-            extra[u] = max(math.sqrt(1.0 + b * b) * dv / pick - base, 0.0)
-        prev = 0.0
-        for u in range(nu):
-            i, k = (v, u) if along_x else (u, v)
-            now = 0.0
-            if whole or (region[i, k] or region[i + 1, k] or region[i, k + 1]
-                         or region[i + 1, k + 1]):
-                grown = 0.0
-                for w in range(max(0, u - reach), min(nu, u + reach + 1)):
-                    grown = max(grown, extra[w])
-                if along_x:
-                    a = max(abs(path[i, k + 1] - path[i, k]),
-                            abs(path[i + 1, k + 1] - path[i + 1, k])) / du
-                else:
-                    a = max(abs(path[i + 1, k] - path[i, k]),
-                            abs(path[i + 1, k + 1] - path[i, k + 1])) / du
-                length += du * (base * math.sqrt(1.0 + a * a) + grown)
-                now = grown if whole else grown + base
-            if now > prev:
-                stretches += now - prev
-            prev = now
-    # an extra line runs a radius past the cells that need it at each end (a region's
-    # stretches too: the region holds the positions within the radius of where it cuts)
-    return length + stretches * 2.0 * reach * du, stretches
+                a = max(abs(path[i + 1, k] - path[i, k]),
+                        abs(path[i + 1, k + 1] - path[i, k + 1])) / du
+            steep[u] = math.sqrt(1.0 + b * b) * dv
+            climb[u] = math.sqrt(1.0 + a * a)
+            inside[u] = whole or (region[i, k] or region[i + 1, k] or region[i, k + 1]
+                                  or region[i + 1, k + 1])
+        for r in range(runs):
+            base = dv / nominals[r]
+            for u in range(nu):
+                extra[u] = max(steep[u] / picks[r] - base, 0.0)
+            _window_max(extra, reach, grown, pre, suf)
+            prev = 0.0
+            for u in range(nu):
+                now = 0.0
+                if inside[u]:
+                    length[r] += du * (base * climb[u] + grown[u])
+                    now = grown[u] if whole else grown[u] + base
+                if now > prev:
+                    stretches[r] += now - prev
+                prev = now
+    for r in range(runs):
+        length[r] += stretches[r] * 2.0 * reach * du
+    return length, stretches
+
+
+@njit(cache=True, nogil=True)
+def _met_kernel(z: F64, theirs: F64, mine: F64, region: B8, whole: bool, wy: int,
+                wx: int) -> float:
+    """Most of ``max over the (2wy+1) x (2wx+1) nodes about c of (z + theirs) - (z +
+    mine)(c)`` over the region's nodes ``c`` (all: ``whole``), at least 0: row maxima by
+    :func:`_window_max` on the rows within ``wy`` of a region row, then each region node's
+    column of them."""
+    ny, nx = z.shape
+    has = np.zeros(ny, dtype=np.bool_)
+    for i in range(ny):
+        if whole:
+            has[i] = True
+            continue
+        for k in range(nx):
+            if region[i, k]:
+                has[i] = True
+                break
+    rowmax = np.zeros((ny, nx))
+    row, out = np.zeros(nx), np.zeros(nx)
+    pre, suf = np.zeros(nx + 2 * wx), np.zeros(nx + 2 * wx)
+    low = np.inf
+    for i in range(ny):
+        for k in range(nx):
+            low = min(low, z[i, k] + theirs[i, k])
+    for i in range(ny):
+        near = False
+        for a in range(max(0, i - wy), min(ny, i + wy + 1)):
+            near = near or has[a]
+        if not near:
+            continue
+        for k in range(nx):  # shifted to >= 0 for the window maxima
+            row[k] = z[i, k] + theirs[i, k] - low
+        _window_max(row, wx, out, pre, suf)
+        rowmax[i] = out
+    best = 0.0
+    if whole:  # every node: the column maxima in O(n) too
+        col, top = np.zeros(ny), np.zeros(ny)
+        cpre, csuf = np.zeros(ny + 2 * wy), np.zeros(ny + 2 * wy)
+        for k in range(nx):
+            for i in range(ny):
+                col[i] = rowmax[i, k]
+            _window_max(col, wy, top, cpre, csuf)
+            for i in range(ny):
+                best = max(best, top[i] + low - z[i, k] - mine[i, k])
+        return best
+    for i in range(ny):
+        if not has[i]:
+            continue
+        for k in range(nx):
+            if not region[i, k]:
+                continue
+            t = 0.0
+            for a in range(max(0, i - wy), min(ny, i + wy + 1)):
+                t = max(t, rowmax[a, k])
+            best = max(best, t + low - z[i, k] - mine[i, k])
+    return best
+
+
+def stock_met(z: F64, theirs: F64, mine: F64, region: B8 | None, wy: int, wx: int) -> float:
+    """Most stock a ball meets above its tip in ``region`` (None: everywhere), as the
+    flute rule takes it: the highest stock (the part ``z`` plus ``theirs``, what the
+    ball before leaves) in the square of ``2 wy + 1`` by ``2 wx + 1`` nodes about the tip
+    (it holds the ball's cylinder), less the tip (the part plus ``mine``, what this ball
+    leaves: its closing, at most its CL there); at least 0.
+
+    Parameters
+    ----------
+    z, theirs, mine : (ny, nx) float64
+    region : (ny, nx) bool or None
+    wy, wx : int
+        The ball's radius in nodes across and along the rows (rounded down).
+    """
+    whole = region is None
+    mask = np.zeros((1, 1), dtype=bool) if region is None else np.ascontiguousarray(region)
+    return float(_met_kernel(np.require(z, np.float64, ["C"]),
+                             np.require(theirs, np.float64, ["C"]),
+                             np.require(mine, np.float64, ["C"]), mask, whole, wy, wx))
+
+
+def _strips(region: B8, along_x: bool) -> B8:
+    """Strips of cells (between two node rows across the lines) with a region node."""
+    rows: B8 = np.asarray(region.any(axis=1) if along_x else region.any(axis=0))
+    out: B8 = rows[:-1] | rows[1:]
+    return out
+
+
+def _direction(z: F64, path: F64, region: B8, whole: bool, along_x: bool, du: float,
+               dv: float, pick: float, nominal: float, reach: int) -> tuple[float, float]:
+    """:func:`_directions` for one pass."""
+    got = _directions(z, path, region, _strips(region, along_x), whole, along_x, du, dv,
+                      np.array([pick]), np.array([nominal]), reach)
+    return float(got[0][0]), float(got[1][0])
 
 
 def ball_time(z: F64, closing: F64, dx: float, dy: float, spacing: tuple[float, float],
               tool: Tool, region: B8 | None, depth: float, tolerance: float, feeds: Feeds,
-              entry: float = 0.0) -> BallTime:
+              entry: float = 0.0, along_x: bool | None = None) -> BallTime:
     """Estimated time of ``tool`` over ``region`` of the lattice ``z``.
 
     Parameters
@@ -216,6 +333,8 @@ def ball_time(z: F64, closing: F64, dx: float, dy: float, spacing: tuple[float, 
         Depth of stock an entry plunges through below :data:`ENTRY_GAP`, mm (a rest
         region's: the material the ball before left around it and the ball's radius;
         a whole-part pass enters its extra lines just above its own whole lines: 0).
+    along_x : bool, optional
+        The scan direction; default: the one with the shorter time.
 
     Returns
     -------
@@ -230,19 +349,20 @@ def ball_time(z: F64, closing: F64, dx: float, dy: float, spacing: tuple[float, 
     lifted = _pick(tool.radius, SCALLOP_FLUTE_SHARE * tool.flute_length)
     area = float(mask.sum()) * dx * dy
     best: BallTime | None = None
-    for along_x in (True, False):
-        du, dv = (dx, dy) if along_x else (dy, dx)
-        grid = spacing[1] if along_x else spacing[0]  # the input's spacing across the lines
+    for along in ((True, False) if along_x is None else (along_x,)):
+        du, dv = (dx, dy) if along else (dy, dx)
+        grid = spacing[1] if along else spacing[0]  # the input's spacing across the lines
         reach = math.ceil(tool.radius / du)
         runs = [(final, grid * max(1, math.floor(final / grid)), 1)]
         if n > 1:
             runs.append((lifted, grid, n - 1))
         length = stretches = minutes = 0.0
         each = []
-        for pick, nominal, count in runs:
-            cut, entered = _direction(zc, path, mask, whole, along_x, du, dv, pick, nominal,
-                                      reach)
-            each.append((cut, entered))
+        cuts, ins = _directions(zc, path, mask, _strips(mask, along), whole, along, du,
+                                dv, np.array([r[0] for r in runs]),
+                                np.array([r[1] for r in runs]), reach)
+        for (_, _, count), cut, entered in zip(runs, cuts, ins, strict=True):
+            each.append((float(cut), float(entered)))
             plunge = ENTRY_GAP + entry
             minutes += count * machining_minutes(
                 cut, entered * plunge, entered * (2.0 * plunge + ACROSS_MM), feed=feeds.feed,
@@ -251,6 +371,6 @@ def ball_time(z: F64, closing: F64, dx: float, dy: float, spacing: tuple[float, 
             stretches += count * entered
         if best is None or minutes < best.minutes:
             best = BallTime(minutes, n, length, stretches, area, depth, each[0],
-                            each[1] if n > 1 else (0.0, 0.0))
+                            each[1] if n > 1 else (0.0, 0.0), along)
     assert best is not None
     return best

@@ -47,7 +47,13 @@ from numpy.typing import NDArray
 from scipy import ndimage
 
 from zwcore.grid.tools import Tool
-from zwcore.scanline._chain_time import SCALLOP_FLUTE_SHARE, BallTime, Feeds, ball_time
+from zwcore.scanline._chain_time import (
+    SCALLOP_FLUTE_SHARE,
+    BallTime,
+    Feeds,
+    ball_time,
+    stock_met,
+)
 from zwcore.scanline._reach import ball_reach, concave_radii, within_distance
 from zwcore.scanline._reach_cut import CuttingRegion, material_grid
 from zwcore.sim import RegionBox
@@ -298,26 +304,22 @@ class _Reach:
         depth = self.met(zk, kn, mat.rest, self.rest(nxt.radius, kn), nxt.radius, region)
         # an entry comes down to the stock the ball before left around the start
         entry = nxt.radius + float(mat.rest[region].mean())
+        main = self.times.get((math.inf, nxt.id))  # its scan direction over the whole part
         got_time = ball_time(zk, zk + self.rest(nxt.radius, kn), kn * self.dx, kn * self.dy,
                              (self.dx, self.dy), nxt, region, depth, self.tol, self.feeds,
-                             entry)
+                             entry, None if main is None else main.along_x)
         self.times[prev, nxt.id] = got_time
         return got_time.minutes
 
     def met(self, zk: F64, k: int, theirs: F64, mine: F64, radius: float,
             region: B8 | None) -> float:
-        """Most stock a ball meets above its tip in ``region`` (None: everywhere) of lattice
-        ``k`` (the part ``zk`` there), as the flute rule takes it: the highest stock
-        (part plus ``theirs``, what the ball before leaves) in the square of side ``2R``
-        about the tip (it holds the ball's cylinder) less the tip (the part plus
-        ``mine``, what this ball leaves: its closing, at most its CL there). Beside a
-        cliff that is the cliff's height: a ball whose flutes are shorter goes down
-        along it in layers."""
-        wy = math.floor(radius / (k * self.dy))
-        wx = math.floor(radius / (k * self.dx))
-        top = ndimage.maximum_filter(zk + theirs, size=(2 * wy + 1, 2 * wx + 1), mode="nearest")
-        met = top - zk - mine
-        return max(float(met.max() if region is None else met[region].max()), 0.0)
+        """Most stock a ball of ``radius`` meets above its tip in ``region`` (None:
+        everywhere) of lattice ``k`` (the part ``zk`` there; ``theirs``, ``mine``: what the
+        ball before and this one leave): :func:`~zwcore.scanline._chain_time.stock_met`.
+        Beside a cliff that is the cliff's height: a ball whose flutes are shorter goes
+        down along it in layers."""
+        return stock_met(zk, theirs, mine, region, math.floor(radius / (k * self.dy)),
+                         math.floor(radius / (k * self.dx)))
 
     def main_time(self, balls: list[Tool], j: int) -> BallTime:
         """Estimated time of ``balls[j]`` over the whole part: it meets what the roughing
@@ -437,6 +439,8 @@ def _plan(balls: list[Tool], reach: _Reach, bound: bool = True
     best[i]`` alone, and the search stops at the first whose bound is not below it.
     """
     n = len(balls)
+    # every ball over the whole part first: its scan direction serves its rest regions
+    mains = [reach.main_time(balls, j) for j in range(n)]
     best: list[float] = [math.inf] * n
     after: list[int | None] = [None] * n
     floor = [0.0] * n  # per next ball: its cost after the largest previous ball so far
@@ -457,7 +461,6 @@ def _plan(balls: list[Tool], reach: _Reach, bound: bool = True
         if not options:
             options.append((0.0, None))
         best[j], after[j] = min(options, key=lambda o: (o[0], -1 if o[1] is None else o[1]))
-    mains = [reach.main_time(balls, j) for j in range(n)]
     totals = [mains[j].minutes + best[j] for j in range(n)]
     main = min(range(n), key=lambda j: (totals[j], j))
     chain = [main]
