@@ -281,7 +281,8 @@ class _Reach:
     def cost(self, prev: float, nxt: Tool) -> float | None:
         """Estimated minutes of ball ``nxt`` over its rest region after ``prev``, on
         ``nxt``'s lattice (None: no region): :func:`~zwcore.scanline._chain_time.ball_time`
-        with the most material it meets there (``prev``'s rest less its own).
+        with the most stock it meets above its tip there (:meth:`met`), entered through
+        the material ``prev`` left, in its own whole-part scan direction.
 
         The region is what the plan's rest rule (:mod:`zwcore.scanline._rest`) cuts: of
         the positions within ``nxt``'s radius of the nodes where it does better, those
