@@ -13,13 +13,19 @@ each checkout's child also plans Mount Rushmore once (its finishing chain, facto
 is left and CPU seconds, before and after in one run).
 With ``--forced`` it also plans Mount Rushmore with the finishing chains Ø3 > Ø1 and
 Ø2 > Ø1 (the estimate's ranking replaced for those runs) and prints the simulated regions.
+With ``--chains`` it prints, for Mount Rushmore's candidate chains (the ranking's, Ø1
+alone, Ø2 > Ø1, Ø3 > Ø2 > Ø1, Ø6 > Ø2 > Ø1, Ø6 > Ø3 > Ø2 > Ø1), the time ranking's
+estimate per ball (passes, cut length, stretches, minutes), and with ``--programs`` also
+plans each chain, generates its tool paths and prints the emitted program's time estimate
+(roughing and finishing; minutes per chain, slow).
 Usage: ``python bench/bench_reach.py [--before ../zwplan-old] [--sizes 513 1025]
-[--forced]``.
+[--forced] [--chains [--programs]]``.
 """
 
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
 import math
 import os
@@ -182,7 +188,8 @@ def _sizes(before: str | None, sizes: list[int], repeat: int) -> None:
             print(f"| {name} | {part} | {k['regions']} | {k['factor']:.2f} | {k['left']} |")
 
 
-def _rushmore(forced: bool, roughing: bool = False) -> None:
+def _rushmore(forced: bool, roughing: bool = False, chains: bool = False,
+              programs: bool = False) -> None:
     import numpy as np
 
     sys.path.insert(0, str(ROOT))
@@ -218,6 +225,8 @@ def _rushmore(forced: bool, roughing: bool = False) -> None:
         _roughing(z)
     if forced:
         _forced(z, [["BEM-D3", "BEM-D1"], ["BEM-D2", "BEM-D1"]])
+    if chains:
+        _chains(z, programs)
 
 
 def _forced(z: object, chains: list[list[str]]) -> None:
@@ -236,10 +245,7 @@ def _forced(z: object, chains: list[list[str]]) -> None:
     print("| --- | --- | --- | --- | --- | --- |")
     try:
         for chain in chains:
-            def fixed(balls: list, reach: object, area: float, ids: list = chain) -> list:
-                names = [b.id for b in balls]
-                return [names.index(i) for i in ids]
-            _regions._plan = fixed
+            _regions._plan = _fixed(chain)
             t = time.perf_counter()
             plan = plan_scanline(ZMap(np.asarray(z), dx=0.1, dy=0.1))
             took = time.perf_counter() - t
@@ -252,6 +258,68 @@ def _forced(z: object, chains: list[list[str]]) -> None:
                   f"| {r.unreachable_area:.0f} mm² up to {r.unreachable_max_height:.2f} mm |")
     finally:
         _regions._plan = ranked
+
+
+def _fixed(ids: list[str]):  # type: ignore[no-untyped-def]
+    """A stand-in for ``_regions._plan`` that returns the chain ``ids`` (and the time
+    estimate of each of its balls)."""
+    def fixed(balls: list, reach, bound: bool = True):  # type: ignore[no-untyped-def]
+        names = [b.id for b in balls]
+        order = [names.index(i) for i in ids]
+        times = [reach.main_time(balls, order[0])]
+        for a, b in itertools.pairwise(order):
+            reach.cost(balls[a].radius, balls[b])
+            times.append(reach.times[balls[a].radius, balls[b].id])
+        return order, times
+    return fixed
+
+
+CHAINS = [["BEM-D1"], ["BEM-D2", "BEM-D1"], ["BEM-D3", "BEM-D2", "BEM-D1"],
+          ["BEM-D6", "BEM-D2", "BEM-D1"], ["BEM-D6", "BEM-D3", "BEM-D2", "BEM-D1"]]
+
+
+def _chains(z: object, programs: bool) -> None:
+    """Mount Rushmore's candidate chains: the time ranking's estimate per ball, and (with
+    ``programs``) the emitted program's time of each chain planned with it."""
+    import numpy as np
+
+    from zwcore import ZMap
+    from zwcore.grid.tools import default_tools
+    from zwcore.scanline import _regions
+    from zwcore.scanline.planner import plan_scanline
+    from zwcore.toolpath import scanline_toolpaths
+
+    balls = list(default_tools("ball"))
+    reach = _regions._Reach(np.asarray(z), 0.1, 0.1, 0.01)
+    c = time.process_time()
+    order, _ = _regions._plan(balls, reach)
+    ranking = time.process_time() - c
+    ranked = [balls[j].id for j in order]
+    print(f"\ntime ranking on Mount Rushmore: {' > '.join(ranked)} ({ranking:.2f} s CPU, "
+          "the rest maps included)")
+    print("| chain | estimate per ball: passes, cut m, stretches, min | estimated min "
+          "| program min (roughing + finishing) |")
+    print("| --- | --- | --- | --- |")
+    chains = [ranked] + [c for c in CHAINS if c != ranked]
+    ranked_fn = _regions._plan
+    for chain in chains:
+        _, times = _fixed(chain)(balls, reach)
+        per = "; ".join(f"{i} {t.passes}, {t.cut_length / 1000:.0f}, {t.stretches:.0f}, "
+                        f"{t.minutes:.0f}" for i, t in zip(chain, times, strict=True))
+        est = sum(t.minutes for t in times) + _regions.TOOL_CHANGE_MIN * (len(times) - 1)
+        prog = "-"
+        if programs:
+            try:
+                _regions._plan = _fixed(chain)
+                part = ZMap(np.asarray(z), dx=0.1, dy=0.1)
+                plan = plan_scanline(part)
+            finally:
+                _regions._plan = ranked_fn
+            tp = scanline_toolpaths(part, plan, verify=False)
+            rough = sum(f["time_min"] for s, f in zip(plan.stages, tp.stage_figures(),
+                                                      strict=True) if s.level != plan.depth)
+            prog = f"{tp.time_min:.0f} ({rough:.0f} + {tp.time_min - rough:.0f})"
+        print(f"| {' > '.join(chain)} | {per} | {est:.0f} | {prog} |", flush=True)
 
 
 def _roughing(z: object) -> None:
@@ -343,6 +411,10 @@ def main() -> None:
                     help="also print what a roughing region rule could skip on Mount Rushmore")
     ap.add_argument("--forced", action="store_true",
                     help="also plan Mount Rushmore with the chains D3 > D1 and D2 > D1")
+    ap.add_argument("--chains", action="store_true",
+                    help="Mount Rushmore's candidate chains: the time estimate per ball")
+    ap.add_argument("--programs", action="store_true",
+                    help="with --chains: each chain's emitted program time (slow)")
     args = ap.parse_args()
     if args.child:
         _child(args.sizes, args.repeat)
@@ -350,7 +422,7 @@ def main() -> None:
     if args.sizes:
         _sizes(args.before, args.sizes, args.repeat)
     if not args.no_rushmore:
-        _rushmore(args.forced, args.roughing)
+        _rushmore(args.forced, args.roughing, args.chains, args.programs)
 
 
 if __name__ == "__main__":

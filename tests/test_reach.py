@@ -245,7 +245,9 @@ def test_fillet_gets_a_small_ball_only_along_it() -> None:
     # smaller ball; what the passes leave is reported as it is
     last = fin[-1].tool.radius
     rest = brute_closing(zmap.z, last, zmap.dx, zmap.dy, pad=True) - zmap.z
-    assert rest.max() <= 0.02  # node cusps only
+    # node-position cusps only (measured: R 3 0.003, R 2.5 0.021, R 2 0.008, R 1.5 0.013 mm:
+    # a smaller ball would not leave less; the time ranking may pick any R <= 3)
+    assert rest.max() <= 0.025
     assert plan.reach is not None
     left = plan.stages[-1].sim_left_over_part_max  # (0 reported when within tolerance)
     assert plan.reach.unreachable_max_height == pytest.approx(left if left > 0.01 else 0.0)

@@ -207,7 +207,6 @@ def test_pruned_chain_search_finds_the_full_searchs_chain(name: str) -> None:
     # loses; on the known-answer parts it picks what trying every pair picks, with fewer
     # pairs.
     zmap = _known_parts()[name]
-    area = zmap.z.size * zmap.dx * zmap.dy
     asked: dict[bool, int] = {}
     chains = {}
     for bound in (True, False):
@@ -221,7 +220,7 @@ def test_pruned_chain_search_finds_the_full_searchs_chain(name: str) -> None:
             return cost(prev, nxt)
 
         reach.cost = counted  # type: ignore[method-assign]
-        chains[bound] = _regions._plan(BALLS, reach, area, bound)
+        chains[bound] = _regions._plan(BALLS, reach, bound)[0]
         asked[bound] = calls[0]
     assert chains[True] == chains[False]
     assert asked[True] <= asked[False]

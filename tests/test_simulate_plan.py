@@ -128,6 +128,11 @@ def _brute_passes(part: ZMap) -> tuple[np.ndarray, list[float]]:
         assert s.sim_flute_rule_ok  # every pass ran with the flute lift
         r, flute = s.tool.radius, s.tool.flute_length
         x, y = _positions(s.lines, s.sim_position_spacing)
+        if s.region is not None:  # a rest stage: positions whose nearest node is its
+            my, mx = s.region.shape
+            keep = s.region[np.clip(np.rint(y / s.spacing[1]).astype(int), 0, my - 1),
+                            np.clip(np.rint(x / s.spacing[0]).astype(int), 0, mx - 1)]
+            x, y = x[keep], y[keep]
         cl_target = _cl_model(s, targets[(s.level, s.tool.id)], x, y)
         a, b = math.ceil(r / DX) + 1, math.ceil(r / DX) + 1
         oy, ox = np.mgrid[-a:a + 1, -b:b + 1]

@@ -25,13 +25,15 @@ to its rest region, so nothing a coarse lattice skips is left unassigned. A pair
 balls is compared on the smaller ball's (finer) lattice, the larger ball's rest carried
 there as the lesser of two bilinear interpolants (rest; closing less the fine part).
 
-Which chain: the one with the shortest estimated finishing cut length,
-``sum over balls of region area x passes / pick-feed`` (the pick-feed that holds
-``tolerance`` on a flat, ``2 sqrt(2 R tol - tol²)``; a rest ball takes the material
-the previous ball left in layers of its flute length, so a node under a deep rest
-counts once per layer) plus :data:`TOOL_CHANGE_MM` per tool change, by dynamic
-programming over (previous ball, next ball) pairs, a pair skipped when a lower bound of
-its cost (its cost after a smaller previous ball) cannot win.
+Which chain: the one with the shortest estimated finishing *time*
+(:mod:`zwcore.scanline._chain_time`: per ball its passes (the flute rule on the material
+it meets), its region's cut length at the pick-feed that holds the tolerance on the
+part's slopes over the feed, and per stretch of the region along the scan lines an
+entry and exit at the plunge feed and rapid; the program's own time formula), plus
+:data:`TOOL_CHANGE_MIN` per tool change, by dynamic programming over (previous ball,
+next ball) pairs, a pair skipped when a lower bound of its cost (its cost after a
+smaller previous ball) cannot win. The main ball meets at least what the next larger
+library ball leaves (the roughing before it is that ball or a larger one).
 """
 
 from __future__ import annotations
@@ -45,12 +47,19 @@ from numpy.typing import NDArray
 from scipy import ndimage
 
 from zwcore.grid.tools import Tool
+from zwcore.scanline._chain_time import (
+    SCALLOP_FLUTE_SHARE,
+    BallTime,
+    Feeds,
+    ball_time,
+    stock_met,
+)
 from zwcore.scanline._reach import ball_reach, concave_radii, within_distance
 from zwcore.scanline._reach_cut import CuttingRegion, material_grid
 from zwcore.sim import RegionBox
 
-__all__ = ["TOOL_CHANGE_MM", "Chain", "MainBall", "finishing_chain", "flat_pick_feed",
-           "region_boxes"]
+__all__ = ["TOOL_CHANGE_MIN", "TOOL_CHANGE_MM", "Chain", "MainBall", "finishing_chain",
+           "flat_pick_feed", "region_boxes"]
 
 F64 = NDArray[np.float64]
 B8 = NDArray[np.bool_]
@@ -65,6 +74,14 @@ SHARP_SHARE = 0.25
 #: A tool change (stop, change, measure, approach) costs as much finishing time as
 #: cutting this length, mm (about 7 s at a 2,000 mm/min finishing feed).
 TOOL_CHANGE_MM = 250.0
+
+#: A tool change in the chain's time ranking, minutes (stop, change, measure the length,
+#: approach: about 15 s on a machining centre; the program's estimate counts moves only).
+TOOL_CHANGE_MIN = 0.25
+
+#: The roughing ball before a main ball is taken as the largest library ball of at most
+#: this many times its radius (the pyramid's levels double the spacing).
+ROUGHING_RATIO = 2.0
 
 #: Most region boxes listed per stage (largest first).
 MAX_BOXES = 64
@@ -111,12 +128,24 @@ class Chain:
     rho : (ny, nx) float64
         The part's concave radii (:func:`zwcore.scanline._reach.concave_radii`), for the
         rest rules and the reach figures (computed once per plan).
+    times : tuple of BallTime
+        The ranking's estimate per ball of the chain (main ball first).
+    smallest_time : BallTime or None
+        The estimate if the smallest library ball finished the whole part alone.
     """
 
     balls: tuple[Tool, ...]
     main: MainBall
     smallest_everywhere: float
     rho: F64
+    times: tuple[BallTime, ...] = ()
+    smallest_time: BallTime | None = None
+
+    @property
+    def minutes(self) -> float:
+        """The chain's estimated finishing time, tool changes included, min."""
+        return (sum(t.minutes for t in self.times)
+                + TOOL_CHANGE_MIN * max(len(self.times) - 1, 0))
 
 
 def lattice(radius: float, dx: float, dy: float) -> int:
@@ -142,8 +171,13 @@ class _Material:
 class _Reach:
     """Rest maps per (ball, lattice), computed once."""
 
-    def __init__(self, z: F64, dx: float, dy: float, tolerance: float) -> None:
+    def __init__(self, z: F64, dx: float, dy: float, tolerance: float,
+                 feeds: Feeds | None = None) -> None:
         self.z, self.dx, self.dy, self.tol = z, dx, dy, tolerance
+        self.feeds = Feeds() if feeds is None else feeds
+        #: the estimate of every pair costed, ``(previous radius, next tool id)``; the
+        #: main balls' under ``(inf, tool id)``
+        self.times: dict[tuple[float, str], BallTime] = {}
         self.rho = concave_radii(z, dx, dy)
         self._rest: dict[tuple[float, int], F64] = {}
         self._cutting: dict[tuple[float, int], CuttingRegion] = {}
@@ -245,9 +279,10 @@ class _Reach:
         return self._cutting[key]
 
     def cost(self, prev: float, nxt: Tool) -> float | None:
-        """Estimated node passes (times the cell area: mm²) of ball ``nxt`` over its rest
-        region after ``prev``, on ``nxt``'s lattice (None: no region): one pass per node,
-        or as many as its flutes need for the rest ``prev`` leaves there.
+        """Estimated minutes of ball ``nxt`` over its rest region after ``prev``, on
+        ``nxt``'s lattice (None: no region): :func:`~zwcore.scanline._chain_time.ball_time`
+        with the most stock it meets above its tip there (:meth:`met`), entered through
+        the material ``prev`` left, in its own whole-part scan direction.
 
         The region is what the plan's rest rule (:mod:`zwcore.scanline._rest`) cuts: of
         the positions within ``nxt``'s radius of the nodes where it does better, those
@@ -256,20 +291,64 @@ class _Reach:
         ``prev``'s lattice may have skipped, every position within the radius."""
         better, mat, kn = self._compare(prev, nxt.radius)
         safe = self._safe_region(lattice(prev, self.dx, self.dy), kn, nxt.radius)
-        count, layers = 0, 0.0
-        if safe is not None:
-            rest = mat.rest.ravel()[safe[1]]
-            count = safe[1].size
-            layers = float(np.maximum(np.ceil(rest / nxt.flute_length), 1.0).sum())
+        region = None if safe is None else safe[0]
         if better.size:
-            got, more = self.cutter(nxt.radius, kn).layers(
+            got, _ = self.cutter(nxt.radius, kn).layers(
                 better, mat.heights, mat.blocks, mat.rest, nxt.flute_length,
                 None if safe is None else safe[0])
-            count += got
-            layers += more
-        if count == 0:
+            if got:
+                cut = self.cutter(nxt.radius, kn).last_region()
+                region = cut if region is None else cut | region
+        if region is None or not region.any():
             return None
-        return layers * kn * kn * self.dx * self.dy
+        zk = self.z[::kn, ::kn]
+        depth = self.met(zk, kn, mat.rest, self.rest(nxt.radius, kn), nxt.radius, region)
+        # an entry comes down to the stock the ball before left around the start
+        entry = nxt.radius + float(mat.rest[region].mean())
+        main = self.times.get((math.inf, nxt.id))  # its scan direction over the whole part
+        got_time = ball_time(zk, zk + self.rest(nxt.radius, kn), kn * self.dx, kn * self.dy,
+                             (self.dx, self.dy), nxt, region, depth, self.tol, self.feeds,
+                             entry, None if main is None else main.along_x)
+        self.times[prev, nxt.id] = got_time
+        return got_time.minutes
+
+    def met(self, zk: F64, k: int, theirs: F64, mine: F64, radius: float,
+            region: B8 | None) -> float:
+        """Most stock a ball of ``radius`` meets above its tip in ``region`` (None:
+        everywhere) of lattice ``k`` (the part ``zk`` there; ``theirs``, ``mine``: what the
+        ball before and this one leave): :func:`~zwcore.scanline._chain_time.stock_met`.
+        Beside a cliff that is the cliff's height: a ball whose flutes are shorter goes
+        down along it in layers."""
+        return stock_met(zk, theirs, mine, region, math.floor(radius / (k * self.dy)),
+                         math.floor(radius / (k * self.dx)))
+
+    def main_time(self, balls: list[Tool], j: int) -> BallTime:
+        """Estimated time of ``balls[j]`` over the whole part: it meets what the roughing
+        before it leaves, taken as what the largest library ball of at most twice its
+        diameter leaves (the roughing stage before it is one pyramid level coarser,
+        twice its spacing), and up to half its own flute length the roughing may leave
+        over its stage model; the largest ball only its cliffs. Roughing is not counted,
+        for any main ball (the largest, which the plan lets rough at the finishing
+        level itself, included)."""
+        tool = balls[j]
+        k = lattice(tool.radius, self.dx, self.dy)
+        zk = self.z[::k, ::k]
+        theirs = np.zeros(zk.shape)
+        if j > 0:
+            prev = next(b.radius for b in balls[:j] if b.radius <= ROUGHING_RATIO * tool.radius
+                        ) if any(b.radius <= ROUGHING_RATIO * tool.radius for b in balls[:j]
+                                 ) else balls[j - 1].radius
+            kp = lattice(prev, self.dx, self.dy)
+            theirs = self.rest(prev, kp)
+            if kp != k:
+                theirs = _upsample_where(theirs, self.z[::kp, ::kp], kp // k, zk, self.tol)
+        depth = self.met(zk, k, theirs, self.rest(tool.radius, k), tool.radius, None)
+        if j > 0:  # the roughing leaves up to half this ball's flutes over its own model
+            depth += SCALLOP_FLUTE_SHARE * tool.flute_length
+        got = ball_time(zk, zk + self.rest(tool.radius, k), k * self.dx, k * self.dy,
+                        (self.dx, self.dy), tool, None, depth, self.tol, self.feeds)
+        self.times[math.inf, tool.id] = got
+        return got
 
 
 def _pool_any(fine: B8, k: int) -> B8:
@@ -347,20 +426,22 @@ def region_boxes(region: B8, dx: float, dy: float) -> tuple[int, tuple[RegionBox
     return int(count), tuple(out)
 
 
-def _plan(balls: list[Tool], reach: _Reach, area: float, bound: bool = True) -> list[int]:
-    """The chain (indices into ``balls``, largest first) of least estimated cut length.
+def _plan(balls: list[Tool], reach: _Reach, bound: bool = True
+          ) -> tuple[list[int], list[BallTime]]:
+    """The chain (indices into ``balls``, largest first) of least estimated finishing
+    time, and the estimate per ball of it.
 
-    Dynamic programming from the smallest ball up: ``best[j]`` is the least cut length of
-    the balls after ``j``. A pair's region cost is computed only when it may beat the
-    best option found so far for ``j``: candidates go in order of a lower bound, ``cost
-    after a smaller previous ball / pick-feed + tool change + best[i]`` (``bound``; a
-    larger previous ball leaves at least the material a smaller one leaves, so its rest
-    region is no smaller: the closing grows with the ball), else of ``tool change +
+    Dynamic programming from the smallest ball up: ``best[j]`` is the least time of the
+    balls after ``j``. A pair's region cost is computed only when it may beat the best
+    option found so far for ``j``: candidates go in order of a lower bound, ``cost after
+    a smaller previous ball + tool change + best[i]`` (``bound``; a larger previous ball
+    leaves at least the material a smaller one leaves, so its rest region is no smaller
+    and no shallower: the closing grows with the ball), else of ``tool change +
     best[i]`` alone, and the search stops at the first whose bound is not below it.
     """
-    tol = reach.tol
     n = len(balls)
-    pf = [flat_pick_feed(b.radius, tol) for b in balls]
+    # every ball over the whole part first: its scan direction serves its rest regions
+    mains = [reach.main_time(balls, j) for j in range(n)]
     best: list[float] = [math.inf] * n
     after: list[int | None] = [None] * n
     floor = [0.0] * n  # per next ball: its cost after the largest previous ball so far
@@ -368,29 +449,33 @@ def _plan(balls: list[Tool], reach: _Reach, area: float, bound: bool = True) -> 
         options: list[tuple[float, int | None]] = []
 
         def low(m: int) -> float:
-            return (floor[m] if bound else 0.0) / pf[m] + TOOL_CHANGE_MM + best[m]
+            return (floor[m] if bound else 0.0) + TOOL_CHANGE_MIN + best[m]
 
         for i in sorted(range(j + 1, n), key=lambda m: (low(m), m)):
             least = min((o[0] for o in options), default=math.inf)
             if low(i) >= least:
                 break
-            passes = reach.cost(balls[j].radius, balls[i])
-            if passes is not None:
-                floor[i] = max(floor[i], passes)
-                options.append((passes / pf[i] + TOOL_CHANGE_MM + best[i], i))
+            minutes = reach.cost(balls[j].radius, balls[i])
+            if minutes is not None:
+                floor[i] = max(floor[i], minutes)
+                options.append((minutes + TOOL_CHANGE_MIN + best[i], i))
         if not options:
             options.append((0.0, None))
         best[j], after[j] = min(options, key=lambda o: (o[0], -1 if o[1] is None else o[1]))
-    totals = [area / pf[j] + best[j] for j in range(n)]
+    totals = [mains[j].minutes + best[j] for j in range(n)]
     main = min(range(n), key=lambda j: (totals[j], j))
     chain = [main]
+    times = [mains[main]]
     while after[chain[-1]] is not None:
-        chain.append(after[chain[-1]])  # type: ignore[arg-type]
-    return chain
+        nxt = after[chain[-1]]
+        assert nxt is not None
+        times.append(reach.times[balls[chain[-1]].radius, balls[nxt].id])
+        chain.append(nxt)
+    return chain, times
 
 
-def finishing_chain(z: F64, dx: float, dy: float, balls: list[Tool], tolerance: float
-                    ) -> Chain:
+def finishing_chain(z: F64, dx: float, dy: float, balls: list[Tool], tolerance: float,
+                    feeds: Feeds | None = None) -> Chain:
     """The finishing balls the estimate ranks first, and its figures for the main ball.
 
     Parameters
@@ -401,6 +486,8 @@ def finishing_chain(z: F64, dx: float, dy: float, balls: list[Tool], tolerance: 
     balls : list of Tool
         Ball end mills, largest first.
     tolerance : float
+    feeds : Feeds, optional
+        Feeds and rapid rate of the time estimate (default: the program's defaults).
 
     Returns
     -------
@@ -409,8 +496,8 @@ def finishing_chain(z: F64, dx: float, dy: float, balls: list[Tool], tolerance: 
     ny, nx = z.shape
     cell = dx * dy
     area = float(ny * nx) * cell
-    reach = _Reach(z, dx, dy, tolerance)
-    chain = _plan(balls, reach, area)
+    reach = _Reach(z, dx, dy, tolerance, feeds)
+    chain, times = _plan(balls, reach)
     tool = balls[chain[0]]
     k = lattice(tool.radius, dx, dy)
     rest = reach.rest(tool.radius, k)
@@ -418,6 +505,11 @@ def finishing_chain(z: F64, dx: float, dy: float, balls: list[Tool], tolerance: 
     main = MainBall(tool, area / flat_pick_feed(tool.radius, tolerance), float(rest.max()),
                     f"simulated reach: {tool.id} finishes the whole part and leaves more than "
                     f"{tolerance:g} mm on {100 * float(left.mean()):.3g} % of it (to the "
-                    f"smaller balls); shortest estimated finishing cut of the library's chains")
+                    f"smaller balls); shortest estimated finishing time of the library's chains "
+                    f"({sum(t.minutes for t in times):.4g} min: "
+                    + ", ".join(f"{balls[j].id} {t.passes} pass{'es' if t.passes > 1 else ''} "
+                                f"{t.minutes:.4g} min" for j, t in zip(chain, times, strict=True))
+                    + ")")
     smallest = area / flat_pick_feed(balls[-1].radius, tolerance)
-    return Chain(tuple(balls[j] for j in chain), main, smallest, reach.rho)
+    return Chain(tuple(balls[j] for j in chain), main, smallest, reach.rho, tuple(times),
+                 reach.times.get((math.inf, balls[-1].id)))
