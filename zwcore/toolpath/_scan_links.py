@@ -137,10 +137,10 @@ class StockBound:
                    z_line[j])
         #: ``(n_v, n_u)``: the bound on the nodes
         self.grid = np.empty((n_v, n_u))
+        low = (np.zeros((0, 0)) if before is None
+               else np.ascontiguousarray(before, np.float64))
         _bound_grid(np.ascontiguousarray(line_v, np.float64), z_line, float(dv),
-                    float(radius), float(stock_top), self.grid)
-        if before is not None:
-            np.minimum(self.grid, before, out=self.grid)
+                    float(radius), float(stock_top), low, self.grid)
         self.block = max(1, int(radius / max(du, dv)))
         self._coarse: F64 | None = None
         self.du, self.dv, self.radius = float(du), float(dv), float(radius)
@@ -153,10 +153,8 @@ class StockBound:
         if self._coarse is None:
             b = self.block
             n_v, n_u = self.grid.shape
-            pad = np.full((-(-n_v // b) * b, -(-n_u // b) * b), -np.inf)
-            pad[:n_v, :n_u] = self.grid
-            self._coarse = np.ascontiguousarray(
-                pad.reshape(pad.shape[0] // b, b, pad.shape[1] // b, b).max(axis=(1, 3)))
+            self._coarse = np.empty((-(-n_v // b), -(-n_u // b)))
+            _block_max(self.grid, b, self._coarse)
         return self._coarse
 
     def heights(self, a: F64, b: F64) -> F64:
@@ -218,22 +216,49 @@ def _along(u: F64, z: F64, du: float, out: F64) -> None:
 
 @njit(cache=True, nogil=True)
 def _bound_grid(line_v: F64, z_line: F64, dv: float, radius: float, stock_top: float,
-                out: F64) -> None:
-    """Per node, the least of the stock top and each nearest whole line's tip height plus
-    the ball's rise at the node's distance from that line (when within ``radius``)."""
+                before: F64, out: F64) -> None:
+    """Per node, the least of the stock top, ``before`` (when it has rows) and each nearest
+    whole line's tip height plus the ball's rise at the node's distance from that line
+    (when within ``radius``). The rise depends on the row only: its square root is taken
+    once per row and line (the sum in the same order, so the same values)."""
     nl = len(line_v)
     r2 = radius * radius
+    lower = before.shape[0] > 0
     for i in range(out.shape[0]):
         v = i * dv
         below = int(np.searchsorted(line_v, v, side="right")) - 1
+        j0, j1, s0, s1 = -1, -1, 0.0, 0.0
+        if 0 <= below < nl and abs(line_v[below] - v) < radius:
+            d = abs(line_v[below] - v)
+            j0, s0 = below, math.sqrt(r2 - d * d)
+        if 0 <= below + 1 < nl and abs(line_v[below + 1] - v) < radius:
+            d = abs(line_v[below + 1] - v)
+            j1, s1 = below + 1, math.sqrt(r2 - d * d)
         for k in range(out.shape[1]):
             bound = stock_top
-            for j in (below, below + 1):
-                if 0 <= j < nl:
-                    d = abs(line_v[j] - v)
-                    if d < radius:
-                        bound = min(bound, z_line[j, k] + radius - math.sqrt(r2 - d * d))
+            if j0 >= 0:
+                bound = min(bound, z_line[j0, k] + radius - s0)
+            if j1 >= 0:
+                bound = min(bound, z_line[j1, k] + radius - s1)
+            if lower:
+                bound = min(bound, before[i, k])
             out[i, k] = bound
+
+
+@njit(cache=True, nogil=True)
+def _block_max(grid: F64, b: int, out: F64) -> None:
+    """``out[I, K]``: the max of ``grid`` over the block of ``b x b`` nodes at ``(I, K)``
+    (the last blocks cut at the grid's edge)."""
+    n_v, n_u = grid.shape
+    for bi in range(out.shape[0]):
+        for bk in range(out.shape[1]):
+            out[bi, bk] = -np.inf
+        for i in range(bi * b, min(bi * b + b, n_v)):
+            for bk in range(out.shape[1]):
+                m = out[bi, bk]
+                for k in range(bk * b, min(bk * b + b, n_u)):
+                    m = max(m, grid[i, k])
+                out[bi, bk] = m
 
 
 @njit(cache=True, nogil=True)
