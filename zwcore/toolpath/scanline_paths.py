@@ -202,8 +202,10 @@ def _segments(raw: tuple[F64, F64, F64, NDArray[np.int64]], poly: _Polyline
     su = u + np.repeat(np.arange(len(sizes)), sizes) * span
     # each segment is entered on its own: the breaks between them are no moves
     pts, lift, su_kept = poly.points(u, v, z, su, fixed, breaks, moves_at_breaks=False)
-    # segment n's parameters lie in [n * span + u.min(), (n + 1) * span + u.min())
-    owner = np.floor((su_kept - u.min()) / span).astype(np.int64)
+    # segment n's parameters lie in [n * span + u.min(), (n + 1) * span + u.min() - 1]: the
+    # gaps' middles divide them (``n * span / span`` may round below ``n``: the first point
+    # of a segment would count with the one before)
+    owner = np.floor((su_kept - u.min() + 0.5) / span).astype(np.int64)
     kept = np.bincount(owner, minlength=len(sizes)).astype(np.int64)
     return pts, kept, lift, len(u)
 
