@@ -3,7 +3,7 @@ computations: the coarser first look and the lower bound on every ``block``-th n
 no value a path depends on (against the exact sweep, and the bound against a brute-force
 sweep of those nodes); segments entered on their own are each lifted by their own moves
 only (a wall between two stretches of a line lifts neither), and every point is counted
-with its own segment."""
+with its own segment; a depth pass's plateaus take their own heights as CL."""
 
 from __future__ import annotations
 
@@ -14,8 +14,9 @@ from hypothesis import strategies as st
 from tests.test_toolpath import wavy_part
 from zwcore.grid.tools import Tool
 from zwcore.grid.zmap import ZMap
+from zwcore.sim.cutting import footprint
 from zwcore.toolpath._polyline import PartBounds, PartGouge
-from zwcore.toolpath.scanline_paths import _Polyline, _segments
+from zwcore.toolpath.scanline_paths import _plateau_cl, _Polyline, _segments, sim_cl_heights
 from zwcore.toolpath.sweep import GridFrame, sweep_moves
 
 
@@ -143,3 +144,42 @@ def test_every_point_counts_with_its_own_segment():
     assert kept.sum() == len(pts) and np.all(kept >= 2)
     owner = np.repeat(np.arange(count), kept)
     np.testing.assert_array_equal(pts[:, 1], np.round(off[owner], 4))
+
+
+@settings(max_examples=8, deadline=None)
+@given(st.integers(0, 10_000), st.floats(0.2, 0.8))
+def test_plateau_nodes_take_their_own_height_and_the_others_the_drop_cutter(seed, share):
+    """A depth pass's model (the part, raised to a level): where no node within the ball's
+    reach is higher, the CL is the node's own height (the library's rounds it up by ulps);
+    elsewhere the drop-cutter's value on the whole grid, bit for bit (computed on a crop);
+    everywhere at least a brute-force node drop-cutter."""
+    part = wavy_part(170, 0.1, seed)
+    level = np.quantile(part.z, share)
+    z = np.maximum(part.z, level)
+    z[:, 85:] = level  # the part lies below the level there
+    model = ZMap(z, part.x0, part.y0, part.dx, part.dy)
+    tool = Tool("B10", "ball", 10.0, 30.0)  # a footprint the pruned method takes
+    rows = np.arange(0, 170, 4, dtype=np.int64)
+    got = _plateau_cl(model, tool, rows)
+    ref = sim_cl_heights(model, tool)
+    wy, wx = footprint(tool, model.dx, model.dy)
+    zz = model.z
+    ny, nx = zz.shape
+    top = np.array([[zz[max(0, i - wy):i + wy + 1, max(0, k - wx):k + wx + 1].max()
+                     for k in range(nx)] for i in rows])
+    flat = zz[rows] >= top
+    assert flat.any() and (~flat).any()
+    np.testing.assert_array_equal(got[rows][flat], zz[rows][flat])
+    np.testing.assert_array_equal(got[rows][~flat], ref[rows][~flat])
+    assert np.all(got[rows][flat] <= ref[rows][flat])
+    assert np.all(got[rows][flat] >= ref[rows][flat] - 1e-9)
+    # the node drop-cutter (a lower bound of the bilinear one), by brute force
+    r = tool.radius
+    yy, xx = np.mgrid[0:ny, 0:nx]
+    for i in rows[::6]:
+        for k in range(0, nx, 9):
+            d2 = ((xx - k) * model.dx) ** 2 + ((yy - i) * model.dy) ** 2
+            inside = d2 <= r * r
+            node = (zz[inside] - (r - np.sqrt(r * r - d2[inside]))).max()
+            assert got[i, k] >= node - 1e-9
+    assert np.all(np.isnan(np.delete(got, rows, axis=0)))

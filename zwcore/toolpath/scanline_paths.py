@@ -21,12 +21,14 @@ from collections.abc import Callable
 import numpy as np
 from numba import njit
 from numpy.typing import NDArray
+from scipy import ndimage
 
 from zwcore.errors import InvalidInputError
 from zwcore.grid.tools import Tool
 from zwcore.grid.zmap import ZMap
 from zwcore.scanline.results import ScanlineStage
 from zwcore.sim import drop_cutter
+from zwcore.sim.cutting import PRUNE_FOOTPRINT, footprint
 from zwcore.toolpath._polyline import PartBounds, PartGouge, follow_part
 from zwcore.toolpath._scallop import fine_points, finishing_closing, scallop_segments
 from zwcore.toolpath._scan_links import StockBound, merge_stretches, region_stretches
@@ -70,17 +72,49 @@ def _stage_cl(part: ZMap, stage: ScanlineStage, mdl: F64, sx: float, sy: float,
     """The stage's CL grid on its model, ``(my, mx)``. With the default drop-cutter, only the
     rows (a pass along x) or columns (along y, on the transposed model) the stage's lines
     read are computed (the pruned method's values there are those of the whole grid; the
-    others are NaN and never read); ``whole``: every node (the scallop pass compares with
-    the CL on all of them)."""
+    others are NaN and never read), and of those only the ones a plateau does not settle
+    (:func:`_plateau_cl`); ``whole``: every node (the scallop pass compares with the CL on
+    all of them)."""
     if cl_heights is not sim_cl_heights or whole or not len(stage.lines.offset):
         return cl_heights(ZMap(mdl, part.x0, part.y0, sx, sy), stage.tool)
     if stage.scan_direction == "x":
         rows = _line_rows(stage.lines.offset, sy, mdl.shape[0])
-        return sim_cl_heights(ZMap(mdl, part.x0, part.y0, sx, sy), stage.tool, rows)
+        return _plateau_cl(ZMap(mdl, part.x0, part.y0, sx, sy), stage.tool, rows)
     cols = _line_rows(stage.lines.offset, sx, mdl.shape[1])
     # the ball and the pruned bounds are symmetric in x and y: the transposed model's rows
-    return sim_cl_heights(ZMap(np.ascontiguousarray(mdl.T), part.y0, part.x0, sy, sx),
-                          stage.tool, cols).T
+    return _plateau_cl(ZMap(np.ascontiguousarray(mdl.T), part.y0, part.x0, sy, sx),
+                       stage.tool, cols).T
+
+
+def _plateau_cl(model: ZMap, tool: Tool, rows: NDArray[np.int64]) -> F64:
+    """:func:`sim_cl_heights` on ``rows``, except at the nodes no node within the tool's
+    reach rises above (a depth pass's model is flat wherever the part lies below it): the
+    tip centred there meets the surface at the node itself, and nothing higher within the
+    radius (the bilinear surface under the ball lies below the corners of its cells, all
+    within ``ceil(R / spacing) + 1`` nodes), so the drop-cutter height is the node's own.
+    The others are computed on the part of the model within reach of them (the
+    drop-cutter at a node reads no node further away)."""
+    wy, wx = footprint(tool, model.dx, model.dy)  # ceil(R / spacing) + 1 each way
+    if (2 * wy + 1) * (2 * wx + 1) <= PRUNE_FOOTPRINT:
+        return sim_cl_heights(model, tool, rows)  # small tools: every row at once anyway
+    z = model.z
+    sub = z[rows]
+    flat = sub >= ndimage.maximum_filter(z, size=(2 * wy + 1, 2 * wx + 1),
+                                         mode="nearest")[rows]
+    need_r, need_c = np.nonzero(~flat)
+    out = np.full(z.shape, np.nan)
+    out[rows] = sub
+    if len(need_r):
+        r0, r1 = max(0, int(rows[need_r.min()]) - wy), min(z.shape[0], int(rows[need_r.max()])
+                                                             + wy + 1)
+        c0, c1 = max(0, int(need_c.min()) - wx), min(z.shape[1], int(need_c.max()) + wx + 1)
+        crop = ZMap(np.ascontiguousarray(z[r0:r1, c0:c1]), model.x0 + c0 * model.dx,
+                    model.y0 + r0 * model.dy, model.dx, model.dy)
+        need = np.unique(rows[need_r])
+        cl = sim_cl_heights(crop, tool, need - r0)
+        rr, cc = rows[need_r], need_c
+        out[rr, cc] = cl[rr - r0, cc - c0]
+    return out
 
 
 def _raster(cl: F64, rows: F64) -> F64:
