@@ -261,6 +261,11 @@ def _block_max(grid: F64, b: int, out: F64) -> None:
                 out[bi, bk] = m
 
 
+#: A node is passed over when its bound lies this far (mm) under the best value so far
+#: plus the least rise its row allows (the two rises' roundings differ by far less).
+SKIP_MARGIN = 1e-6
+
+
 @njit(cache=True, nogil=True)
 def _capsule_max(a: F64, b: F64, grid: F64, blk: int, du: float, dv: float, radius: float,
                  n_v: int, n_u: int, out: F64) -> None:
@@ -269,39 +274,59 @@ def _capsule_max(a: F64, b: F64, grid: F64, blk: int, du: float, dv: float, radi
     ``grid`` holds the maxima of blocks of ``blk x blk`` nodes and the max runs over the
     blocks holding any such node (no rise). Row (of blocks) by row over the u range of the
     capsule's slice: the segment's points within ``radius`` of the row's v range, widened
-    by ``radius``."""
-    r2 = radius * radius
+    by ``radius``. With ``blk == 1`` the row nearest the segment's middle goes first; in
+    the others a node whose bound, less the least rise of its row (its v distance from
+    the segment's v range), cannot exceed the best so far is passed over (the max is the
+    same)."""
     for e in range(len(a)):
         ua, va, ub, vb = a[e, 0], a[e, 1], b[e, 0], b[e, 1]
-        eu, ev = ub - ua, vb - va
-        ll = eu * eu + ev * ev
         i0 = max(0, math.floor((min(va, vb) - radius) / dv))
         i1 = min(n_v - 1, math.ceil((max(va, vb) + radius) / dv))
         best = -math.inf
+        if blk == 1:
+            mid = min(max(round(0.5 * (va + vb) / dv), i0), i1)
+            best = _capsule_row(ua, va, ub, vb, mid, grid, 1, du, dv, radius, n_u, best)
         for bi in range(i0 // blk, i1 // blk + 1):
-            lo = bi * blk * dv - va - radius  # the segment's v within reach of the rows
-            hi = (bi * blk + blk - 1) * dv - va + radius
-            if abs(ev) > 1e-300:
-                t0 = max(0.0, min(lo / ev, hi / ev))
-                t1 = min(1.0, max(lo / ev, hi / ev))
-                if t0 > t1:
-                    continue
-            else:
-                if lo > 0.0 or hi < 0.0:
-                    continue
-                t0, t1 = 0.0, 1.0
-            k0 = max(0, math.floor((ua + min(t0 * eu, t1 * eu) - radius) / du))
-            k1 = min(n_u - 1, math.ceil((ua + max(t0 * eu, t1 * eu) + radius) / du))
-            if blk > 1:
-                for bk in range(k0 // blk, k1 // blk + 1):
-                    best = max(best, grid[bi, bk])
+            if blk == 1 and bi == mid:
                 continue
-            w = bi * dv - va
-            for k in range(k0, k1 + 1):
-                pu = k * du - ua
-                t = 0.0 if ll <= 0.0 else min(1.0, max(0.0, (pu * eu + w * ev) / ll))
-                qu, qv = pu - t * eu, w - t * ev
-                dd = qu * qu + qv * qv
-                if dd <= r2:
-                    best = max(best, grid[bi, k] - (radius - math.sqrt(r2 - dd)))
+            best = _capsule_row(ua, va, ub, vb, bi, grid, blk, du, dv, radius, n_u, best)
         out[e] = best
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _capsule_row(ua: float, va: float, ub: float, vb: float, bi: int, grid: F64, blk: int,
+                 du: float, dv: float, radius: float, n_u: int, best: float) -> float:
+    """:func:`_capsule_max` over one row of ``grid`` (of blocks when ``blk > 1``)."""
+    eu, ev = ub - ua, vb - va
+    ll = eu * eu + ev * ev
+    r2 = radius * radius
+    lo = bi * blk * dv - va - radius  # the segment's v within reach of the rows
+    hi = (bi * blk + blk - 1) * dv - va + radius
+    if abs(ev) > 1e-300:
+        t0 = max(0.0, min(lo / ev, hi / ev))
+        t1 = min(1.0, max(lo / ev, hi / ev))
+        if t0 > t1:
+            return best
+    else:
+        if lo > 0.0 or hi < 0.0:
+            return best
+        t0, t1 = 0.0, 1.0
+    k0 = max(0, math.floor((ua + min(t0 * eu, t1 * eu) - radius) / du))
+    k1 = min(n_u - 1, math.ceil((ua + max(t0 * eu, t1 * eu) + radius) / du))
+    if blk > 1:
+        for bk in range(k0 // blk, k1 // blk + 1):
+            best = max(best, grid[bi, bk])
+        return best
+    w = bi * dv - va
+    gap = max(0.0, min(va, vb) - bi * dv, bi * dv - max(va, vb))
+    least = radius - math.sqrt(max(r2 - gap * gap, 0.0))  # the row's least rise
+    for k in range(k0, k1 + 1):
+        if grid[bi, k] <= best + least - SKIP_MARGIN:  # no new max, whatever its rise
+            continue
+        pu = k * du - ua
+        t = 0.0 if ll <= 0.0 else min(1.0, max(0.0, (pu * eu + w * ev) / ll))
+        qu, qv = pu - t * eu, w - t * ev
+        dd = qu * qu + qv * qv
+        if dd <= r2:
+            best = max(best, grid[bi, k] - (radius - math.sqrt(r2 - dd)))
+    return best
