@@ -4,8 +4,11 @@ measured in the same run.
 1. Mount Rushmore (../shared/data, 0.1 mm): scan-line paths of every stage, the program
    written, parsed back and simulated; each roughing stage's path computed on its stage
    model and on the full-resolution part (same lines, same guarantee against the part,
-   the refine tolerance the plan gives the stage; the gouge measure's coarse look follows
-   the model's spacing, so it is off on the part).
+   the refine tolerance the plan gives the stage; the gouge measure's coarse looks follow
+   the model's spacing, so they are off on the part). The part's block bounds are built
+   once per plan and shared by every stage, both sides (as ``scanline_toolpaths`` does);
+   a first pass on the stage models builds them and is reported on its own. Times wall
+   and, on a shared machine the steadier figure, CPU.
 2. A 1025² synthetic part: plan + tool paths + program + verification end to end, with
    where the time goes.
 
