@@ -283,11 +283,12 @@ def _capsule_max(a: F64, b: F64, grid: F64, blk: int, du: float, dv: float, radi
         i0 = max(0, math.floor((min(va, vb) - radius) / dv))
         i1 = min(n_v - 1, math.ceil((max(va, vb) + radius) / dv))
         best = -math.inf
+        mid = -1
         if blk == 1:
             mid = min(max(round(0.5 * (va + vb) / dv), i0), i1)
             best = _capsule_row(ua, va, ub, vb, mid, grid, 1, du, dv, radius, n_u, best)
         for bi in range(i0 // blk, i1 // blk + 1):
-            if blk == 1 and bi == mid:
+            if bi == mid:
                 continue
             best = _capsule_row(ua, va, ub, vb, bi, grid, blk, du, dv, radius, n_u, best)
         out[e] = best
