@@ -16,7 +16,8 @@ from zwcore.grid.tools import Tool
 from zwcore.grid.zmap import ZMap
 from zwcore.sim.cutting import footprint
 from zwcore.toolpath._polyline import PartBounds, PartGouge
-from zwcore.toolpath.scanline_paths import _plateau_cl, _Polyline, _segments, sim_cl_heights
+from zwcore.toolpath._scan_cl import _plateau_cl
+from zwcore.toolpath.scanline_paths import _Polyline, _segments, sim_cl_heights
 from zwcore.toolpath.sweep import GridFrame, sweep_moves
 
 
