@@ -23,6 +23,12 @@ from zwcore.toolpath.sweep import BlockBounds, GridFrame, block_size, sweep_move
 F64 = NDArray[np.float64]
 BOOL = NDArray[np.bool_]
 
+#: The coarser first look's blocks, in blocks of the finer one.
+LOOK_FACTOR = 4
+#: A lower bound must exceed a threshold by this much (mm) to stand for the exact gouge
+#: (the subset's nodes are placed by another product of the spacing: ulps apart).
+LOWER_MARGIN = 1e-6
+
 
 @njit(cache=True, nogil=True)
 def _thin_kernel(u: F64, z: F64, fixed: BOOL, below: float, above: float, keep: BOOL) -> None:
@@ -78,72 +84,159 @@ def thin(u: F64, z: F64, fixed: BOOL, above: float, below: float = 0.0) -> BOOL:
     return keep
 
 
-class PartGouge:
-    """Deepest gouge of moves against the part's nodes, with an optional coarse first look.
+class PartBounds:
+    """Bounds of one part shared by every stage's gouge measure: the maxima of its node
+    blocks (:class:`PartGouge`'s coarse look) and the exact sweep's skip blocks, each built
+    once per block size (the part is fixed: a plan's stages measure against the same nodes,
+    and building them is a pass over the whole part, a stage model's path's largest cost).
 
-    With ``block > 1`` the part is also held as the maxima of ``block x block`` node blocks,
-    one coarse node at each block's centre. Every node of a block lies within
-    ``rho`` (half the block's diagonal) of its centre, so a ball of radius ``R + rho`` whose
-    tip runs ``rho`` lower stays under the ball of radius ``R`` over every node of the
-    block (the larger sphere, same centre, holds the smaller one moved by up to ``rho``; a
-    flat end mill needs no lowering). A move whose coarse measure is ``<= 0`` cannot gouge
-    any node; only the others are swept over the part's own nodes. The values that decide a
-    lift or a split (``> 0``) are always the exact ones, so the path is the same as with
-    ``block = 1``, at a cost that scales with the coarse grid for moves clear of the part.
+    Parameters
+    ----------
+    part : ZMap
     """
 
-    def __init__(self, part: ZMap, tool: Tool, block: int = 1):
-        self.part, self.tool, self.block = part, tool, max(1, int(block))
-        self.ball = tool.kind == "ball"
+    def __init__(self, part: ZMap):
+        self.part = part
         self.frame = GridFrame(part.x0, part.y0, part.dx, part.dy, part.shape)
-        self._bounds: BlockBounds | None = None
-        if self.block > 1:
-            b = self.block
-            ny, nx = part.shape
+        self._maxima: dict[int, F64] = {}
+        self._skip: dict[int, BlockBounds] = {}
+        self._every: dict[int, F64] = {}
+
+    def block_maxima(self, b: int) -> F64:
+        """``(ceil(ny / b), ceil(nx / b))``: the maximum of each block of ``b x b`` nodes
+        (the last ones cut at the grid's edge)."""
+        if b not in self._maxima:
+            ny, nx = self.part.shape
             my, mx = -(-ny // b), -(-nx // b)
             pad = np.full((my * b, mx * b), -np.inf)
-            pad[:ny, :nx] = part.z
-            self.coarse = np.ascontiguousarray(pad.reshape(my * b, mx, b).max(axis=2)
-                                               .reshape(my, b, mx).max(axis=1))
-            half = 0.5 * (b - 1)
-            self.coarse_frame = GridFrame(part.x0 + half * part.dx, part.y0 + half * part.dy,
-                                          b * part.dx, b * part.dy, (my, mx))
-            self.rho = half * float(np.hypot(part.dx, part.dy)) * (1.0 + 1e-9) + 1e-12
+            pad[:ny, :nx] = self.part.z
+            self._maxima[b] = np.ascontiguousarray(pad.reshape(my * b, mx, b).max(axis=2)
+                                                   .reshape(my, b, mx).max(axis=1))
+        return self._maxima[b]
 
-    def __call__(self, p0: F64, p1: F64) -> F64:
-        """Gouge of each move ``p0[i] -> p1[i]`` (exact where ``> 0``; ``-inf``: reaches
-        no node), mm."""
-        if self.block == 1 or not len(p0):
-            return self._fine(p0, p1)
-        drop = np.array([0.0, 0.0, self.rho if self.ball else 0.0])
-        _, bound = sweep_moves(self.coarse_frame, p0 - drop, p1 - drop,
-                               self.tool.radius + self.rho, self.ball, self.coarse,
-                               ref=self.coarse, apply=False)
-        out = bound.copy()
-        near = np.flatnonzero(bound > 0.0)
-        if len(near):
-            out[near] = self._fine(p0[near], p1[near])
+    def every(self, b: int) -> F64:
+        """``(ceil(ny / b), ceil(nx / b))``: the part's nodes on every ``b``-th row and
+        column (a subset of its nodes: a gouge against them is at most the whole part's)."""
+        if b not in self._every:
+            self._every[b] = np.ascontiguousarray(self.part.z[::b, ::b])
+        return self._every[b]
+
+    def skip_blocks(self, b: int) -> BlockBounds:
+        """:class:`~zwcore.toolpath.sweep.BlockBounds` of the part against itself, blocks of
+        ``b`` nodes a side (only measured against: no move changes them)."""
+        if b not in self._skip:
+            self._skip[b] = BlockBounds(self.frame, self.part.z, self.part.z, b)
+        return self._skip[b]
+
+
+class PartGouge:
+    """Deepest gouge of moves against the part's nodes, with optional coarse first looks.
+
+    With ``block > 1`` the part is also held as the maxima of ``B x B`` node blocks, one
+    coarse node at each block's centre, for ``B = block`` and ``B = LOOK_FACTOR * block``.
+    Every node of a block lies within ``rho`` (half the block's diagonal) of its centre, so
+    a ball of radius ``R + rho`` whose tip runs ``rho`` lower stays under the ball of radius
+    ``R`` over every node of the block (the larger sphere, same centre, holds the smaller
+    one moved by up to ``rho``; a flat end mill needs no lowering). A move whose coarse
+    measure is ``<= 0`` cannot gouge any node; the coarser look goes first, the finer one
+    takes the moves it cannot clear, and only the rest are swept over the part's own nodes.
+    The values that decide a lift or a split (``> 0``) are the exact ones, so the path is
+    the same as with ``block = 1``, at a cost that scales with the coarse grids for moves
+    clear of the part. ``bounds``: the part's block maxima and skip blocks, shared with
+    other measures of the same part (default: built for this one).
+    """
+
+    def __init__(self, part: ZMap, tool: Tool, block: int = 1,
+                 bounds: PartBounds | None = None):
+        self.part, self.tool, self.block = part, tool, max(1, int(block))
+        self.ball = tool.kind == "ball"
+        if bounds is None or bounds.part is not part:
+            bounds = PartBounds(part)
+        self.bounds = bounds
+        self.frame = bounds.frame
+        #: ``(frame, block maxima, rho)`` per coarse look, the coarsest first
+        self.looks: list[tuple[GridFrame, F64, float]] = []
+        if self.block > 1:
+            for b in (LOOK_FACTOR * self.block, self.block):
+                coarse = bounds.block_maxima(b)
+                half = 0.5 * (b - 1)
+                self.looks.append((
+                    GridFrame(part.x0 + half * part.dx, part.y0 + half * part.dy,
+                              b * part.dx, b * part.dy, coarse.shape), coarse,
+                    half * float(np.hypot(part.dx, part.dy)) * (1.0 + 1e-9) + 1e-12))
+
+    def __call__(self, p0: F64, p1: F64, above: F64 | None = None) -> F64:
+        """Gouge of each move ``p0[i] -> p1[i]``, mm: exact where ``> 0`` (``-inf``:
+        reaches no node), except that with ``above`` (per move, a threshold; ``inf``:
+        none) and coarse looks, a move whose gouge against every ``block``-th node row and
+        column already exceeds its threshold gets that lower bound (``> above``), not
+        swept over every node: a caller that only needs to know it lies above."""
+        out = np.full(len(p0), -np.inf)
+        todo = np.arange(len(p0))
+        for frame, coarse, rho in self.looks:
+            if not len(todo):
+                return out
+            drop = np.array([0.0, 0.0, rho if self.ball else 0.0])
+            _, bound = sweep_moves(frame, p0[todo] - drop, p1[todo] - drop,
+                                   self.tool.radius + rho, self.ball, coarse, ref=coarse,
+                                   apply=False)
+            out[todo] = bound
+            todo = todo[bound > 0.0]
+        if above is not None and self.looks and len(todo):
+            out[todo] = self._every(p0[todo], p1[todo])
+            todo = todo[~(out[todo] - LOWER_MARGIN > above[todo])]
+        if len(todo):
+            out[todo] = self._fine(p0[todo], p1[todo])
         return out
 
+    def _every(self, p0: F64, p1: F64) -> F64:
+        """Gouge against the nodes on every ``block``-th row and column (a lower bound)."""
+        b = self.block
+        sub = self.bounds.every(b)
+        frame = GridFrame(self.part.x0, self.part.y0, b * self.part.dx, b * self.part.dy,
+                          sub.shape)
+        _, low = sweep_moves(frame, p0, p1, self.tool.radius, self.ball, sub, ref=sub,
+                             apply=False)
+        return low
+
     def _fine(self, p0: F64, p1: F64) -> F64:
-        if self._bounds is None and self.tool.radius >= sweep_mod.MIN_BLOCK_RADIUS * min(
-                self.part.dx, self.part.dy):
-            # the exact sweep skips blocks of nodes the move clears (the part is fixed: its
-            # bounds are measured once, when first needed)
-            self._bounds = BlockBounds(self.frame, self.part.z, self.part.z,
-                                       block_size(self.tool.radius,
-                                                  min(self.part.dx, self.part.dy)))
+        skip = None
+        if self.tool.radius >= sweep_mod.MIN_BLOCK_RADIUS * min(self.part.dx, self.part.dy):
+            # the exact sweep skips blocks of nodes the move clears
+            skip = self.bounds.skip_blocks(block_size(self.tool.radius,
+                                                      min(self.part.dx, self.part.dy)))
         _, gouge = sweep_moves(self.frame, p0, p1, self.tool.radius, self.ball,
-                               self.part.z, ref=self.part.z, apply=False, bounds=self._bounds)
+                               self.part.z, ref=self.part.z, apply=False, bounds=skip)
         return gouge
+
+
+def _above(p0: F64, p1: F64, tol: float, min_len: float, again: BOOL | bool) -> F64:
+    """Per move, the threshold above which its gouge need not be known exactly: ``tol``
+    where it is halved (longer than ``min_len``, and ``again``: a later round or step
+    halves it), else ``inf``; the same length test as :func:`_split`'s."""
+    seg_len = np.hypot(*(p1[:, :2] - p0[:, :2]).T)
+    return np.where((seg_len > min_len) & again, tol, np.inf)
+
+
+def _measure_moves(measure: PartGouge, p0: F64, p1: F64, above: F64, link: BOOL,
+                   moves_at_breaks: bool) -> F64:
+    """``measure(p0, p1, above)``; without ``moves_at_breaks`` the links get ``-inf``
+    (no move: no gouge, no lift) and are not swept."""
+    if moves_at_breaks:
+        return measure(p0, p1, above)
+    out = np.full(len(p0), -np.inf)
+    real = np.flatnonzero(~link)
+    out[real] = measure(p0[real], p1[real], above[real])
+    return out
 
 
 def _split(points: F64, u: F64, gouge: F64, breaks: BOOL, measure: PartGouge, tol: float,
            min_len: float, decimals: int, rounds: int) -> tuple[F64, F64, F64]:
     """Halve segments that gouge by more than ``tol`` (midpoint xy at the output precision,
     z on the chord, so each half is measured as it will be written); only new halves are
-    swept again."""
-    for _ in range(rounds):
+    swept again. A half the next round halves again when it gouges by more than ``tol``
+    needs no more than that known (``above``): the last round's halves, exact values."""
+    for r in range(rounds):
         seg_len = np.hypot(*(points[1:, :2] - points[:-1, :2]).T)
         split = np.flatnonzero((gouge > tol) & (seg_len > min_len) & ~breaks)
         if not len(split):
@@ -151,8 +244,9 @@ def _split(points: F64, u: F64, gouge: F64, breaks: BOOL, measure: PartGouge, to
         at = split + 1
         mid = 0.5 * (points[at - 1] + points[at])
         mid[:, :2] = np.round(mid[:, :2], decimals)
-        g_new = measure(np.stack([points[split], mid], axis=1).reshape(-1, 3),
-                        np.stack([mid, points[at]], axis=1).reshape(-1, 3)).reshape(-1, 2)
+        a = np.stack([points[split], mid], axis=1).reshape(-1, 3)
+        b = np.stack([mid, points[at]], axis=1).reshape(-1, 3)
+        g_new = measure(a, b, _above(a, b, tol, min_len, r + 1 < rounds)).reshape(-1, 2)
         points = np.insert(points, at, mid, axis=0)
         u = np.insert(u, at, 0.5 * (u[at - 1] + u[at]))
         breaks = np.insert(breaks, split, False)
@@ -165,7 +259,7 @@ def _split(points: F64, u: F64, gouge: F64, breaks: BOOL, measure: PartGouge, to
 
 def follow_part(points: F64, u: F64, fixed: BOOL, breaks: BOOL, measure: PartGouge, *,
                 chord: float, refine: float, min_len: float, decimals: int = 4,
-                rounds: int = 8) -> tuple[F64, F64, float]:
+                rounds: int = 8, moves_at_breaks: bool = True) -> tuple[F64, F64, float]:
     """Thin a CL polyline, then lift it so that no segment's sweep reaches below the part.
 
     Parameters
@@ -188,6 +282,12 @@ def follow_part(points: F64, u: F64, fixed: BOOL, breaks: BOOL, measure: PartGou
         instead of rising by a long segment's worst gouge.
     decimals : int
         Heights are rounded up to this many decimals (what the program says).
+    moves_at_breaks : bool
+        The links are moves of the path (lines linked beside the stock): they are measured
+        and their ends lifted out of their gouge like any segment's. ``False``: the breaks
+        only separate pieces that are entered on their own (segments entered from above):
+        they are no moves, are not measured, and lift nothing (each piece's own moves lift
+        its ends).
 
     Returns
     -------
@@ -204,7 +304,13 @@ def follow_part(points: F64, u: F64, fixed: BOOL, breaks: BOOL, measure: PartGou
     # lifted by its exact gouge below, so the path ends within ``chord`` above the CL polyline
     keep = thin(u, points[:, 2], fixed, 0.5 * chord, 0.5 * chord)
     idx = np.flatnonzero(keep)
-    gouge = measure(points[idx[:-1]], points[idx[1:]])
+    # a chord that gouges by more than ``refine`` gets its dropped points back, or is
+    # halved (a link never): its exact gouge is not needed
+    a, b, link = points[idx[:-1]], points[idx[1:]], breaks[idx[:-1]]
+    gap = idx[1:] - idx[:-1] > 1
+    above = np.where(link, np.inf, np.where(gap, refine, _above(a, b, refine, min_len,
+                                                                rounds > 0)))
+    gouge = _measure_moves(measure, a, b, above, link, moves_at_breaks)
     bad = np.flatnonzero((gouge > refine) & ~breaks[idx[:-1]] & (idx[1:] - idx[:-1] > 1))
     if len(bad):  # the dropped points of gouging chords come back
         back = np.zeros(len(points) + 1, np.int64)
@@ -217,7 +323,9 @@ def follow_part(points: F64, u: F64, fixed: BOOL, breaks: BOOL, measure: PartGou
         # an unchanged chord keeps its measure; the pieces of returned ones are swept
         g[known] = gouge[np.searchsorted(idx, new[:-1][known])]
         fresh = np.flatnonzero(~known)
-        g[fresh] = measure(points[new[fresh]], points[new[fresh + 1]])
+        a, b, link = points[new[fresh]], points[new[fresh + 1]], breaks[new[fresh]]
+        g[fresh] = _measure_moves(measure, a, b, np.where(
+            link, np.inf, _above(a, b, refine, min_len, rounds > 0)), link, moves_at_breaks)
         idx, gouge = new, g
     seg_breaks = breaks[idx[:-1]]
     pts, uu, gouge = _split(points[idx], u[idx], gouge, seg_breaks, measure, refine,

@@ -137,10 +137,10 @@ class StockBound:
                    z_line[j])
         #: ``(n_v, n_u)``: the bound on the nodes
         self.grid = np.empty((n_v, n_u))
+        low = (np.zeros((0, 0)) if before is None
+               else np.ascontiguousarray(before, np.float64))
         _bound_grid(np.ascontiguousarray(line_v, np.float64), z_line, float(dv),
-                    float(radius), float(stock_top), self.grid)
-        if before is not None:
-            np.minimum(self.grid, before, out=self.grid)
+                    float(radius), float(stock_top), low, self.grid)
         self.block = max(1, int(radius / max(du, dv)))
         self._coarse: F64 | None = None
         self.du, self.dv, self.radius = float(du), float(dv), float(radius)
@@ -153,10 +153,8 @@ class StockBound:
         if self._coarse is None:
             b = self.block
             n_v, n_u = self.grid.shape
-            pad = np.full((-(-n_v // b) * b, -(-n_u // b) * b), -np.inf)
-            pad[:n_v, :n_u] = self.grid
-            self._coarse = np.ascontiguousarray(
-                pad.reshape(pad.shape[0] // b, b, pad.shape[1] // b, b).max(axis=(1, 3)))
+            self._coarse = np.empty((-(-n_v // b), -(-n_u // b)))
+            _block_max(self.grid, b, self._coarse)
         return self._coarse
 
     def heights(self, a: F64, b: F64) -> F64:
@@ -218,22 +216,54 @@ def _along(u: F64, z: F64, du: float, out: F64) -> None:
 
 @njit(cache=True, nogil=True)
 def _bound_grid(line_v: F64, z_line: F64, dv: float, radius: float, stock_top: float,
-                out: F64) -> None:
-    """Per node, the least of the stock top and each nearest whole line's tip height plus
-    the ball's rise at the node's distance from that line (when within ``radius``)."""
+                before: F64, out: F64) -> None:
+    """Per node, the least of the stock top, ``before`` (when it has rows) and each nearest
+    whole line's tip height plus the ball's rise at the node's distance from that line
+    (when within ``radius``). The rise depends on the row only: its square root is taken
+    once per row and line (the sum in the same order, so the same values)."""
     nl = len(line_v)
     r2 = radius * radius
+    lower = before.shape[0] > 0
     for i in range(out.shape[0]):
         v = i * dv
         below = int(np.searchsorted(line_v, v, side="right")) - 1
+        j0, j1, s0, s1 = -1, -1, 0.0, 0.0
+        if 0 <= below < nl and abs(line_v[below] - v) < radius:
+            d = abs(line_v[below] - v)
+            j0, s0 = below, math.sqrt(r2 - d * d)
+        if 0 <= below + 1 < nl and abs(line_v[below + 1] - v) < radius:
+            d = abs(line_v[below + 1] - v)
+            j1, s1 = below + 1, math.sqrt(r2 - d * d)
         for k in range(out.shape[1]):
             bound = stock_top
-            for j in (below, below + 1):
-                if 0 <= j < nl:
-                    d = abs(line_v[j] - v)
-                    if d < radius:
-                        bound = min(bound, z_line[j, k] + radius - math.sqrt(r2 - d * d))
+            if j0 >= 0:
+                bound = min(bound, z_line[j0, k] + radius - s0)
+            if j1 >= 0:
+                bound = min(bound, z_line[j1, k] + radius - s1)
+            if lower:
+                bound = min(bound, before[i, k])
             out[i, k] = bound
+
+
+@njit(cache=True, nogil=True)
+def _block_max(grid: F64, b: int, out: F64) -> None:
+    """``out[I, K]``: the max of ``grid`` over the block of ``b x b`` nodes at ``(I, K)``
+    (the last blocks cut at the grid's edge)."""
+    n_v, n_u = grid.shape
+    for bi in range(out.shape[0]):
+        for bk in range(out.shape[1]):
+            out[bi, bk] = -np.inf
+        for i in range(bi * b, min(bi * b + b, n_v)):
+            for bk in range(out.shape[1]):
+                m = out[bi, bk]
+                for k in range(bk * b, min(bk * b + b, n_u)):
+                    m = max(m, grid[i, k])
+                out[bi, bk] = m
+
+
+#: A node is passed over when its bound lies this far (mm) under the best value so far
+#: plus the least rise its row allows (the two rises' roundings differ by far less).
+SKIP_MARGIN = 1e-6
 
 
 @njit(cache=True, nogil=True)
@@ -244,39 +274,60 @@ def _capsule_max(a: F64, b: F64, grid: F64, blk: int, du: float, dv: float, radi
     ``grid`` holds the maxima of blocks of ``blk x blk`` nodes and the max runs over the
     blocks holding any such node (no rise). Row (of blocks) by row over the u range of the
     capsule's slice: the segment's points within ``radius`` of the row's v range, widened
-    by ``radius``."""
-    r2 = radius * radius
+    by ``radius``. With ``blk == 1`` the row nearest the segment's middle goes first; in
+    the others a node whose bound, less the least rise of its row (its v distance from
+    the segment's v range), cannot exceed the best so far is passed over (the max is the
+    same)."""
     for e in range(len(a)):
         ua, va, ub, vb = a[e, 0], a[e, 1], b[e, 0], b[e, 1]
-        eu, ev = ub - ua, vb - va
-        ll = eu * eu + ev * ev
         i0 = max(0, math.floor((min(va, vb) - radius) / dv))
         i1 = min(n_v - 1, math.ceil((max(va, vb) + radius) / dv))
         best = -math.inf
+        mid = -1
+        if blk == 1:
+            mid = min(max(round(0.5 * (va + vb) / dv), i0), i1)
+            best = _capsule_row(ua, va, ub, vb, mid, grid, 1, du, dv, radius, n_u, best)
         for bi in range(i0 // blk, i1 // blk + 1):
-            lo = bi * blk * dv - va - radius  # the segment's v within reach of the rows
-            hi = (bi * blk + blk - 1) * dv - va + radius
-            if abs(ev) > 1e-300:
-                t0 = max(0.0, min(lo / ev, hi / ev))
-                t1 = min(1.0, max(lo / ev, hi / ev))
-                if t0 > t1:
-                    continue
-            else:
-                if lo > 0.0 or hi < 0.0:
-                    continue
-                t0, t1 = 0.0, 1.0
-            k0 = max(0, math.floor((ua + min(t0 * eu, t1 * eu) - radius) / du))
-            k1 = min(n_u - 1, math.ceil((ua + max(t0 * eu, t1 * eu) + radius) / du))
-            if blk > 1:
-                for bk in range(k0 // blk, k1 // blk + 1):
-                    best = max(best, grid[bi, bk])
+            if bi == mid:
                 continue
-            w = bi * dv - va
-            for k in range(k0, k1 + 1):
-                pu = k * du - ua
-                t = 0.0 if ll <= 0.0 else min(1.0, max(0.0, (pu * eu + w * ev) / ll))
-                qu, qv = pu - t * eu, w - t * ev
-                dd = qu * qu + qv * qv
-                if dd <= r2:
-                    best = max(best, grid[bi, k] - (radius - math.sqrt(r2 - dd)))
+            best = _capsule_row(ua, va, ub, vb, bi, grid, blk, du, dv, radius, n_u, best)
         out[e] = best
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _capsule_row(ua: float, va: float, ub: float, vb: float, bi: int, grid: F64, blk: int,
+                 du: float, dv: float, radius: float, n_u: int, best: float) -> float:
+    """:func:`_capsule_max` over one row of ``grid`` (of blocks when ``blk > 1``)."""
+    eu, ev = ub - ua, vb - va
+    ll = eu * eu + ev * ev
+    r2 = radius * radius
+    lo = bi * blk * dv - va - radius  # the segment's v within reach of the rows
+    hi = (bi * blk + blk - 1) * dv - va + radius
+    if abs(ev) > 1e-300:
+        t0 = max(0.0, min(lo / ev, hi / ev))
+        t1 = min(1.0, max(lo / ev, hi / ev))
+        if t0 > t1:
+            return best
+    else:
+        if lo > 0.0 or hi < 0.0:
+            return best
+        t0, t1 = 0.0, 1.0
+    k0 = max(0, math.floor((ua + min(t0 * eu, t1 * eu) - radius) / du))
+    k1 = min(n_u - 1, math.ceil((ua + max(t0 * eu, t1 * eu) + radius) / du))
+    if blk > 1:
+        for bk in range(k0 // blk, k1 // blk + 1):
+            best = max(best, grid[bi, bk])
+        return best
+    w = bi * dv - va
+    gap = max(0.0, min(va, vb) - bi * dv, bi * dv - max(va, vb))
+    least = radius - math.sqrt(max(r2 - gap * gap, 0.0))  # the row's least rise
+    for k in range(k0, k1 + 1):
+        if grid[bi, k] <= best + least - SKIP_MARGIN:  # no new max, whatever its rise
+            continue
+        pu = k * du - ua
+        t = 0.0 if ll <= 0.0 else min(1.0, max(0.0, (pu * eu + w * ev) / ll))
+        qu, qv = pu - t * eu, w - t * ev
+        dd = qu * qu + qv * qv
+        if dd <= r2:
+            best = max(best, grid[bi, k] - (radius - math.sqrt(r2 - dd)))
+    return best

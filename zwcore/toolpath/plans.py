@@ -22,6 +22,7 @@ from zwcore.grid.sampling import cells_at_fine_nodes
 from zwcore.grid.tools import Tool
 from zwcore.grid.zmap import ZMap, finite_number
 from zwcore.scanline.results import ScanlinePlan, ScanlineStage, stage_at_nodes
+from zwcore.toolpath._polyline import PartBounds
 from zwcore.toolpath.contour_paths import contour_stage_path
 from zwcore.toolpath.parse import parse_program
 from zwcore.toolpath.program import CuttingData, ProgramSettings, StagePath
@@ -192,6 +193,7 @@ def scanline_toolpaths(part: ZMap, plan: ScanlinePlan, cl_heights: CLHeights = s
     t, c = time.perf_counter(), time.process_time()
     stages: list[StagePath] = []
     before: F64 | None = None
+    bounds = PartBounds(part)  # the part's block bounds, built once for every stage
     for i, st in enumerate(plan.stages):
         path = scanline_stage_path(
             part, st, i, data[st.tool.id], cl_heights, clearance=clear,
@@ -200,7 +202,7 @@ def scanline_toolpaths(part: ZMap, plan: ScanlinePlan, cl_heights: CLHeights = s
             rapid_feed=rapid_feed,
             # the stock only falls: the bound after the stages before holds (rest stages
             # with no whole lines of their own come down to it, not to the stock top)
-            stock_before=before,
+            stock_before=before, part_bounds=bounds,
             # only the plan's last pass is re-cut from its own simulation: an earlier
             # ball's scallops are in the plan's simulated stock, so the rest regions of
             # the balls after it already cover them (and a large ball's closing at the

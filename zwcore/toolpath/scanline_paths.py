@@ -16,8 +16,6 @@ move reaches below the part.
 
 from __future__ import annotations
 
-from collections.abc import Callable
-
 import numpy as np
 from numba import njit
 from numpy.typing import NDArray
@@ -26,9 +24,9 @@ from zwcore.errors import InvalidInputError
 from zwcore.grid.tools import Tool
 from zwcore.grid.zmap import ZMap
 from zwcore.scanline.results import ScanlineStage
-from zwcore.sim import drop_cutter
-from zwcore.toolpath._polyline import PartGouge, follow_part
+from zwcore.toolpath._polyline import PartBounds, PartGouge, follow_part
 from zwcore.toolpath._scallop import fine_points, finishing_closing, scallop_segments
+from zwcore.toolpath._scan_cl import CLHeights, _stage_cl, sim_cl_heights
 from zwcore.toolpath._scan_links import StockBound, merge_stretches, region_stretches
 from zwcore.toolpath.program import LINE, RAPID, CuttingData, Moves, StagePath
 
@@ -42,46 +40,6 @@ ENTRY_GAP = 0.5
 SCALLOP_ROUNDS = 2
 
 F64 = NDArray[np.float64]
-
-#: ``cl_heights(model, tool)``: tip heights of ``tool`` dropped onto every node of ``model``
-#: (bilinear surface), an ``(my, mx)`` array, never below the true drop-cutter height.
-CLHeights = Callable[[ZMap, Tool], F64]
-
-
-def sim_cl_heights(model: ZMap, tool: Tool, rows: NDArray[np.integer] | None = None) -> F64:
-    """The default :data:`CLHeights`: :func:`zwcore.sim.drop_cutter` on the bilinear model
-    (never below the true drop-cutter height), by branch and bound for large tools
-    (``method="auto"``: a Ø20 ball at the input's 0.1 mm spans 43,000 nodes); with
-    ``rows``, a large tool's CL on those rows only (the others may be NaN)."""
-    return drop_cutter(model, tool, "bilinear", method="auto", rows=rows)
-
-
-def _line_rows(offset: F64, spacing: float, n: int) -> NDArray[np.int64]:
-    """The model rows (or columns) that lines at ``offset`` (mm) read: the one each lies on
-    or the two it lies between."""
-    f = offset / spacing
-    lo = np.clip(np.floor(f).astype(np.int64), 0, n - 1)
-    hi = np.where(f > lo, np.minimum(lo + 1, n - 1), lo)
-    return np.unique(np.concatenate([lo, hi]))
-
-
-def _stage_cl(part: ZMap, stage: ScanlineStage, mdl: F64, sx: float, sy: float,
-              cl_heights: CLHeights, whole: bool) -> F64:
-    """The stage's CL grid on its model, ``(my, mx)``. With the default drop-cutter, only the
-    rows (a pass along x) or columns (along y, on the transposed model) the stage's lines
-    read are computed (the pruned method's values there are those of the whole grid; the
-    others are NaN and never read); ``whole``: every node (the scallop pass compares with
-    the CL on all of them)."""
-    if cl_heights is not sim_cl_heights or whole or not len(stage.lines.offset):
-        return cl_heights(ZMap(mdl, part.x0, part.y0, sx, sy), stage.tool)
-    if stage.scan_direction == "x":
-        rows = _line_rows(stage.lines.offset, sy, mdl.shape[0])
-        return sim_cl_heights(ZMap(mdl, part.x0, part.y0, sx, sy), stage.tool, rows)
-    cols = _line_rows(stage.lines.offset, sx, mdl.shape[1])
-    # the ball and the pruned bounds are symmetric in x and y: the transposed model's rows
-    return sim_cl_heights(ZMap(np.ascontiguousarray(mdl.T), part.y0, part.x0, sy, sx),
-                          stage.tool, cols).T
-
 
 def _raster(cl: F64, rows: F64) -> F64:
     """CL heights on fractional rows (linear between the grid rows; the lift makes it safe)."""
@@ -134,19 +92,22 @@ class _Polyline:
     """Builds a path (xy rounded to the output) through the refine, thin and lift steps."""
 
     def __init__(self, part: ZMap, tool: Tool, along_x: bool, chord: float, decimals: int,
-                 refine: float, min_len: float, block: int = 1):
+                 refine: float, min_len: float, block: int = 1,
+                 bounds: PartBounds | None = None):
         self.part, self.tool, self.along_x = part, tool, along_x
-        self.measure = PartGouge(part, tool, block)
+        self.measure = PartGouge(part, tool, block, bounds)
         self.chord, self.decimals = chord, decimals
         self.refine, self.min_len = refine, min_len
 
     def points(self, u: F64, v: F64, z: F64, su: F64, fixed: NDArray[np.bool_],
-               breaks: NDArray[np.bool_]) -> tuple[F64, float, F64]:
+               breaks: NDArray[np.bool_], moves_at_breaks: bool = True
+               ) -> tuple[F64, float, F64]:
         part, dec = self.part, self.decimals
         x, y = (u, v) if self.along_x else (v, u)
         pts = np.column_stack([np.round(part.x0 + x, dec), np.round(part.y0 + y, dec), z])
         out, su, lift = follow_part(pts, su, fixed, breaks, self.measure, chord=self.chord,
-                                    refine=self.refine, min_len=self.min_len, decimals=dec)
+                                    refine=self.refine, min_len=self.min_len, decimals=dec,
+                                    moves_at_breaks=moves_at_breaks)
         return out, lift, su
 
 
@@ -197,9 +158,12 @@ def _segments(raw: tuple[F64, F64, F64, NDArray[np.int64]], poly: _Polyline
     breaks[ends[:-1] - 1] = True
     span = float(u.max() - u.min()) + 1.0
     su = u + np.repeat(np.arange(len(sizes)), sizes) * span
-    pts, lift, su_kept = poly.points(u, v, z, su, fixed, breaks)
-    # segment n's parameters lie in [n * span + u.min(), (n + 1) * span + u.min())
-    owner = np.floor((su_kept - u.min()) / span).astype(np.int64)
+    # each segment is entered on its own: the breaks between them are no moves
+    pts, lift, su_kept = poly.points(u, v, z, su, fixed, breaks, moves_at_breaks=False)
+    # segment n's parameters lie in [n * span + u.min(), (n + 1) * span + u.min() - 1]: the
+    # gaps' middles divide them (``n * span / span`` may round below ``n``: the first point
+    # of a segment would count with the one before)
+    owner = np.floor((su_kept - u.min() + 0.5) / span).astype(np.int64)
     kept = np.bincount(owner, minlength=len(sizes)).astype(np.int64)
     return pts, kept, lift, len(u)
 
@@ -366,7 +330,8 @@ def scanline_stage_path(part: ZMap, stage: ScanlineStage, index: int, cutting: C
                         region: NDArray[np.bool_] | None = None,
                         scallop_tolerance: float | None = None, decimals: int = 4,
                         rapid_feed: float = 15_000.0,
-                        stock_before: F64 | None = None) -> StagePath:
+                        stock_before: F64 | None = None,
+                        part_bounds: PartBounds | None = None) -> StagePath:
     """Tool path of one scan-line stage.
 
     Parameters
@@ -411,6 +376,9 @@ def scanline_stage_path(part: ZMap, stage: ScanlineStage, index: int, cutting: C
         swept over the part's nodes and segments added where they leave more than this
         above what its CL allows (:mod:`~zwcore.toolpath._scallop`), up to
         :data:`SCALLOP_ROUNDS` times.
+    part_bounds : PartBounds, optional
+        The part's block bounds for the gouge measure, shared by a plan's stages (built
+        once per part and block size instead of once per stage); default: this stage's.
 
     Returns
     -------
@@ -454,7 +422,8 @@ def scanline_stage_path(part: ZMap, stage: ScanlineStage, index: int, cutting: C
     min_len = min(part.dx, part.dy) / 16.0 if refine_tolerance is None else 0.25 * min(sx, sy)
     # the gouge measure's coarse look: blocks of a quarter of the model's spacing
     block = max(BLOCK_MIN, round(0.25 * min(sx / du, sy / dv)))
-    poly = _Polyline(part, tool, along_x, chord_tolerance, decimals, refine, min_len, block)
+    poly = _Polyline(part, tool, along_x, chord_tolerance, decimals, refine, min_len, block,
+                     part_bounds)
     ext = tool.radius + max(part.dx, part.dy)
     pts, max_lift, n_raw, per_line = _full_lines(cl, lines.offset[full] / sy, sx, sy, extent,
                                                  ext, poly)
