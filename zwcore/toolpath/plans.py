@@ -18,6 +18,7 @@ from numpy.typing import NDArray
 
 from zwcore.contour.results import ContourPlan
 from zwcore.errors import InvalidInputError, LimitExceededError
+from zwcore.grid.feeds import DEFAULT_RAPID_FEED
 from zwcore.grid.sampling import cells_at_fine_nodes
 from zwcore.grid.tools import Tool
 from zwcore.grid.zmap import ZMap, finite_number
@@ -154,7 +155,7 @@ def _finish(part: ZMap, stages: list[StagePath], settings: ProgramSettings, stoc
 def scanline_toolpaths(part: ZMap, plan: ScanlinePlan, cl_heights: CLHeights = sim_cl_heights,
                        *,
                        cutting: Mapping[str, CuttingData] | None = None,
-                       clearance: float | None = None, rapid_feed: float = 15_000.0,
+                       clearance: float | None = None, rapid_feed: float = DEFAULT_RAPID_FEED,
                        verify: bool = True, max_bytes: int | None = None,
                        reach: NDArray[np.bool_] | None = None,
                        regions: Sequence[NDArray[np.bool_] | None] | None = None) -> Toolpaths:
@@ -238,7 +239,7 @@ def _merge_models(stages: list[StagePath], model: Callable[[int], F64]) -> list[
 def contour_toolpaths(part: ZMap, plan: ContourPlan, *,
                       cutting: Mapping[str, CuttingData] | None = None,
                       clearance: float | None = None, tolerance: float = 0.05,
-                      stepover_fraction: float = 0.4, rapid_feed: float = 15_000.0,
+                      stepover_fraction: float = 0.4, rapid_feed: float = DEFAULT_RAPID_FEED,
                       verify: bool = True, max_bytes: int | None = None) -> Toolpaths:
     """Contour paths of every stage of a plan, the program and its simulation.
 

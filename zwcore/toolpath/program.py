@@ -16,6 +16,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from zwcore.errors import InvalidInputError
+from zwcore.grid.feeds import (
+    DEFAULT_FEED,
+    DEFAULT_PLUNGE_FEED,
+    DEFAULT_RAPID_FEED,
+    machining_minutes,
+)
 from zwcore.grid.tools import Tool
 
 __all__ = [
@@ -64,8 +70,8 @@ class CuttingData:
 
     tool_number: int = 1
     spindle_rpm: float = 12_000.0
-    feed: float = 1_200.0
-    plunge_feed: float = 400.0
+    feed: float = DEFAULT_FEED
+    plunge_feed: float = DEFAULT_PLUNGE_FEED
     ramp_angle_deg: float = 3.0
 
 
@@ -114,7 +120,7 @@ class ProgramSettings:
     """
 
     clearance: float
-    rapid_feed: float = 15_000.0
+    rapid_feed: float = DEFAULT_RAPID_FEED
     decimals: int = 4
 
 
@@ -222,5 +228,5 @@ class StagePath:
     def time_min(self, rapid_feed: float) -> float:
         """Machining time estimate in minutes (each kind at its rate; no acceleration)."""
         ln = self.lengths()
-        return (ln["rapid"] / rapid_feed + ln["plunge"] / self.cutting.plunge_feed
-                + ln["feed"] / self.cutting.feed)
+        return machining_minutes(ln["feed"], ln["plunge"], ln["rapid"], feed=self.cutting.feed,
+                                 plunge_feed=self.cutting.plunge_feed, rapid_feed=rapid_feed)

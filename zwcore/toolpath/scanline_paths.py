@@ -21,6 +21,7 @@ from numba import njit
 from numpy.typing import NDArray
 
 from zwcore.errors import InvalidInputError
+from zwcore.grid.feeds import DEFAULT_RAPID_FEED
 from zwcore.grid.tools import Tool
 from zwcore.grid.zmap import ZMap
 from zwcore.scanline.results import ScanlineStage
@@ -329,7 +330,7 @@ def scanline_stage_path(part: ZMap, stage: ScanlineStage, index: int, cutting: C
                         model: F64 | None = None, spacing: tuple[float, float] | None = None,
                         region: NDArray[np.bool_] | None = None,
                         scallop_tolerance: float | None = None, decimals: int = 4,
-                        rapid_feed: float = 15_000.0,
+                        rapid_feed: float = DEFAULT_RAPID_FEED,
                         stock_before: F64 | None = None,
                         part_bounds: PartBounds | None = None) -> StagePath:
     """Tool path of one scan-line stage.
