@@ -194,30 +194,63 @@ def _row_chunk_max(z: F64, c: int) -> F64:
 
 
 @njit(cache=True, nogil=True)
-def _cut_row(row: F64, i: int, b: int, ey2: float, floor: float, pu: F64, pc: F64,
-             st: I64, start: F64, m: int, w: float, r: float, du: float,
-             touched: NDArray[np.bool_], skip: NDArray[np.bool_], rowmax: F64,
-             curv: float, pp: F64, pf: F64, ps: F64, npar: int) -> None:
-    """Lower one row (``ey2`` from the line) by the envelope ``st[:m]``, ``start[:m]``
-    (not in the blocks ``skip`` marks).
+def _chunk_bounds(pu: F64, pc: F64, j0: int, j1: int, curv: float, k0: int, k1: int,
+                  du: float, pp: F64, pf: F64, ps: F64, out: F64) -> None:
+    """``out[ch]``: the least of ``pc[j] + curv t²`` over the line's positions, ``t`` their
+    distance along the line from chunk ``ch``'s nodes (for the chunks of nodes
+    ``k0..k1``; :func:`_parabolas`)."""
+    npar = _parabolas(pu, pc, j0, j1, curv, pp, pf, ps)
+    pa = 0
+    for ch in range(k0 // _CHUNK, k1 // _CHUNK + 1):
+        xa = max(k0, ch * _CHUNK) * du
+        xb = min(k1, ch * _CHUNK + _CHUNK - 1) * du
+        while pa + 1 < npar and ps[pa + 1] <= xa:
+            pa += 1
+        lo = np.inf
+        e = pa
+        while e < npar and (e == pa or ps[e] <= xb):
+            t = max(0.0, xa - pp[e], pp[e] - xb)
+            lo = min(lo, pf[e] + curv * t * t)
+            e += 1
+        out[ch] = lo
 
+
+@njit(cache=True, nogil=True)
+def _cut_row(row: F64, i: int, b: int, ey2: float, floor: float, pu: F64, pc: F64,
+             j0: int, j1: int, st: I64, start: F64, built: I64, w_env: float,
+             rho2_env: float, w: float, r: float, du: float,
+             touched: NDArray[np.bool_], skip: NDArray[np.bool_], rowmax: F64,
+             curv: float, pp: F64, pf: F64, ps: F64, gline: F64) -> None:
+    """Lower one row (``ey2`` from the line) by the lower envelope of the line's balls
+    (positions ``j0..j1-1``; not in the blocks ``skip`` marks).
+
+    The envelope (``st``, ``start``: :func:`_envelope` with ``w_env``, ``rho2_env``) and
+    the bound's parabolas (``pp, pf, ps``) are built when a chunk first needs them,
+    once for a row and its mirror (``built``: their counts, -1 until built).
     ``rowmax`` holds an upper bound of the row's stock per chunk of :data:`_CHUNK`
     nodes (kept one here). The line's balls stand at least ``he + curv t²`` over the
-    positions' CLs ``t`` along the line away (``pp, pf, ps``: the lower envelope of
+    positions' CLs ``t`` along the line away (the lower envelope of
     ``pc + curv (x - pu)²``, :func:`_parabolas`; h is convex in d²): a chunk whose stock
-    lies under that nowhere is lowered nowhere, and is not visited."""
+    lies under that nowhere is lowered nowhere, and is not visited. ``gline``: the same
+    bound per chunk with the least curvature ``1 / (2R)`` (every row's), computed once
+    for the line, tried first."""
     nu = row.size
     r2, rin = r * r, r * r * RIM
-    k0, _ = _span(pu[st[0]], w, du, nu)
-    _, k1 = _span(pu[st[m - 1]], w, du, nu)
+    # the envelope's first and last winners are the line's first and last positions
+    k0, _ = _span(pu[j0], w, du, nu)
+    _, k1 = _span(pu[j1 - 1], w, du, nu)
     near = _NEAR * du
     he = r - math.sqrt(max(r2 - ey2, 0.0))
     at = 0
     pa = 0
     sk = skip[i // b]
+    m, npar = built[0], built[1]
     for ch in range(k0 // _CHUNK, k1 // _CHUNK + 1):
-        if rowmax[ch] <= floor:
+        if rowmax[ch] <= max(floor, gline[ch] + he - _SLACK):
             continue
+        if npar < 0:
+            npar = _parabolas(pu, pc, j0, j1, curv, pp, pf, ps)
+            built[1] = npar
         ka, kb = max(k0, ch * _CHUNK), min(k1, ch * _CHUNK + _CHUNK - 1)
         xa, xb = ka * du, kb * du
         while pa + 1 < npar and ps[pa + 1] <= xa:
@@ -231,6 +264,9 @@ def _cut_row(row: F64, i: int, b: int, ey2: float, floor: float, pu: F64, pc: F6
         low = max(floor, lo + he - _SLACK)  # no node at or under it is lowered
         if rowmax[ch] <= low:
             continue
+        if m < 0:
+            m = _envelope(pu, pc, j0, j1, w_env, rho2_env, st, start)
+            built[0] = m
         for k in range(ka, kb + 1):
             if row[k] <= low or sk[k // b]:
                 continue
@@ -258,6 +294,10 @@ def _cut_row(row: F64, i: int, b: int, ey2: float, floor: float, pu: F64, pc: F6
             top = max(top, row[k])
         rowmax[ch] = top
 
+
+#: Each band of rows :func:`cut_lines` sweeps reaches this many times as far from the
+#: line as the one before.
+_BAND_GROWTH = 2.0
 
 #: A node this close to a crossing of the envelope (in spacings) is also tried with the
 #: arc on the crossing's other side: the crossing's rounding, with room to spare.
@@ -307,27 +347,33 @@ def cut_lines(s: F64, pu: F64, pv: F64, pc: F64, starts: I64, r: float, du: floa
     pp = np.empty(max(n, 1))
     pf = np.empty(max(n, 1))
     ps = np.empty(max(n, 1))
-    # Rows within half the usual line spacing first (each row by its nearest lines), the
-    # rest after: the stock is then low early and the bounds skip most far rows.
-    near2 = rin
+    # Rows within half the usual line spacing first (each row by its nearest lines), then
+    # in bands of growing distance: the stock is low early and the bounds skip most far
+    # rows.
+    half = r
     if starts.size > 2:
-        gaps = np.diff(pv[starts[:-1]])
-        half = 0.5 * np.median(gaps)
-        near2 = half * half
-    for phase in range(2):
+        half = max(0.5 * np.median(np.diff(pv[starts[:-1]])), 1e-9)
+    lo2 = -1.0
+    hi = half
+    while lo2 < rin:
+        hi2 = hi * hi if hi < r else rin
         _cut_phase(s, pu, pv, pc, starts, r, du, dv, b, touched, skip, left, rowmax, st,
-                   start, pp, pf, ps, near2, phase)
+                   start, pp, pf, ps, lo2, hi2)
+        lo2 = hi2
+        hi *= _BAND_GROWTH
 
 
 @njit(cache=True, nogil=True)
 def _cut_phase(s: F64, pu: F64, pv: F64, pc: F64, starts: I64, r: float, du: float,
                dv: float, b: int, touched: NDArray[np.bool_], skip: NDArray[np.bool_],
                left: I64, rowmax: F64, st: I64, start: F64, pp: F64, pf: F64, ps: F64,
-               near2: float, phase: int) -> None:
-    """:func:`cut_lines` over the rows within ``sqrt(near2)`` of their line (``phase``
-    0) or beyond (1)."""
+               lo2: float, hi2: float) -> None:
+    """:func:`cut_lines` over the rows whose squared distance from their line lies in
+    ``(lo2, hi2]``."""
     nv, nu = s.shape
     r2, rin = r * r, r * r * RIM
+    built = np.empty(2, dtype=np.int64)
+    gline = np.empty(nu // _CHUNK + 1)
     for ln in range(starts.size - 1):
         j0, j1 = starts[ln], starts[ln + 1]
         q = pv[j0]
@@ -342,6 +388,7 @@ def _cut_phase(s: F64, pu: F64, pv: F64, pc: F64, starts: I64, r: float, du: flo
         if ka > kb:
             continue
         ba, bb = ka // b, kb // b + 1
+        gdone = False
         for i in range(i0, i1 + 1):
             if mirror and i < iq and 2 * iq - i <= i1:
                 continue  # done with its mirror row below
@@ -352,24 +399,27 @@ def _cut_phase(s: F64, pu: F64, pv: F64, pc: F64, starts: I64, r: float, du: flo
                 continue  # every block of the row (and its mirror) in reach is settled
             ey = i * dv - q
             ey2 = ey * ey
-            if ey2 > rin or (ey2 <= near2) != (phase == 0):
+            if ey2 > rin or ey2 <= lo2 or ey2 > hi2:
                 continue
             rho2 = r2 - ey2
             w = math.sqrt(rin - ey2)
-            m = _envelope(pu, pc, j0, j1, w, rho2, st, start)
             curv = 0.5 / math.sqrt(max(rho2, rin * 1e-30))
-            npar = _parabolas(pu, pc, j0, j1, curv, pp, pf, ps)
-            _cut_row(s[i], i, b, ey2, cmin + (r - math.sqrt(max(rho2, 0.0))), pu, pc, st,
-                     start, m, w, r, du, touched, skip, rowmax[i], curv, pp, pf, ps, npar)
+            built[0], built[1] = -1, -1
+            if not gdone:
+                _chunk_bounds(pu, pc, j0, j1, 0.5 / r, ka, kb, du, pp, pf, ps, gline)
+                gdone = True
+            _cut_row(s[i], i, b, ey2, cmin + (r - math.sqrt(max(rho2, 0.0))), pu, pc, j0,
+                     j1, st, start, built, w, rho2, w, r, du, touched, skip, rowmax[i],
+                     curv, pp, pf, ps, gline)
             if two:
                 ey_o = other * dv - q
                 e2 = ey_o * ey_o
                 if e2 <= rin:
                     # the mirror's own curvature differs by the rounding (_SLACK covers it)
                     _cut_row(s[other], other, b, e2,
-                             cmin + (r - math.sqrt(max(r2 - e2, 0.0))), pu, pc, st,
-                             start, m, math.sqrt(rin - e2), r, du, touched, skip,
-                             rowmax[other], curv, pp, pf, ps, npar)
+                             cmin + (r - math.sqrt(max(r2 - e2, 0.0))), pu, pc, j0, j1,
+                             st, start, built, w, rho2, math.sqrt(rin - e2), r, du,
+                             touched, skip, rowmax[other], curv, pp, pf, ps, gline)
 
 
 @njit(cache=True, nogil=True)
@@ -443,18 +493,35 @@ def cl_lines(z: F64, pu: F64, pv: F64, cl0: F64, starts: I64, r: float, du: floa
                     e += 1
                 if zc[i, ch] - he <= lo - _SLACK:
                     continue
+                pe = at
                 for k in range(ka, kb + 1):
-                    if row[k] - he > lo - _SLACK:
-                        su[m] = k * du
+                    if row[k] - he <= lo - _SLACK:
+                        continue
+                    # the bound at the node itself (the pieces about it: rounding)
+                    x = k * du
+                    while pe + 1 < np_ and pstart[pe + 1] <= x:
+                        pe += 1
+                    here = np.inf
+                    for e in range(max(pe - 1, 0), min(pe + 2, np_)):
+                        t = x - pp[e]
+                        here = min(here, pf[e] + curv * t * t)
+                    if row[k] - he > here - _SLACK:
+                        su[m] = x
                         sc[m] = -row[k]
                         sk[m] = k
                         m += 1
             if m == 0:
                 continue
+            # only positions within reach of a node kept (a spacing to spare) can rise
+            xlo, xhi = su[0] - w - du, su[m - 1] + w + du
             m = _envelope(su, sc, 0, m, w, rho2, st, start)
             at = 0
             for j in range(j0, j1):
                 p = pu[j]
+                if p < xlo:
+                    continue
+                if p > xhi:
+                    break
                 while at + 1 < m and start[at + 1] <= p:
                     at += 1
                 best = out[j]
