@@ -35,7 +35,7 @@ SWEEP_SHARE = 0.05
 #: the dense ones too (1025² bench part: the Ø20's 4 225-position facing pass, share 0.12,
 #: 0.29 s per position and 0.03 s swept; the Ø3 rest pass of 146 004 positions, share
 #: 0.22, envelope 0.28 and 0.13 s, drop 0.24 and 0.14 s). The plan's work estimate
-#: (``_stock._pass_work``) keeps :data:`SWEEP_SHARE`, so the passes and their thinning
+#: (``_stock_thin.pass_work``) keeps :data:`SWEEP_SHARE`, so the passes and their thinning
 #: are unchanged; the kernels' results are the same either way.
 SWEEP_RUN_SHARE = 0.5
 
