@@ -125,6 +125,11 @@ class _Plan:
         return (ny - 1) * self.zmap.dy, (nx - 1) * self.zmap.dx
 
 
+#: A model whose slopes :meth:`_Stage._slopes` took (a copy), the level's spacing and
+#: cells, and the slopes.
+_Seen = tuple[F64, float, float, tuple[int, int], tuple[F64, F64, float]]
+
+
 @dataclass
 class _Stage:
     """One stage: its level, ball, the model it starts from (``on``) and its line plans."""
@@ -140,21 +145,37 @@ class _Stage:
     lines: dict[tuple[bool, float, str], StripPlan] = field(default_factory=dict)
     finish_first: bool = False
 
+    #: slopes already taken, shared by the plan's stages (:meth:`_slopes`)
+    seen: list[_Seen] = field(default_factory=list)
+
     def __post_init__(self) -> None:
         lev = self.lev
         # Passes that do not reach the target plan their lines on a bound of the
         # slopes of the target and the model before (they lie between the two where
         # the flute rule does not raise them); the last one on the target's own.
-        self.ax_t, self.ay_t = cell_cross_slopes(lev.model, lev.sx, lev.sy, lev.cells)
-        self.slope_t = steepest_slope(lev.model, lev.sx, lev.sy, extent=lev.cells)
+        self.ax_t, self.ay_t, self.slope_t = self._slopes(lev.model)
         if self.first:
             self.ax_b, self.ay_b, self.slope_b = self.ax_t, self.ay_t, self.slope_t
         else:
-            ax_o, ay_o = cell_cross_slopes(self.on, lev.sx, lev.sy, lev.cells)
+            ax_o, ay_o, slope_o = self._slopes(self.on)
             self.ax_b, self.ay_b = np.maximum(self.ax_t, ax_o), np.maximum(self.ay_t, ay_o)
-            self.slope_b = max(self.slope_t,
-                               steepest_slope(self.on, lev.sx, lev.sy, extent=lev.cells))
+            self.slope_b = max(self.slope_t, slope_o)
         self.memo = PassMemo()  # the target's drop and the last pass, per position
+
+    def _slopes(self, model: F64) -> tuple[F64, F64, float]:
+        """Cross slopes per cell and steepest slope of ``model`` on the level; taken once
+        per plan for equal models (the finishing stages share the part's level, and a
+        stage that reached its target starts the next one from a copy of it)."""
+        lev = self.lev
+        for m, sx, sy, cells, got in self.seen:
+            if ((sx, sy, cells) == (lev.sx, lev.sy, lev.cells) and m.shape == model.shape
+                    and np.array_equal(m, model)):
+                return got
+        ax, ay = cell_cross_slopes(model, lev.sx, lev.sy, lev.cells)
+        got = (ax, ay, steepest_slope(model, lev.sx, lev.sy, extent=lev.cells))
+        # a copy: a pass's model may be raised in place later
+        self.seen.append((model.copy(), lev.sx, lev.sy, lev.cells, got))
+        return got
 
     def strips(self, reached: bool, tolerance: float, extent_mm: tuple[float, float],
                ) -> StripPlan:
@@ -314,6 +335,7 @@ def passes(zmap: ZMap, chosen: list[Stage], stock_top: float, tolerance: float, 
     plan = _Plan(zmap, stock_top, tolerance, g, notes, StockSim(zmap, stock_top))
     prev: F64 | None = None
     prev_level = 0
+    seen: list[_Seen] = []
     for n, stage in enumerate(chosen):
         lev, tool, merged, rest = stage[:4]
         region = _region(stage, plan.sim.stock)
@@ -328,7 +350,7 @@ def passes(zmap: ZMap, chosen: list[Stage], stock_top: float, tolerance: float, 
         finishing = lev.index == chosen[-1][0].index
         next_flute = None if finishing else chosen[n + 1][1].flute_length
         st = _Stage(lev, tool, tuple(merged), rest, region, on, prev is None,
-                    next_flute)
+                    next_flute, seen=seen)
         prev = _stage_passes(plan, st)
         prev_level = lev.index
     if plan.out:

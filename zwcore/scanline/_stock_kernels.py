@@ -73,10 +73,20 @@ def cl_part(z: F64, zmax: F64, b: int, px: F64, py: F64, cl0: F64, r: float, dx:
                                 best = v
         out[n] = best
     return out
+@njit(cache=True, nogil=True, inline="always")
+def _sq(x: float) -> float:
+    return x * x
+
+
 @njit(cache=True, nogil=True)
 def top(s: F64, smax: F64, b: int, px: F64, py: F64, r: float, dx: float,
          dy: float) -> F64:
-    """Highest stock node within ``r`` of each position (-inf: none)."""
+    """Highest stock node within ``r`` of each position (-inf: none).
+
+    The node nearest the axis is read first (a bound that skips most blocks at once),
+    and per row of a block the nodes within ``r`` are one run (``d²`` grows with the
+    distance along the row either way), found at its ends and read without a test each.
+    """
     ny, nx = s.shape
     rin = r * r * RIM
     out = np.full(px.size, -np.inf)
@@ -87,19 +97,32 @@ def top(s: F64, smax: F64, b: int, px: F64, py: F64, r: float, dx: float,
         i0, i1 = _span(q, r, dy, ny)
         if k0 > k1 or i0 > i1:
             continue
+        kc = min(max(round(p / dx), k0), k1)
+        ic = min(max(round(q / dy), i0), i1)
+        if _sq(kc * dx - p) + _sq(ic * dy - q) <= rin:
+            best = s[ic, kc]
         for bi in range(i0 // b, i1 // b + 1):
             for bk in range(k0 // b, k1 // b + 1):
                 if smax[bi, bk] <= best or _block_dist2(p, q, bi, bk, b, ny, nx, dx,
                                                         dy) > rin:
                     continue
+                ka, kb = max(k0, bk * b), min(k1, bk * b + b - 1)
                 for i in range(max(i0, bi * b), min(i1, bi * b + b - 1) + 1):
                     ey = i * dy - q
-                    for k in range(max(k0, bk * b), min(k1, bk * b + b - 1) + 1):
-                        ex = k * dx - p
-                        if ex * ex + ey * ey <= rin and s[i, k] > best:
-                            best = s[i, k]
+                    ey2 = ey * ey
+                    lo, hi = ka, kb
+                    while lo <= hi and _sq(lo * dx - p) + ey2 > rin:
+                        lo += 1
+                    while hi >= lo and _sq(hi * dx - p) + ey2 > rin:
+                        hi -= 1
+                    row = s[i]
+                    for k in range(lo, hi + 1):
+                        if row[k] > best:
+                            best = row[k]
         out[n] = best
     return out
+
+
 @njit(cache=True, nogil=True)
 def cut(s: F64, smax: F64, b: int, px: F64, py: F64, cl: F64, r: float, dx: float,
         dy: float, touched: NDArray[np.bool_], skip: NDArray[np.bool_]) -> None:

@@ -30,12 +30,14 @@ F64 = NDArray[np.float64]
 SWEEP_SHARE = 0.05
 
 #: The share up to which :meth:`LineSweep.of` actually runs the sweep. Above
-#: :data:`SWEEP_SHARE`: the sparse passes the block skipping does not thin much (1025²
-#: bench part: the Ø20's 4 225-position facing pass, share 0.12, 0.29 s per position and
-#: 0.09 s swept; a Ø3 rest pass of 9 655 positions, share 0.17, 0.023 and 0.013 s). The
-#: plan's work estimate (``_stock._pass_work``) keeps :data:`SWEEP_SHARE`, so the passes
-#: and their thinning are unchanged; the kernels' results are the same either way.
-SWEEP_RUN_SHARE = 0.15
+#: :data:`SWEEP_SHARE`: the sparse passes the block skipping does not thin much, and since
+#: the sweep skips rows and chunks its bounds settle (:mod:`zwcore.scanline._stock_sweep`)
+#: the dense ones too (1025² bench part: the Ø20's 4 225-position facing pass, share 0.12,
+#: 0.29 s per position and 0.03 s swept; the Ø3 rest pass of 146 004 positions, share
+#: 0.22, envelope 0.28 and 0.13 s, drop 0.24 and 0.14 s). The plan's work estimate
+#: (``_stock_thin.pass_work``) keeps :data:`SWEEP_SHARE`, so the passes and their thinning
+#: are unchanged; the kernels' results are the same either way.
+SWEEP_RUN_SHARE = 0.5
 
 
 @dataclass(frozen=True, eq=False)

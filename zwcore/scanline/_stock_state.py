@@ -48,7 +48,7 @@ class Positions:
 
 
 class Thin(Protocol):
-    """A pass's thinning (:class:`_stock._Thinning`): every ``k``-th line and point."""
+    """A pass's thinning (:class:`_stock_thin.Thinning`): every ``k``-th line and point."""
 
     @property
     def k(self) -> int: ...
