@@ -14,9 +14,12 @@ at the end of that interval the move descends towards. Arcs are swept as chords 
 radius grown by the chord's sagitta (a superset of the true swept volume: conservative for
 removal).
 
-The kernel is compiled with numba (per move the nodes within R of its shadow gathered, then
-one flat loop: no temporaries, about 5 ns per node visited); moves are processed in order,
-so a simulation sees the stock as every earlier move left it.
+The kernels are compiled with numba; moves are processed in order, so a simulation sees the
+stock as every earlier move left it. Without ``bounds`` (the plain kernel,
+:mod:`~zwcore.toolpath._sweep_plain`) a move's nodes within R of its shadow are gathered,
+then evaluated in one flat loop. With ``bounds`` the nodes of the blocks it cannot skip are
+read in place, a contiguous stretch of a row at a time (about 7 ns per node visited, stock
+compare and bound upkeep included).
 
 **Blocks a move leaves alone** (``bounds``, :class:`BlockBounds`). A sweep only matters
 where the tool comes below ``U = max(stock, ref)``: there it lowers the stock and its
@@ -61,7 +64,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from zwcore.toolpath._sweep_kernel import measure_all, plain_kernel, sweep_kernel
+from zwcore.toolpath._sweep_kernel import measure_all, sweep_kernel
+from zwcore.toolpath._sweep_plain import plain_kernel
 
 __all__ = ["BlockBounds", "GridFrame", "arc_chords", "block_size", "sweep_moves",
            "trailing_cuts"]
