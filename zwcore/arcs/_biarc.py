@@ -119,6 +119,48 @@ def _first_outside(lo_t: FloatArray, up_t: FloatArray, kappa: float) -> int:
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
+def _first_arc_table(samples: FloatArray, p0: FloatArray, t0: FloatArray, k: int, b: int,
+                     tol: float) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+    """Samples ``k..`` in the frame of ``(p0, t0)`` (``uu, vv``) and the running
+    curvature bounds ``lo_t, up_t`` of a first arc from there (see :func:`biarc`)."""
+    n = b - k + 1
+    uu_all = np.empty(n)
+    vv_all = np.empty(n)
+    # the curvatures that keep samples k+1..i within (a hair more than) tol of the first
+    # arc's circle: a first arc outside them fails verification, so it is not verified.
+    # The table ends at the first empty interval (every curvature fails there and, the
+    # bounds narrowing, beyond: :func:`_first_outside` answers the same), and the local
+    # coordinates two samples past it (the foot scan stops one past the first failure)
+    lo_t_all = np.empty(max(n - 1, 0))
+    up_t_all = np.empty(max(n - 1, 0))
+    wt = tol * (1.0 + 1e-6)
+    lo, up = -np.inf, np.inf
+    n_t = n - 1
+    n_uv = n
+    for i in range(n):
+        dx = samples[k + i, 0] - p0[0]
+        dy = samples[k + i, 1] - p0[1]
+        uu_all[i] = dx * t0[0] + dy * t0[1]
+        vv_all[i] = dy * t0[0] - dx * t0[1]
+        if i == 0 or i > n_t:
+            if i >= n_uv - 1:
+                break
+            continue
+        den = uu_all[i] * uu_all[i] + vv_all[i] * vv_all[i] - wt * wt
+        if den > 0.0:
+            lo = max(lo, 2.0 * (vv_all[i] - wt) / den)
+            up = min(up, 2.0 * (vv_all[i] + wt) / den)
+        lo_t_all[i - 1] = lo
+        up_t_all[i - 1] = up
+        if lo > up:
+            n_t = i
+            n_uv = min(n, n_t + 2)
+    uu, vv = uu_all[:n_uv], vv_all[:n_uv]
+    lo_t, up_t = lo_t_all[:n_t], up_t_all[:n_t]
+    return uu, vv, lo_t, up_t
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
 def biarc(samples: FloatArray, p0: FloatArray, t0: FloatArray, k: int, e: float, b: int,
           t1: FloatArray, p1: FloatArray, splits: FloatArray, tol: float, step0: float,
           kmin: float, kcap: float) -> tuple[int, FloatArray, int]:
@@ -138,26 +180,7 @@ def biarc(samples: FloatArray, p0: FloatArray, t0: FloatArray, k: int, e: float,
         return -1, out, 0
     dist = math.sqrt(dist2)
     n = b - k + 1
-    uu = np.empty(n)
-    vv = np.empty(n)
-    for i in range(n):
-        dx = samples[k + i, 0] - p0[0]
-        dy = samples[k + i, 1] - p0[1]
-        uu[i] = dx * t0[0] + dy * t0[1]
-        vv[i] = dy * t0[0] - dx * t0[1]
-    # the curvatures that keep samples k+1..i within (a hair more than) tol of the first
-    # arc's circle: a first arc outside them fails verification, so it is not verified
-    lo_t = np.empty(max(n - 1, 0))
-    up_t = np.empty(max(n - 1, 0))
-    wt = tol * (1.0 + 1e-6)
-    lo, up = -np.inf, np.inf
-    for i in range(1, n):
-        den = uu[i] * uu[i] + vv[i] * vv[i] - wt * wt
-        if den > 0.0:
-            lo = max(lo, 2.0 * (vv[i] - wt) / den)
-            up = min(up, 2.0 * (vv[i] + wt) / den)
-        lo_t[i - 1] = lo
-        up_t[i - 1] = up
+    uu, vv, lo_t, up_t = _first_arc_table(samples, p0, t0, k, b, tol)
     for si in range(len(splits)):
         ok, jx, jy = _biarc_junction(p0[0], p0[1], t0[0], t0[1], p1[0], p1[1], t1[0], t1[1],
                                      splits[si])

@@ -28,7 +28,7 @@ from zwcore.arcs._kernels import (
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 
-__all__ = ["dense_deviations"]
+__all__ = ["dense_deviations", "polyline_length"]
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -480,3 +480,12 @@ def dense_deviations(samples: FloatArray, geo: FloatArray, ks: IntArray, js: Int
     off = _dense_offsets(samples, step)
     return (_polyline_to_chain(samples, geo, ks, js, off, tol),
             _chain_to_polyline(samples, geo, ks, js, step, tol))
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def polyline_length(samples: FloatArray) -> float:
+    """Length of the polyline ``samples`` ``(M, 2)`` (summed in order)."""
+    total = 0.0
+    for s in range(len(samples) - 1):
+        total += math.hypot(samples[s + 1, 0] - samples[s, 0], samples[s + 1, 1] - samples[s, 1])
+    return total

@@ -30,11 +30,17 @@ from numpy.typing import NDArray
 from zwcore.arcs._anchors import StraightRuns
 from zwcore.arcs._pieces import Piece, ToleranceBand, merge_lines
 from zwcore.arcs._start import shorter_ends
-from zwcore.arcs._straight import Anchor, anchors_of, arcs_over_straight
+from zwcore.arcs._straight import (
+    Anchor,
+    anchors_of,
+    arcs_over_straight,
+    is_flat,
+    pinned_shorter,
+)
 
 FloatArray = NDArray[np.float64]
 
-__all__ = ["FitResult", "refit_along_straight_runs"]
+__all__ = ["FitResult", "refit_along_straight_runs", "refit_flat_ends"]
 
 FitResult = tuple[list[Piece], list[int]]
 
@@ -110,6 +116,45 @@ def refit_along_straight_runs(
         # a second round: the refit laid an arc over a straight run the plain fit did not
         # (a short end run, say, after the chain moved): anchor those too
         refits(anchors_of(near[1], near[2], samples, a, b, tol, **pins))
+    return best
+
+
+def _n_flat(pieces: list[Piece], tol: float) -> int:
+    """How many of ``pieces`` are flat arcs (:func:`~zwcore.arcs._straight.is_flat`)."""
+    return sum(is_flat(pc.kappa, pc.length, tol) for pc in pieces)
+
+
+def refit_flat_ends(
+    fit: Callable[[list[Anchor]], FitResult], best: FitResult, samples: FloatArray, a: int,
+    b: int, tol: float, *, pin_start: bool, pin_end: bool, band: ToleranceBand | None = None,
+) -> FitResult:
+    """``best`` (a fit of samples ``a..b``, as :func:`refit_along_straight_runs` returns
+    it) or, where it keeps a flat arc over a straight run at a pinned end, the refit
+    along a shorter run from that end (:func:`~zwcore.arcs._straight.pinned_shorter`)
+    with fewer flat arcs and at most one more segment per flat arc it removed (a line
+    where the input is straight is worth a segment); the first such refit, from the
+    longest run on. The last resort of an open curve's run (:mod:`zwcore.arcs._runs`):
+    the refits that cost no segment come first.
+    """
+    pins = {"pin_start": pin_start, "pin_end": pin_end}
+    cum = None if band is None else band.cum
+    n_flat = _n_flat(best[0], tol)
+    if not n_flat or best[1] or not (pin_start or pin_end):
+        return best
+    bad = arcs_over_straight(best[0], samples, a, b, tol, **pins, cum=cum)
+    anchors = anchors_of(best[0], bad, samples, a, b, tol, **pins)
+    for i, pc in enumerate(best[0]):
+        if i not in bad or not is_flat(pc.kappa, pc.length, tol):
+            continue
+        at = next((m for m, an in enumerate(anchors) if an is bad[i]), None)
+        if at is None:
+            continue
+        for short in pinned_shorter(bad[i], samples, a, b, tol):
+            alt = _merge_lines(fit([*anchors[:at], short, *anchors[at + 1 :]]))
+            n_alt = _n_flat(alt[0], tol)
+            if not alt[1] and n_alt < n_flat and (
+                    len(alt[0]) - len(best[0]) <= n_flat - n_alt):
+                return alt
     return best
 
 

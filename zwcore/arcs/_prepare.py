@@ -8,12 +8,14 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
 from zwcore.arcs.verify import densify
 from zwcore.errors import InvalidInputError
 
 FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
 
 __all__ = ["Prepared", "find_corners", "prepare"]
 
@@ -93,8 +95,52 @@ def _dedupe(x: FloatArray, closed: bool, eps: float) -> FloatArray:
     return out
 
 
-def _interp_polyline(x: FloatArray, s: FloatArray, at: FloatArray) -> FloatArray:
-    return np.stack([np.interp(at, s, x[:, 0]), np.interp(at, s, x[:, 1])], axis=1)
+@njit(cache=True, nogil=True, error_model="numpy")
+def _along(x: FloatArray, s: FloatArray, at: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """The polyline ``x`` ``(M, 2)`` (arc lengths ``s``) at arc lengths ``at``: x, y."""
+    return np.interp(at, s, x[:, 0].copy()), np.interp(at, s, x[:, 1].copy())
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _probe_points(
+    x: FloatArray, seg: FloatArray, total: float, closed: bool, d_probe: float
+) -> tuple[FloatArray, FloatArray, FloatArray, IntArray, FloatArray, FloatArray]:
+    """The compiled part of :func:`_probe_turns` (``seg``: its segment lengths, ``total``
+    their sum): the probes' offsets ``a`` (point - before) and ``b`` (after - point)
+    ``(K, 2)``, the heights and ``idx, si, s`` (numpy's arithmetic: its cumulative sum
+    and its interpolation, the same figures)."""
+    n = len(x)
+    s = np.empty(len(seg) + 1)
+    s[0] = 0.0
+    for i in range(len(seg)):
+        s[i + 1] = s[i] + seg[i]
+    if closed:
+        # three laps so that probes wrap around
+        x3 = np.empty((3 * n + 1, 2))
+        for lap in range(3):
+            x3[lap * n : (lap + 1) * n] = x
+        x3[3 * n] = x[0]
+        s3 = np.concatenate((s[:-1] - total, s[:-1], s + total))
+        si = s[:-1].copy()
+        h = min(d_probe, 0.25 * total)
+        bx, by = _along(x3, s3, si - h)
+        ax, ay = _along(x3, s3, si + h)
+        idx = np.arange(n)
+    else:
+        si = s[1:-1].copy()
+        bx, by = _along(x, s, np.maximum(si - d_probe, 0.0))
+        ax, ay = _along(x, s, np.minimum(si + d_probe, s[-1]))
+        idx = np.arange(1, n - 1)
+    a = np.empty((len(idx), 2))
+    b = np.empty((len(idx), 2))
+    height = np.empty(len(idx))
+    for i in range(len(idx)):
+        px, py = x[idx[i], 0], x[idx[i], 1]
+        a[i, 0], a[i, 1] = px - bx[i], py - by[i]
+        b[i, 0], b[i, 1] = ax[i] - px, ay[i] - py
+        cx, cy = ax[i] - bx[i], ay[i] - by[i]
+        height[i] = abs(cx * a[i, 1] - cy * a[i, 0]) / max(np.hypot(cx, cy), 1e-300)
+    return a, b, height, idx, si, s
 
 
 def _probe_turns(
@@ -103,35 +149,15 @@ def _probe_turns(
     """The turn and the height over the probes' chord at every candidate point.
 
     Returns ``(turn, height, idx, si, s)``: turn (radians) and height at input points
-    ``idx``, their arc-length positions ``si``, and the cumulative length ``s``.
+    ``idx``, their arc-length positions ``si``, and the cumulative length ``s``. The
+    probes are compiled (:func:`_probe_points`); the lengths' sum (pairwise) and the
+    turns' ``arctan2`` (SIMD, an ulp off libm's at times) stay numpy's.
     """
-    n = len(x)
-    if closed:
-        xx = np.vstack([x, x[:1]])
-        seg = np.hypot(*(np.diff(xx, axis=0).T))
-        total = float(seg.sum())
-        s = np.concatenate([[0.0], np.cumsum(seg)])
-        # three laps so that probes wrap around
-        x3 = np.vstack([xx[:-1], xx[:-1], xx])
-        s3 = np.concatenate([s[:-1] - total, s[:-1], s + total])
-        si = s[:-1]
-        before = _interp_polyline(x3, s3, si - min(d_probe, 0.25 * total))
-        after = _interp_polyline(x3, s3, si + min(d_probe, 0.25 * total))
-        idx = np.arange(n)
-    else:
-        seg = np.hypot(*(np.diff(x, axis=0).T))
-        s = np.concatenate([[0.0], np.cumsum(seg)])
-        si = s[1:-1]
-        before = _interp_polyline(x, s, np.maximum(si - d_probe, 0.0))
-        after = _interp_polyline(x, s, np.minimum(si + d_probe, s[-1]))
-        idx = np.arange(1, n - 1)
-    pc = x[idx]
-    a = pc - before
-    b = after - pc
+    seg = np.hypot(*(np.diff(np.vstack([x, x[:1]]) if closed else x, axis=0).T))
+    total = float(seg.sum()) if closed else 0.0
+    a, b, height, idx, si, s = _probe_points(
+        np.ascontiguousarray(x, dtype=np.float64), seg, total, closed, float(d_probe))
     turn = np.abs(np.arctan2(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0], (a * b).sum(axis=1)))
-    chord = after - before
-    clen = np.maximum(np.hypot(chord[:, 0], chord[:, 1]), 1e-300)
-    height = np.abs(chord[:, 0] * a[:, 1] - chord[:, 1] * a[:, 0]) / clen
     return turn, height, idx, si, s
 
 

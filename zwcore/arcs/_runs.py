@@ -8,7 +8,7 @@ from numpy.typing import NDArray
 
 from zwcore.arcs._anchors import StraightRuns
 from zwcore.arcs._geometry import rotate
-from zwcore.arcs._lines import refit_along_straight_runs
+from zwcore.arcs._lines import refit_along_straight_runs, refit_flat_ends
 from zwcore.arcs._pieces import Piece, ToleranceBand
 from zwcore.arcs._polygon import polygon_run
 from zwcore.arcs._prepare import Prepared
@@ -122,6 +122,11 @@ class _RunFitter:
             alt = self._refit(a, b, t_start, WORK_CAPPED, pins)
             if self._rank(alt[0], a, b, pins) < self._rank(got[0], a, b, pins):
                 got = alt
+            if self._n_flat(got[0]):
+                # (hook, arcfast7) still flat: a shorter line from a pinned end, +1 segment
+                got = refit_flat_ends(lambda anchors: self.beam(a, b, t_start, anchors, work),
+                                      got, self.prep.samples, a, b, self.prep.tol,
+                                      band=self._band, **pins)
         return got
 
     def _refit(self, a: int, b: int, t_start: FloatArray | None, work: float,

@@ -21,7 +21,7 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import NDArray
 
-from zwcore.arcs._dense import dense_deviations
+from zwcore.arcs._dense import dense_deviations, polyline_length
 from zwcore.arcs._pieces import Piece
 
 FloatArray = NDArray[np.float64]
@@ -54,13 +54,18 @@ def deviations(samples: FloatArray, pieces: Sequence[Piece], tol: float) -> tupl
     index it); both sides are sampled at ``tol / 20`` (coarser beyond two million
     points), measured by :func:`zwcore.arcs._dense.dense_deviations`.
     """
-    length = float(np.hypot(*(np.diff(samples, axis=0).T)).sum())
-    total = length + sum(pc.length for pc in pieces)
-    step = max(tol / 20.0, total / 2e6)
+    samples = np.ascontiguousarray(samples, dtype=np.float64)
+    chain = sum(pc.length for pc in pieces)
+    step = tol / 20.0
+    # the figures' step is coarser only beyond two million points: a compiled sum, a
+    # millionth below that bound, decides without numpy's five calls (its own sum, in
+    # pairwise order, where the bound is that close)
+    if not polyline_length(samples) + chain < 2e6 * step * (1.0 - 1e-6):
+        length = float(np.hypot(*(np.diff(samples, axis=0).T)).sum())
+        step = max(step, (length + chain) / 2e6)
     geo = np.array([[pc.p[0], pc.p[1], pc.t[0], pc.t[1], pc.kappa, pc.length, pc.end[0],
                      pc.end[1]] for pc in pieces], dtype=np.float64).reshape(-1, 8)
     ks = np.array([pc.k for pc in pieces], dtype=np.int64)
     js = np.array([pc.j for pc in pieces], dtype=np.int64)
-    d_p, d_c = dense_deviations(np.ascontiguousarray(samples, dtype=np.float64), geo, ks, js,
-                                float(tol), float(step))
+    d_p, d_c = dense_deviations(samples, geo, ks, js, float(tol), float(step))
     return float(d_p), float(d_c)
