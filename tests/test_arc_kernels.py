@@ -291,7 +291,11 @@ def test_biarc_agrees_with_the_reference(case, ahead, turn, off_sample):
             np.hypot(*(want[0].end - got[0].end)) <= 1e-6 * tol):
         # the same split: the same pair up to rounding
         for a, b_ in zip(got, want, strict=True):
-            assert a.kappa == pytest.approx(b_.kappa, rel=1e-6, abs=1e-9)
+            # curvatures compared by what they do: the two arcs' sagittas over the arc
+            # differ by no more than the hair the end points are held to (a tiny arc's
+            # curvature moves by 1e-6 relative for a junction 1e-7 tol away)
+            assert (a.kappa == pytest.approx(b_.kappa, rel=1e-6, abs=1e-9)
+                    or abs(a.kappa - b_.kappa) * a.length**2 / 8 <= 1e-6 * tol)
             assert a.length == pytest.approx(b_.length, rel=1e-6, abs=1e-9)
             np.testing.assert_allclose(a.end, b_.end, rtol=0, atol=1e-6 * tol)
     # the pair itself, measured by brute force (the start stands for sample k at
