@@ -152,7 +152,10 @@ def end_to_end_1025() -> None:
           + ", ".join(f"{k} {v:.2f} s" for k, v in tp.timings))
     print(f"  CPU: plan {c_plan:.2f} s, "
           + ", ".join(f"{k} {v:.2f} s" for k, v in tp.cpu_timings))
-    print(f"  {len(plan.stages)} stages, program {len(tp.program) / 1e6:.1f} MB, gouge "
+    print(f"  {len(plan.stages)} stages ("
+          + " > ".join(dict.fromkeys(s.tool.id for s in plan.stages))
+          + f"), program {len(tp.program) / 1e6:.1f} MB, length {tp.length / 1000:.1f} m, "
+          f"time estimate {tp.time_min:.0f} min, gouge "
           f"{chk.gouge:.2e}, rapids in material {chk.rapid_in_material:.2e}, final over part "
           f"p95 {chk.final_over_part_p95:.4f} mm")
     repeats_off(part, plan, tp)

@@ -11,6 +11,7 @@ from hypothesis import strategies as st
 
 import zwcore.toolpath.sweep as sweep_mod
 from tests.test_toolpath import sampled_envelope, wavy_part
+from tests.test_toolpath_kernels import KERNEL_ROUNDING
 from zwcore.toolpath.sweep import BlockBounds, GridFrame, sweep_moves
 
 
@@ -50,7 +51,7 @@ def test_scan_lines_swept_in_row_runs_and_bands_are_the_plain_sweep(seed, block,
         a_s, a_r = sweep_moves(frame, p0, p1, radius, True, plain, ref=part.z, apply=apply)
         b_s, b_r = sweep_moves(frame, p0, p1, radius, True, runs, ref=part.z, apply=apply,
                                bounds=BlockBounds(frame, runs, part.z, block), trail=True)
-    np.testing.assert_allclose(runs, plain, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(runs, plain, rtol=0, atol=KERNEL_ROUNDING)
     eps = 1e-9  # met material / below the part: the same moves say so
     np.testing.assert_allclose(np.maximum(b_s, eps), np.maximum(a_s, eps), rtol=0, atol=1e-11)
     assert abs(max(b_r.max(), 0.0) - max(a_r.max(), 0.0)) <= 1e-11
