@@ -311,7 +311,7 @@ def follow_part(points: F64, u: F64, fixed: BOOL, breaks: BOOL, measure: PartGou
     above = np.where(link, np.inf, np.where(gap, refine, _above(a, b, refine, min_len,
                                                                 rounds > 0)))
     gouge = _measure_moves(measure, a, b, above, link, moves_at_breaks)
-    bad = np.flatnonzero((gouge > refine) & ~breaks[idx[:-1]] & (idx[1:] - idx[:-1] > 1))
+    bad = np.flatnonzero((gouge > refine) & ~link & gap)
     if len(bad):  # the dropped points of gouging chords come back
         back = np.zeros(len(points) + 1, np.int64)
         np.add.at(back, idx[bad] + 1, 1)
