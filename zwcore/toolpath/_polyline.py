@@ -18,6 +18,7 @@ from numpy.typing import NDArray
 from zwcore.grid.tools import Tool
 from zwcore.grid.zmap import ZMap
 from zwcore.toolpath import sweep as sweep_mod
+from zwcore.toolpath._scan_links import _block_max
 from zwcore.toolpath.sweep import BlockBounds, GridFrame, block_size, sweep_moves
 
 F64 = NDArray[np.float64]
@@ -107,11 +108,8 @@ class PartBounds:
         (the last ones cut at the grid's edge)."""
         if b not in self._maxima:
             ny, nx = self.part.shape
-            my, mx = -(-ny // b), -(-nx // b)
-            pad = np.full((my * b, mx * b), -np.inf)
-            pad[:ny, :nx] = self.part.z
-            self._maxima[b] = np.ascontiguousarray(pad.reshape(my * b, mx, b).max(axis=2)
-                                                   .reshape(my, b, mx).max(axis=1))
+            self._maxima[b] = np.empty((-(-ny // b), -(-nx // b)))
+            _block_max(np.ascontiguousarray(self.part.z, np.float64), b, self._maxima[b])
         return self._maxima[b]
 
     def every(self, b: int) -> F64:
