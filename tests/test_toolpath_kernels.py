@@ -117,8 +117,8 @@ def test_trailing_nodes_left_out_change_no_stock_and_no_figure_that_counts(
     """Polylines (moves that continue each other: along rows, across, steep, with breaks,
     air moves and repeats back), swept with ``trail`` against the plain kernel that sweeps
     every node: the stock to ``KERNEL_ROUNDING``, ``over_stock`` wherever it says a move met
-    material,
-    and the deepest ``over_ref`` (a node a move leaves out is its predecessor's, as deep)."""
+    material, and the deepest ``over_ref`` (a node a move leaves out is its predecessor's,
+    as deep)."""
     part = wavy_part(71, 0.2, seed)
     frame = GridFrame(part.x0, part.y0, part.dx, part.dy, part.shape)
     rng = np.random.default_rng(seed)

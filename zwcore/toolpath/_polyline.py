@@ -18,6 +18,7 @@ from numpy.typing import NDArray
 from zwcore.grid.tools import Tool
 from zwcore.grid.zmap import ZMap
 from zwcore.toolpath import sweep as sweep_mod
+from zwcore.toolpath._scan_links import _block_max
 from zwcore.toolpath.sweep import BlockBounds, GridFrame, block_size, sweep_moves
 
 F64 = NDArray[np.float64]
@@ -107,11 +108,8 @@ class PartBounds:
         (the last ones cut at the grid's edge)."""
         if b not in self._maxima:
             ny, nx = self.part.shape
-            my, mx = -(-ny // b), -(-nx // b)
-            pad = np.full((my * b, mx * b), -np.inf)
-            pad[:ny, :nx] = self.part.z
-            self._maxima[b] = np.ascontiguousarray(pad.reshape(my * b, mx, b).max(axis=2)
-                                                   .reshape(my, b, mx).max(axis=1))
+            self._maxima[b] = np.empty((-(-ny // b), -(-nx // b)))
+            _block_max(np.ascontiguousarray(self.part.z, np.float64), b, self._maxima[b])
         return self._maxima[b]
 
     def every(self, b: int) -> F64:
@@ -220,8 +218,10 @@ def _above(p0: F64, p1: F64, tol: float, min_len: float, again: BOOL | bool) -> 
 
 def _measure_moves(measure: PartGouge, p0: F64, p1: F64, above: F64, link: BOOL,
                    moves_at_breaks: bool) -> F64:
-    """``measure(p0, p1, above)``; without ``moves_at_breaks`` the links get ``-inf``
-    (no move: no gouge, no lift) and are not swept."""
+    """``measure(p0, p1, above)``, the links' exact (never halved: no threshold); without
+    ``moves_at_breaks`` the links get ``-inf`` (no move: no gouge, no lift) and are not
+    swept."""
+    above = np.where(link, np.inf, above)
     if moves_at_breaks:
         return measure(p0, p1, above)
     out = np.full(len(p0), -np.inf)
@@ -308,10 +308,9 @@ def follow_part(points: F64, u: F64, fixed: BOOL, breaks: BOOL, measure: PartGou
     # halved (a link never): its exact gouge is not needed
     a, b, link = points[idx[:-1]], points[idx[1:]], breaks[idx[:-1]]
     gap = idx[1:] - idx[:-1] > 1
-    above = np.where(link, np.inf, np.where(gap, refine, _above(a, b, refine, min_len,
-                                                                rounds > 0)))
+    above = np.where(gap, refine, _above(a, b, refine, min_len, rounds > 0))
     gouge = _measure_moves(measure, a, b, above, link, moves_at_breaks)
-    bad = np.flatnonzero((gouge > refine) & ~breaks[idx[:-1]] & (idx[1:] - idx[:-1] > 1))
+    bad = np.flatnonzero((gouge > refine) & ~link & gap)
     if len(bad):  # the dropped points of gouging chords come back
         back = np.zeros(len(points) + 1, np.int64)
         np.add.at(back, idx[bad] + 1, 1)
@@ -324,8 +323,8 @@ def follow_part(points: F64, u: F64, fixed: BOOL, breaks: BOOL, measure: PartGou
         g[known] = gouge[np.searchsorted(idx, new[:-1][known])]
         fresh = np.flatnonzero(~known)
         a, b, link = points[new[fresh]], points[new[fresh + 1]], breaks[new[fresh]]
-        g[fresh] = _measure_moves(measure, a, b, np.where(
-            link, np.inf, _above(a, b, refine, min_len, rounds > 0)), link, moves_at_breaks)
+        g[fresh] = _measure_moves(measure, a, b, _above(a, b, refine, min_len, rounds > 0),
+                                  link, moves_at_breaks)
         idx, gouge = new, g
     seg_breaks = breaks[idx[:-1]]
     pts, uu, gouge = _split(points[idx], u[idx], gouge, seg_breaks, measure, refine,

@@ -55,7 +55,6 @@ disc. Blocks are grouped
 from __future__ import annotations
 
 import itertools
-import math
 import os
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
@@ -351,9 +350,3 @@ def arc_chords(start: F64, end: F64, center: F64, ccw: NDArray[np.bool_], sagitt
     last = (j + 1) == n
     c1[last] = end[owner[last]]
     return c0, c1, grow * (1.0 + 1e-9) + 1e-12, owner
-
-
-def chord_count_bound(radius: float, sweep: float, sagitta: float) -> int:
-    """Chords :func:`arc_chords` uses for one arc (for limits)."""
-    phi = 2.0 * math.acos(max(-1.0, 1.0 - sagitta / max(radius, 1e-12)))
-    return max(1, math.ceil(abs(sweep) / max(phi, 1e-6)))
