@@ -52,6 +52,7 @@ from zwcore.scanline._chain_time import (
     BallTime,
     Feeds,
     ball_time,
+    flat_pick_feed,
     stock_met,
 )
 from zwcore.scanline._reach import ball_reach, concave_radii, within_distance
@@ -85,13 +86,6 @@ ROUGHING_RATIO = 2.0
 
 #: Most region boxes listed per stage (largest first).
 MAX_BOXES = 64
-
-
-def flat_pick_feed(radius: float, tolerance: float) -> float:
-    """Pick-feed whose scallop on a flat is ``tolerance``: ``2 sqrt(2 R t - t²)`` (at most 2R)."""
-    if tolerance >= radius:
-        return 2.0 * radius
-    return 2.0 * math.sqrt(2.0 * radius * tolerance - tolerance * tolerance)
 
 
 @dataclass(frozen=True)
