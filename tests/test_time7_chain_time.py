@@ -120,7 +120,7 @@ def test_flat_plate_pass_is_area_over_pick_feed() -> None:
     spacing = (0.25, 0.25)
     whole = _chain_time.ball_time(z, z, 0.25, 0.25, spacing, tool, None, 0.0, 0.01,
                                   _chain_time.Feeds())
-    pick = _chain_time._pick(1.0, 0.01)
+    pick = _chain_time.flat_pick_feed(1.0, 0.01)
     nominal = 0.25 * max(1, math.floor(pick / 0.25))
     assert whole.passes == 1 and whole.stretches == 0.0
     assert whole.cut_length == pytest.approx(40 * 60 * 0.25**2 / nominal, rel=1e-12)

@@ -50,7 +50,7 @@ from zwcore.grid.feeds import (
 from zwcore.grid.tools import Tool
 
 __all__ = ["ACROSS_MM", "ENTRY_GAP", "SCALLOP_FLUTE_SHARE", "BallTime", "Feeds", "ball_time",
-           "passes_for", "stock_met"]
+           "flat_pick_feed", "passes_for", "stock_met"]
 
 F64 = NDArray[np.float64]
 B8 = NDArray[np.bool_]
@@ -119,11 +119,11 @@ def passes_for(depth: float, flute: float) -> int:
     return max(1, math.ceil(depth / flute - 1e-9))
 
 
-def _pick(radius: float, scallop: float) -> float:
-    """Pick-feed whose scallop on a flat is ``scallop`` (at most the diameter)."""
-    if scallop >= radius:
+def flat_pick_feed(radius: float, tolerance: float) -> float:
+    """Pick-feed whose scallop on a flat is ``tolerance``: ``2 sqrt(2 R t - t²)`` (at most 2R)."""
+    if tolerance >= radius:
         return 2.0 * radius
-    return 2.0 * math.sqrt(2.0 * radius * scallop - scallop * scallop)
+    return 2.0 * math.sqrt(2.0 * radius * tolerance - tolerance * tolerance)
 
 
 @njit(cache=True, nogil=True)
@@ -345,8 +345,8 @@ def ball_time(z: F64, closing: F64, dx: float, dy: float, spacing: tuple[float, 
     zc = np.require(z, dtype=np.float64, requirements=["C"])
     path = np.require(closing, dtype=np.float64, requirements=["C"])
     n = passes_for(depth, tool.flute_length)
-    final = _pick(tool.radius, tolerance)
-    lifted = _pick(tool.radius, SCALLOP_FLUTE_SHARE * tool.flute_length)
+    final = flat_pick_feed(tool.radius, tolerance)
+    lifted = flat_pick_feed(tool.radius, SCALLOP_FLUTE_SHARE * tool.flute_length)
     area = float(mask.sum()) * dx * dy
     best: BallTime | None = None
     for along in ((True, False) if along_x is None else (along_x,)):

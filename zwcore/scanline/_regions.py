@@ -52,6 +52,7 @@ from zwcore.scanline._chain_time import (
     BallTime,
     Feeds,
     ball_time,
+    flat_pick_feed,
     stock_met,
 )
 from zwcore.scanline._reach import ball_reach, concave_radii, within_distance
@@ -85,13 +86,6 @@ ROUGHING_RATIO = 2.0
 
 #: Most region boxes listed per stage (largest first).
 MAX_BOXES = 64
-
-
-def flat_pick_feed(radius: float, tolerance: float) -> float:
-    """Pick-feed whose scallop on a flat is ``tolerance``: ``2 sqrt(2 R t - t²)`` (at most 2R)."""
-    if tolerance >= radius:
-        return 2.0 * radius
-    return 2.0 * math.sqrt(2.0 * radius * tolerance - tolerance * tolerance)
 
 
 @dataclass(frozen=True)
@@ -128,24 +122,12 @@ class Chain:
     rho : (ny, nx) float64
         The part's concave radii (:func:`zwcore.scanline._reach.concave_radii`), for the
         rest rules and the reach figures (computed once per plan).
-    times : tuple of BallTime
-        The ranking's estimate per ball of the chain (main ball first).
-    smallest_time : BallTime or None
-        The estimate if the smallest library ball finished the whole part alone.
     """
 
     balls: tuple[Tool, ...]
     main: MainBall
     smallest_everywhere: float
     rho: F64
-    times: tuple[BallTime, ...] = ()
-    smallest_time: BallTime | None = None
-
-    @property
-    def minutes(self) -> float:
-        """The chain's estimated finishing time, tool changes included, min."""
-        return (sum(t.minutes for t in self.times)
-                + TOOL_CHANGE_MIN * max(len(self.times) - 1, 0))
 
 
 def lattice(radius: float, dx: float, dy: float) -> int:
@@ -335,9 +317,8 @@ class _Reach:
         zk = self.z[::k, ::k]
         theirs = np.zeros(zk.shape)
         if j > 0:
-            prev = next(b.radius for b in balls[:j] if b.radius <= ROUGHING_RATIO * tool.radius
-                        ) if any(b.radius <= ROUGHING_RATIO * tool.radius for b in balls[:j]
-                                 ) else balls[j - 1].radius
+            prev = next((b.radius for b in balls[:j] if b.radius <= ROUGHING_RATIO * tool.radius),
+                        balls[j - 1].radius)
             kp = lattice(prev, self.dx, self.dy)
             theirs = self.rest(prev, kp)
             if kp != k:
@@ -511,5 +492,4 @@ def finishing_chain(z: F64, dx: float, dy: float, balls: list[Tool], tolerance: 
                                 f"{t.minutes:.4g} min" for j, t in zip(chain, times, strict=True))
                     + ")")
     smallest = area / flat_pick_feed(balls[-1].radius, tolerance)
-    return Chain(tuple(balls[j] for j in chain), main, smallest, reach.rho, tuple(times),
-                 reach.times.get((math.inf, balls[-1].id)))
+    return Chain(tuple(balls[j] for j in chain), main, smallest, reach.rho)

@@ -194,6 +194,23 @@ def _row_chunk_max(z: F64, c: int) -> F64:
 
 
 @njit(cache=True, nogil=True)
+def _chunk_low(pp: F64, pf: F64, ps: F64, npar: int, pa: int, xa: float, xb: float,
+               curv: float) -> tuple[float, int]:
+    """The least of the envelope ``pf[e] + curv (x - pp[e])²`` (:func:`_parabolas`: ``npar``
+    pieces beginning at ``ps``) over ``xa <= x <= xb``, from its pieces over that span, and
+    the first of them (``pa``: the first at or before it; the spans come left to right)."""
+    while pa + 1 < npar and ps[pa + 1] <= xa:
+        pa += 1
+    lo = np.inf
+    e = pa
+    while e < npar and (e == pa or ps[e] <= xb):
+        t = max(0.0, xa - pp[e], pp[e] - xb)
+        lo = min(lo, pf[e] + curv * t * t)
+        e += 1
+    return lo, pa
+
+
+@njit(cache=True, nogil=True)
 def _chunk_bounds(pu: F64, pc: F64, j0: int, j1: int, curv: float, k0: int, k1: int,
                   du: float, pp: F64, pf: F64, ps: F64, out: F64) -> None:
     """``out[ch]``: the least of ``pc[j] + curv t²`` over the line's positions, ``t`` their
@@ -204,15 +221,7 @@ def _chunk_bounds(pu: F64, pc: F64, j0: int, j1: int, curv: float, k0: int, k1: 
     for ch in range(k0 // _CHUNK, k1 // _CHUNK + 1):
         xa = max(k0, ch * _CHUNK) * du
         xb = min(k1, ch * _CHUNK + _CHUNK - 1) * du
-        while pa + 1 < npar and ps[pa + 1] <= xa:
-            pa += 1
-        lo = np.inf
-        e = pa
-        while e < npar and (e == pa or ps[e] <= xb):
-            t = max(0.0, xa - pp[e], pp[e] - xb)
-            lo = min(lo, pf[e] + curv * t * t)
-            e += 1
-        out[ch] = lo
+        out[ch], pa = _chunk_low(pp, pf, ps, npar, pa, xa, xb, curv)
 
 
 @njit(cache=True, nogil=True)
@@ -252,15 +261,7 @@ def _cut_row(row: F64, i: int, b: int, ey2: float, floor: float, pu: F64, pc: F6
             npar = _parabolas(pu, pc, j0, j1, curv, pp, pf, ps)
             built[1] = npar
         ka, kb = max(k0, ch * _CHUNK), min(k1, ch * _CHUNK + _CHUNK - 1)
-        xa, xb = ka * du, kb * du
-        while pa + 1 < npar and ps[pa + 1] <= xa:
-            pa += 1
-        lo = np.inf
-        e = pa
-        while e < npar and (e == pa or ps[e] <= xb):
-            t = max(0.0, xa - pp[e], pp[e] - xb)
-            lo = min(lo, pf[e] + curv * t * t)
-            e += 1
+        lo, pa = _chunk_low(pp, pf, ps, npar, pa, ka * du, kb * du, curv)
         low = max(floor, lo + he - _SLACK)  # no node at or under it is lowered
         if rowmax[ch] <= low:
             continue
@@ -481,16 +482,8 @@ def cl_lines(z: F64, pu: F64, pv: F64, cl0: F64, starts: I64, r: float, du: floa
             at = 0
             for ch in range(k0 // _CHUNK, k1 // _CHUNK + 1):
                 ka, kb = max(k0, ch * _CHUNK), min(k1, ch * _CHUNK + _CHUNK - 1)
-                xa, xb = ka * du, kb * du
                 # the bound's least over the chunk: the envelope's pieces over it
-                while at + 1 < np_ and pstart[at + 1] <= xa:
-                    at += 1
-                lo = np.inf
-                e = at
-                while e < np_ and (e == at or pstart[e] <= xb):
-                    t = max(0.0, xa - pp[e], pp[e] - xb)
-                    lo = min(lo, pf[e] + curv * t * t)
-                    e += 1
+                lo, at = _chunk_low(pp, pf, pstart, np_, at, ka * du, kb * du, curv)
                 if zc[i, ch] - he <= lo - _SLACK:
                     continue
                 pe = at
