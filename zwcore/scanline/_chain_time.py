@@ -70,8 +70,9 @@ SCALLOP_FLUTE_SHARE = 0.5
 
 @dataclass(frozen=True)
 class Feeds:
-    """Cutting and plunge feed of one ball and the rapid rate, mm/min (the program's
-    defaults unless the request gives cutting data)."""
+    """Cutting and plunge feed of one ball and the rapid rate, mm/min. The planner ranks
+    with the program's defaults for now: a request's cutting data does not reach
+    :func:`~zwcore.scanline.planner.plan_scanline` yet (issue 11, open)."""
 
     feed: float = DEFAULT_FEED
     plunge_feed: float = DEFAULT_PLUNGE_FEED
