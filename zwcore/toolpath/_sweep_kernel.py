@@ -244,6 +244,24 @@ def _spans(x0: float, y0: float, dx: float, dy: float, i0: int, i1: int, k0: int
 
 
 @njit(cache=True, nogil=True, fastmath={"contract", "arcp", "reassoc"}, inline="always")
+def _node_height(t0: float, dmin2: float, sw: float, sz: float, vz: float, r: float,
+                 ball: bool, inv_sa: float, kz: float, a: float) -> tuple[float, float, float]:
+    """The tool's lowest height over a node at squared distance ``dmin2`` from the move's
+    line (closest at ``t0``, half-width ``sw`` of its reach along it), and the reached
+    stretch ``lo, hi`` of the move: the tail :func:`_row_node` and :func:`_flat_node`
+    share."""
+    half = sw * inv_sa
+    lo, hi = max(0.0, t0 - half), min(1.0, t0 + half)
+    if ball:
+        ts = min(max(t0 - vz * sw * kz, lo), hi)
+        d2 = a * (ts - t0) ** 2 + dmin2
+        e = sz + vz * ts + r - math.sqrt(max(r * r - d2, 0.0))
+    else:
+        e = sz + vz * (lo if vz >= 0.0 else hi)
+    return e, lo, hi
+
+
+@njit(cache=True, nogil=True, fastmath={"contract", "arcp", "reassoc"}, inline="always")
 def _row_node(wx: float, wy: float, sw: float, sz: float, ax: float, vz: float, r: float,
               ball: bool, inv_a: float, inv_sa: float, kz: float, a: float, reach2: float
               ) -> float:
@@ -253,14 +271,7 @@ def _row_node(wx: float, wy: float, sw: float, sz: float, ax: float, vz: float, 
     :func:`~zwcore.toolpath._sweep_plain.row_envelope`, in the same order."""
     t0 = -ax * wx * inv_a
     dmin2 = wy * wy
-    half = sw * inv_sa
-    lo, hi = max(0.0, t0 - half), min(1.0, t0 + half)
-    if ball:
-        ts = min(max(t0 - vz * sw * kz, lo), hi)
-        d2 = a * (ts - t0) ** 2 + dmin2
-        e = sz + vz * ts + r - math.sqrt(max(r * r - d2, 0.0))
-    else:
-        e = sz + vz * (lo if vz >= 0.0 else hi)
+    e, lo, hi = _node_height(t0, dmin2, sw, sz, vz, r, ball, inv_sa, kz, a)
     return e if (dmin2 < reach2 and lo <= hi) else math.inf
 
 
@@ -277,14 +288,7 @@ def _flat_node(wx: float, wy: float, sz: float, ax: float, ay: float, vz: float,
     dmin2 = max(c + b * t0, 0.0)
     w2 = reach2 - dmin2
     sw = math.sqrt(max(w2, 0.0))
-    half = sw * inv_sa
-    lo, hi = max(0.0, t0 - half), min(1.0, t0 + half)
-    if ball:
-        ts = min(max(t0 - vz * sw * kz, lo), hi)
-        d2 = a * (ts - t0) ** 2 + dmin2
-        e = sz + vz * ts + r - math.sqrt(max(r * r - d2, 0.0))
-    else:
-        e = sz + vz * (lo if vz >= 0.0 else hi)
+    e, lo, hi = _node_height(t0, dmin2, sw, sz, vz, r, ball, inv_sa, kz, a)
     return e if (w2 > 0.0 and lo <= hi) else math.inf
 
 

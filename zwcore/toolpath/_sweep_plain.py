@@ -19,6 +19,23 @@ from zwcore.toolpath._sweep_kernel import _move_box, _row_span, node_envelope
 F64 = NDArray[np.float64]
 
 
+@njit(cache=True, nogil=True, fastmath={"contract", "arcp", "reassoc", "nsz"},
+      inline="always")
+def _lowest(t0: float, dmin2: float, sw: float, sz: float, vz: float, r: float, ball: bool,
+            inv_sa: float, kz: float, a: float) -> tuple[float, float, float]:
+    """The tool's lowest height over one node and the move's reached stretch ``lo, hi``
+    (written apart from the block kernel's on purpose: this module is its reference)."""
+    half = sw * inv_sa
+    lo, hi = max(0.0, t0 - half), min(1.0, t0 + half)
+    if ball:
+        ts = min(max(t0 - vz * sw * kz, lo), hi)
+        d2 = a * (ts - t0) ** 2 + dmin2
+        e = sz + vz * ts + r - math.sqrt(max(r * r - d2, 0.0))
+    else:
+        e = sz + vz * (lo if vz >= 0.0 else hi)
+    return e, lo, hi
+
+
 @njit(cache=True, nogil=True, fastmath={"contract", "arcp", "reassoc", "nsz"})
 def flat_envelope(m: int, wxs: F64, wys: F64, sz: float, ax: float, ay: float, vz: float,
                   r: float, ball: bool, inv_a: float, inv_sa: float, kz: float, env: F64
@@ -36,14 +53,7 @@ def flat_envelope(m: int, wxs: F64, wys: F64, sz: float, ax: float, ay: float, v
         dmin2 = max(c + b * t0, 0.0)
         w2 = reach2 - dmin2
         sw = math.sqrt(max(w2, 0.0))
-        half = sw * inv_sa
-        lo, hi = max(0.0, t0 - half), min(1.0, t0 + half)
-        if ball:
-            ts = min(max(t0 - vz * sw * kz, lo), hi)
-            d2 = a * (ts - t0) ** 2 + dmin2
-            e = sz + vz * ts + r - math.sqrt(max(r * r - d2, 0.0))
-        else:
-            e = sz + vz * (lo if vz >= 0.0 else hi)
+        e, lo, hi = _lowest(t0, dmin2, sw, sz, vz, r, ball, inv_sa, kz, a)
         env[j] = e if (w2 > 0.0 and lo <= hi) else math.inf
 
 
@@ -61,14 +71,7 @@ def row_envelope(m: int, wxs: F64, wys: F64, sws: F64, sz: float, ax: float, vz:
         t0 = -ax * wxs[j] * inv_a
         dmin2 = wy * wy
         sw = sws[j]
-        half = sw * inv_sa
-        lo, hi = max(0.0, t0 - half), min(1.0, t0 + half)
-        if ball:
-            ts = min(max(t0 - vz * sw * kz, lo), hi)
-            d2 = a * (ts - t0) ** 2 + dmin2
-            e = sz + vz * ts + r - math.sqrt(max(r * r - d2, 0.0))
-        else:
-            e = sz + vz * (lo if vz >= 0.0 else hi)
+        e, lo, hi = _lowest(t0, dmin2, sw, sz, vz, r, ball, inv_sa, kz, a)
         env[j] = e if (dmin2 < reach2 and lo <= hi) else math.inf
 
 
