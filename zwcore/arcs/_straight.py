@@ -150,22 +150,8 @@ def straight_run(
         if not flag:
             continue
 
-        def pinned(m: int, pin: int = pin) -> bool:
-            lo, hi = (pin, m) if pin == a else (m, pin)
-            return hi - lo < 2 or line_spread(
-                samples, lo, hi, True, samples[pin, 0], samples[pin, 1]) <= PINNED_BAND * tol
-
         # the longest part of the run from the pinned end that a line through it keeps
-        far = i1 if pin == a else i0
-        if not pinned(far):
-            good, bad = pin, far
-            while abs(bad - good) > 1:
-                mid = (good + bad) // 2
-                if pinned(mid):
-                    good = mid
-                else:
-                    bad = mid
-            far = good
+        far = _pinned_part(samples, pin, i1 if pin == a else i0, PINNED_BAND * tol)
         if abs(far - pin) >= 2:
             lo, hi = (pin, far) if pin == a else (far, pin)
             i0, i1 = lo, hi
