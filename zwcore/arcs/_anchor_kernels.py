@@ -1,0 +1,48 @@
+"""Compiled kernels of the anchors of a refit (:mod:`zwcore.arcs._anchors`).
+
+The beam asks, for every candidate piece of a level (a few hundred), whether it lies
+over one of the run's straight runs; in numpy that was a dozen array operations per
+anchor and level. The kernel does the same comparisons of the same figures (differences
+of the cumulative polyline length, exact equality of points), so its answers are those
+of the numpy formulation (``tests/test_arcfast8_kernels.py`` compares the two).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+from numpy.typing import NDArray
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
+
+__all__ = ["anchors_hit"]
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def anchors_hit(cum: FloatArray, samples: FloatArray, k: IntArray, j: IntArray,
+                i0s: IntArray, i1s: IntArray, qs: FloatArray) -> NDArray[np.bool_]:
+    """Which pieces over samples ``k[c]..j[c]`` ``(C,)`` cover more than half of an
+    anchor (samples ``i0s[a]..i1s[a]``, line through ``qs[a]`` ``(A, 2)``) or lie on an
+    anchor whose line passes through their end sample at that end of the anchor
+    (:meth:`~zwcore.arcs._anchors.StraightRuns.is_over` without the flatness test and
+    the arc test): ``(C,)`` booleans. ``cum``: the samples' cumulative length ``(M,)``.
+    """
+    out = np.zeros(len(k), dtype=np.bool_)
+    for c in range(len(k)):
+        kc = k[c]
+        jc = j[c]
+        for a in range(len(i0s)):
+            i0 = i0s[a]
+            i1 = i1s[a]
+            over = cum[min(jc, i1)] - cum[max(kc, i0)]
+            if over > 0.5 * (cum[i1] - cum[i0]):
+                out[c] = True
+                break
+            if i0 <= kc and jc <= i1 and (
+                    (jc == i1 and samples[jc, 0] == qs[a, 0] and samples[jc, 1] == qs[a, 1])
+                    or (kc == i0 and samples[kc, 0] == qs[a, 0]
+                        and samples[kc, 1] == qs[a, 1])):
+                out[c] = True
+                break
+    return out
