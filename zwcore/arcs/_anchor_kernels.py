@@ -4,7 +4,9 @@ The beam asks, for every candidate piece of a level (a few hundred), whether it 
 over one of the run's straight runs; in numpy that was a dozen array operations per
 anchor and level. The kernel does the same comparisons of the same figures (differences
 of the cumulative polyline length, exact equality of points), so its answers are those
-of the numpy formulation (``tests/test_arcfast8_kernels.py`` compares the two).
+of the numpy formulation (``tests/test_arcfast8_kernels.py`` compares the two). The
+fillet between two anchors' lines measures the input's distance to the lines' vertex
+over the segments after each junction: one loop, no temporaries.
 """
 
 from __future__ import annotations
@@ -13,10 +15,12 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+from zwcore.arcs._kernels import seg_dist
+
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 
-__all__ = ["anchors_hit"]
+__all__ = ["anchors_hit", "min_segment_distance"]
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -46,3 +50,18 @@ def anchors_hit(cum: FloatArray, samples: FloatArray, k: IntArray, j: IntArray,
                 out[c] = True
                 break
     return out
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def min_segment_distance(samples: FloatArray, x: float, y: float, k: int, hi: int) -> float:
+    """Smallest distance of ``(x, y)`` to the polyline segments ``k..hi-1`` of
+    ``samples`` ``(M, 2)`` (each as
+    :func:`~zwcore.arcs._geometry.points_to_segments_distance` measures it); 0 when
+    there is none."""
+    if hi <= k:
+        return 0.0
+    d = np.inf
+    for s in range(k, hi):
+        d = min(d, seg_dist(x, y, samples[s, 0], samples[s, 1], samples[s + 1, 0],
+                            samples[s + 1, 1]))
+    return d

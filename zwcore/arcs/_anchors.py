@@ -12,10 +12,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from zwcore.arcs import _kernels
-from zwcore.arcs._anchor_kernels import anchors_hit
+from zwcore.arcs._anchor_kernels import anchors_hit, min_segment_distance
 from zwcore.arcs._geometry import (
     arc_point,
-    points_to_segments_distance,
     sagitta,
 )
 from zwcore.arcs._pieces import Piece, ToleranceBand
@@ -72,9 +71,6 @@ class StraightRuns:
         self._i0s = np.array([an.i0 for an in anchors], dtype=np.int64)
         self._i1s = np.array(self._i1, dtype=np.int64)
         self._qs = np.array([an.q for an in anchors], dtype=np.float64).reshape(-1, 2)
-        #: the fillet between two anchors' lines up to sample ``hi`` (see
-        #: :meth:`_fillet`), per ``(here, next, hi)``
-        self._fillets: dict[tuple[int, int, int], tuple[int, FloatArray]] = {}
         #: the landing offsets, as an array (:meth:`landing_biarc`)
         self._offsets = np.array(self.LANDING_OFFSETS, dtype=np.float64)
 
@@ -202,14 +198,8 @@ class StraightRuns:
                 hi: int) -> tuple[FloatArray, float, float, float] | None:
         """The fillet from anchor ``ih``'s line onto anchor ``inx``'s, for a junction at
         sample ``k``: the lines' intersection, the input's distance to it (polyline
-        segments ``k..hi-1``), half the turn and ``1 / cos(half) - 1``; None where the
-        lines are (nearly) parallel or opposed.
-
-        The vertex depends on the two anchors only, so the distances of all segments
-        from the first junction's on are taken once per pair (the same elementwise
-        figures as one call per junction) and each junction reads the minimum of its
-        tail.
-        """
+        segments ``k..hi-1``, compiled: :func:`min_segment_distance`), half the turn and
+        ``1 / cos(half) - 1``; None where the lines are (nearly) parallel or opposed."""
         here, nxt = self.anchors[ih], self.anchors[inx]
         dh, d = here.d, nxt.d
         cr = float(dh[0] * d[1] - dh[1] * d[0])
@@ -220,18 +210,9 @@ class StraightRuns:
         rhs = nxt.q - here.q
         alpha = float(rhs[0] * d[1] - rhs[1] * d[0]) / cr
         vtx = here.q + alpha * dh
+        m = min_segment_distance(self.samples, float(vtx[0]), float(vtx[1]), k, hi)
         half = 0.5 * abs(turn)
-        den = 1.0 / math.cos(half) - 1.0
-        if hi <= k:
-            return vtx, 0.0, half, den
-        key = (ih, inx, hi)
-        got = self._fillets.get(key)
-        if got is None or got[0] > k:
-            seg_d = points_to_segments_distance(
-                vtx[None, :], self.samples[k:hi], self.samples[k + 1 : hi + 1])[0]
-            # (the minimum of every tail, from the last segment back)
-            got = self._fillets[key] = (k, np.minimum.accumulate(seg_d[::-1])[::-1])
-        return vtx, float(got[1][k - got[0]]), half, den
+        return vtx, m, half, 1.0 / math.cos(half) - 1.0
 
     def landing_biarc(
         self, p: FloatArray, t: FloatArray, k: int, e: float, b: int,
