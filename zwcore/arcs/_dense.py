@@ -15,7 +15,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from zwcore.arcs._jumps import SLACK, piece_growth, safe_move, segment_growth
+from zwcore.arcs._jumps import SLACK, piece_growth, piece_growth_at, safe_move, segment_growth
 from zwcore.arcs._kernels import (
     arc_angle1,
     arc_xy,
@@ -107,12 +107,46 @@ def _nearest_piece(geo: FloatArray, qs: IntArray, x: float, y: float) -> tuple[f
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
+def _one_piece_distance(geo: FloatArray, q: int, x: float,
+                        y: float) -> tuple[float, int, float, float, float, float]:
+    """:func:`_nearest_piece` of the one piece ``q`` (``qs == [q]``), with the point's
+    local coordinates ``(u, v)``, its foot's angle and its signed gap to the circle
+    (arcs; 0 for lines) that :func:`point_arc_distance` measures on the way: the
+    segment's growth bound and its few-point maximum take them as they are
+    (:func:`~zwcore.arcs._jumps.piece_growth_at`, :func:`_segment_max`)."""
+    px, py, tx, ty, kappa, length = geo[q, 0], geo[q, 1], geo[q, 2], geo[q, 3], \
+        geo[q, 4], geo[q, 5]
+    u, v = local1(x, y, px, py, tx, ty)
+    ang = 0.0
+    gap = 0.0
+    if kappa == 0.0:
+        if 0.0 <= u <= length:
+            d = abs(v)
+        else:
+            d = min(math.hypot(u, v), math.hypot(x - geo[q, 6], y - geo[q, 7]))
+    else:
+        gap = circle_gap1(u, v, kappa)
+        d = abs(gap)
+        ang = arc_angle1(u, v, kappa)
+        if not d >= np.inf:
+            # (point_arc_distance with nothing known yet)
+            d_ends = min(math.hypot(u, v), math.hypot(x - geo[q, 6], y - geo[q, 7]))
+            d = min(d, d_ends) if ang <= abs(kappa * length) else d_ends
+    # (as _nearest_piece: a figure that is not below infinity names no piece)
+    if not d < np.inf:
+        return np.inf, -1, u, v, ang, gap
+    return d, q, u, v, ang, gap
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
 def _segment_max(samples: FloatArray, off: IntArray, s: int, hi: int, geo: FloatArray,
-                 qs: IntArray, q: int, tol: float, d0: float) -> float:
+                 qs: IntArray, q: int, tol: float, d0: float, known: bool, uk: float,
+                 vk: float, ak: float) -> float:
     """The largest distance of the dense points ``off[s]..hi-1`` of segment ``s`` to the
     pieces ``qs``, exactly, when every point's foot lies inside piece ``q`` and ``q`` is
     the nearest piece where that distance peaks; else -1 (walk the points). ``d0``: the
-    first point's distance, measured by the caller (``q`` the nearest there).
+    first point's distance, measured by the caller (``q`` the nearest there); with
+    ``known`` also its local coordinates ``(uk, vk)`` and (arcs) its foot's angle ``ak``.
 
     Along a line the offset ``e`` from the piece (a line's ``v``, a circle's ``rho - R``)
     is linear or convex (``rho`` is), so over the evenly spaced points ``|e| = max(e,
@@ -129,14 +163,17 @@ def _segment_max(samples: FloatArray, off: IntArray, s: int, hi: int, geo: Float
         geo[q, 4], geo[q, 5]
     x0, y0 = _dense_point(samples, off, s, i0)
     x1, y1 = _dense_point(samples, off, s, i1)
-    u0, v0 = local1(x0, y0, px, py, tx, ty)
+    if known:
+        u0, v0 = uk, vk
+    else:
+        u0, v0 = local1(x0, y0, px, py, tx, ty)
     u1, v1 = local1(x1, y1, px, py, tx, ty)
     c2 = i0
     if kappa == 0.0:
         if not (0.0 <= u0 <= length and 0.0 <= u1 <= length):
             return -1.0
     else:
-        a0 = arc_angle1(u0, v0, kappa)
+        a0 = ak if known else arc_angle1(u0, v0, kappa)
         a1 = arc_angle1(u1, v1, kappa)
         sweep = abs(kappa * length)
         # (the foot turns monotonically, by less than pi, along a line)
@@ -215,12 +252,21 @@ def _polyline_to_chain(samples: FloatArray, geo: FloatArray, ks: IntArray, js: I
         # the spacing of the segment's dense points
         dl = sl / max(off[s + 1] - off[s], 1)
         i = off[s]
+        # one piece near (most segments): its figures at a point measured once
+        single = len(qs) == 1
         while i < hi:
             x, y = _dense_point(samples, off, s, i)
-            d, q = _nearest_piece(geo, qs, x, y)
+            if single:
+                d, q, u, v, ang, gap = _one_piece_distance(geo, qs[0], x, y)
+            else:
+                d, q = _nearest_piece(geo, qs, x, y)
+                u = v = ang = gap = 0.0
             e0, rate, curv, reach = 0.0, 1.0, 0.0, 0.0
             if q >= 0 and d <= tol:
-                e0, rate, curv, reach = piece_growth(geo, q, x, y, ux, uy)
+                if single:
+                    e0, rate, curv, reach = piece_growth_at(geo, q, u, v, ang, gap, ux, uy)
+                else:
+                    e0, rate, curv, reach = piece_growth(geo, q, x, y, ux, uy)
             if not d <= tol:
                 d = _nearest_piece(geo, every, x, y)[0]
             worst = max(worst, d)
@@ -231,7 +277,8 @@ def _polyline_to_chain(samples: FloatArray, geo: FloatArray, ks: IntArray, js: I
                                hi))
             if i == off[s] and i + 1 + skip < hi and q >= 0 and d <= tol:
                 # the whole segment from a few points, where the closed form holds
-                top = _segment_max(samples, off, s, hi, geo, qs, q, tol, d)
+                top = _segment_max(samples, off, s, hi, geo, qs, q, tol, d, single, u, v,
+                                   ang)
                 if top >= 0.0:
                     worst = max(worst, top)
                     break

@@ -21,7 +21,7 @@ from zwcore.arcs._kernels import arc_angle1, circle_gap1, local1
 
 FloatArray = NDArray[np.float64]
 
-__all__ = ["SLACK", "piece_growth", "safe_move", "segment_growth"]
+__all__ = ["SLACK", "piece_growth", "piece_growth_at", "safe_move", "segment_growth"]
 
 #: share of the tolerance the figures may fall short of the maximum over the samples:
 #: a point is jumped over when its distance cannot exceed the maximum so far by more
@@ -41,9 +41,22 @@ def piece_growth(geo: FloatArray, q: int, x: float, y: float, ux: float,
     ``rho - R``, ``rho`` the distance to the centre, convex along a line with
     ``0 <= rho'' <= 1 / rho`` (``rho >= rho0 / 2`` within the reach).
     """
-    px, py, tx, ty, kappa, length = geo[q, 0], geo[q, 1], geo[q, 2], geo[q, 3], \
-        geo[q, 4], geo[q, 5]
-    u, v = local1(x, y, px, py, tx, ty)
+    u, v = local1(x, y, geo[q, 0], geo[q, 1], geo[q, 2], geo[q, 3])
+    kappa = geo[q, 4]
+    if kappa == 0.0:
+        return piece_growth_at(geo, q, u, v, 0.0, 0.0, ux, uy)
+    return piece_growth_at(geo, q, u, v, arc_angle1(u, v, kappa), circle_gap1(u, v, kappa),
+                           ux, uy)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def piece_growth_at(geo: FloatArray, q: int, u: float, v: float, ang: float, gap: float,
+                    ux: float, uy: float) -> tuple[float, float, float, float]:
+    """:func:`piece_growth` of a point already in the piece's frame: ``(u, v)`` its
+    local coordinates and, for an arc, ``ang`` its foot's angle (``arc_angle1``) and
+    ``gap`` its signed gap to the circle (``circle_gap1``), as the caller measured them
+    (the dense check's first point of a segment: measured once, not three times)."""
+    tx, ty, kappa, length = geo[q, 2], geo[q, 3], geo[q, 4], geo[q, 5]
     du = ux * tx + uy * ty
     dv = uy * tx - ux * ty
     if kappa == 0.0:
@@ -62,7 +75,6 @@ def piece_growth(geo: FloatArray, q: int, x: float, y: float, ux: float,
     if not n > 0.0:
         return 0.0, 1.0, 0.0, 0.0
     rho = n / abs(kappa)
-    ang = arc_angle1(u, v, kappa)
     if not ang <= abs(kappa * length):
         # the foot is off the arc (the distance is to an end point)
         return 0.0, 1.0, 0.0, 0.0
@@ -76,7 +88,7 @@ def piece_growth(geo: FloatArray, q: int, x: float, y: float, ux: float,
         return 0.0, 1.0, 0.0, 0.0
     # rho - R: the signed gap is positive right of the piece, outside for kappa > 0
     sgn = 1.0 if kappa > 0.0 else -1.0
-    e0 = sgn * circle_gap1(u, v, kappa)
+    e0 = sgn * gap
     # the foot turns by at most h / (rho - h) <= 2 h / rho about the centre
     return e0, sgn * (du * gu + dv * gv) / n, 2.0 / rho, 0.5 * rho * min(margin, 1.0)
 
