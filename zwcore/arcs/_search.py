@@ -34,6 +34,7 @@ from numpy.typing import NDArray
 from zwcore.arcs._anchors import AnchorPiece, StraightRuns
 from zwcore.arcs._geometry import arc_points, local_uv, rotate
 from zwcore.arcs._pieces import Piece, ToleranceBand
+from zwcore.arcs._ranking import rank_candidates
 from zwcore.arcs._select import candidates, candidates_level, select_verified
 from zwcore.arcs._start import free_start, free_start_tangents, full_circle, one_piece_to_end
 from zwcore.arcs._states import Cands, State, approx_lengths, level_arrays, unwind
@@ -350,28 +351,27 @@ class Fitter:
         sk_all: NDArray[np.int64],
     ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
         """The order in which the candidates ``c`` are verified, and their reach
-        (``sp_all, sk_all``: the states' points and samples as arrays)."""
+        (``sp_all, sk_all``: the states' points and samples as arrays): by the arcs over
+        straight runs in their chains (with anchors), the next piece's reach, lines
+        first, the furthest end; pieces onto straight runs first
+        (:func:`~zwcore.arcs._ranking.rank_candidates`)."""
         band = self.band
         js = c.j
-        reach, lreach = band.reach_with_lines(c.end, c.t_end, js, b)
-        reach = np.where(js >= b, b, reach)
-        lreach = np.where(js >= b, b, lreach)
-        lscore = self.cum[lreach] + 0.3 * (self.cum[lreach] - self.cum[js])
-        score = np.maximum(self.cum[reach], lscore) + c.bonus
-        isarc = c.kappa != 0.0
         sr = self.straight
         if sr is None:
-            return np.lexsort((-js, isarc, -score)), reach
-        sp = sp_all[c.si]
-        chord = np.hypot(c.end[:, 0] - sp[:, 0], c.end[:, 1] - sp[:, 1])
-        ks = sk_all[c.si]
-        flat = sr.are_over(ks, js, c.kappa, approx_lengths(c, chord))
-        # arcs over straight runs in the chain so far, this candidate's included
-        before = np.array([self._n_over(st) for st in level], dtype=np.int64)
-        n_over = before[c.si] + flat
-        order = np.lexsort((-js, isarc, -score, n_over))
-        order = np.concatenate([order[c.special[order]], order[~c.special[order]]])
-        return order, reach
+            n_over = np.zeros(len(js), dtype=np.int64)
+        else:
+            sp = sp_all[c.si]
+            chord = np.hypot(c.end[:, 0] - sp[:, 0], c.end[:, 1] - sp[:, 1])
+            ks = sk_all[c.si]
+            flat = sr.are_over(ks, js, c.kappa, approx_lengths(c, chord))
+            # arcs over straight runs in the chain so far, this candidate's included
+            before = np.array([self._n_over(st) for st in level], dtype=np.int64)
+            n_over = before[c.si] + flat
+        return rank_candidates(
+            self.samples, self.cum, np.ascontiguousarray(c.end), np.ascontiguousarray(c.t_end),
+            np.asarray(js, dtype=np.int64), b, band.reach_stride, band.work_tol, c.bonus,
+            c.kappa, n_over, c.special)
 
     def _verified(
         self, level: list[State], c: Cands, b: int,
@@ -393,8 +393,8 @@ class Fitter:
         order, reach = self._rank(level, c, b, sp, sk)
         n_special_max = self.BEAM // 2 if self.straight is not None else 0
         got, figs = select_verified(
-            self.samples, order.astype(np.int64), c.si, c.j, c.kappa, c.sig_end, c.special,
-            reach.astype(np.int64), c.t_end, sp, stt, sk,
+            self.samples, order, c.si, c.j, c.kappa, c.sig_end, c.special, reach,
+            c.t_end, sp, stt, sk,
             np.array([st.e for st in level], dtype=np.float64), self.BEAM, n_special_max,
             band.tol, band.dense_step)
         out: list[State] = []
