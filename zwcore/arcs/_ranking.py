@@ -3,9 +3,9 @@
 Each level ranks a few hundred candidates by how far the next piece reaches from their
 ends. The reach scan was compiled already; the score, the lexicographic order and the
 split of pieces onto straight runs were some fifteen numpy calls per level, more than
-the arithmetic. Here they are one loop and three stable sorts (numpy's ``lexsort`` is a
-stable sort per key from the last to the first: the same order, ties by index), on the
-same figures (``tests/test_arcfast8_kernels.py`` compares the two).
+the arithmetic. Here they are one loop and one sort by the same keys (numpy's
+``lexsort``: the same order, ties by index), on the same figures
+(``tests/test_arcfast8_kernels.py`` compares the two).
 """
 
 from __future__ import annotations
@@ -26,11 +26,50 @@ __all__ = ["rank_candidates", "stable_lexsort"]
 def stable_lexsort(neg_j: IntArray, isarc: NDArray[np.bool_], neg_score: FloatArray,
                    n_over: IntArray) -> IntArray:
     """``numpy.lexsort((neg_j, isarc, neg_score, n_over))``: ``n_over`` the primary key,
-    then ``neg_score``, ``isarc`` and ``neg_j``, ties in index order (``(C,)`` each)."""
-    order = np.argsort(neg_j, kind="mergesort")
-    order = order[np.argsort(isarc[order], kind="mergesort")]
-    order = order[np.argsort(neg_score[order], kind="mergesort")]
-    return order[np.argsort(n_over[order], kind="mergesort")]
+    then ``neg_score``, ``isarc`` and ``neg_j``, ties in index order (``(C,)`` each; the
+    scores not NaN).
+
+    The keys with the index make a total order, so any sort by them gives lexsort's
+    order: the scores by one quicksort, each run of equal scores by the rest packed
+    into one integer (unique: the index is in it), then a counting sort by ``n_over``
+    (stable, few distinct values).
+    """
+    n = len(neg_j)
+    order = np.argsort(neg_score)
+    if n == 0:
+        return order
+    jmin = neg_j.min()
+    span = neg_j.max() - jmin + 1
+    i = 0
+    while i < n:
+        e = i + 1
+        while e < n and neg_score[order[e]] == neg_score[order[i]]:
+            e += 1
+        if e - i > 1:
+            key = np.empty(e - i, dtype=np.int64)
+            for m in range(i, e):
+                c = order[m]
+                key[m - i] = ((1 if isarc[c] else 0) * span + (neg_j[c] - jmin)) * n + c
+            key.sort()
+            for m in range(i, e):
+                order[m] = key[m - i] % n
+        i = e
+    lo = n_over.min()
+    nb = n_over.max() - lo + 1
+    if nb == 1:
+        return order
+    start = np.zeros(nb + 1, dtype=np.int64)
+    for c in range(n):
+        start[n_over[c] - lo + 1] += 1
+    for v in range(nb):
+        start[v + 1] += start[v]
+    out = np.empty(n, dtype=np.int64)
+    for m in range(n):
+        c = order[m]
+        v = n_over[c] - lo
+        out[start[v]] = c
+        start[v] += 1
+    return out
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
