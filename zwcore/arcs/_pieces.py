@@ -222,19 +222,24 @@ class ToleranceBand:
         self, p: FloatArray, t: FloatArray, k: int, e: float, b: int
     ) -> Piece | None:
         """The verified piece from ``(p, t)`` (sample ``k``, distance ``e``) to sample ``b``."""
-        u, v = local_uv(p, t, self.samples[b : b + 1])
-        q2 = float(u[0] ** 2 + v[0] ** 2)
+        # (local_uv's arithmetic for one point, on floats)
+        ex = float(self.samples[b, 0]) - float(p[0])
+        ey = float(self.samples[b, 1]) - float(p[1])
+        tx, ty = float(t[0]), float(t[1])
+        u = ex * tx + ey * ty
+        v = ey * tx - ex * ty
+        q2 = u**2 + v**2
         if q2 <= 0.0:
             return None
-        kap = 2.0 * float(v[0]) / q2
+        kap = 2.0 * v / q2
         if abs(kap) * math.sqrt(q2) < 1e-13:
             kap = 0.0
         if not self.radius_ok(kap):
             return None
         # cheap interval test first: every sample's curvature interval holds kap (most
         # states are far from b and fail within the first few samples)
-        if not _kernels.kappa_fits(self.samples, float(p[0]), float(p[1]), float(t[0]),
-                                   float(t[1]), k, b, self.work_tol, kap, 1e-12 * abs(kap)):
+        if not _kernels.kappa_fits(self.samples, float(p[0]), float(p[1]), tx, ty, k, b,
+                                   self.work_tol, kap, 1e-12 * abs(kap)):
             return None
         res = self.verify(p, t, kap, k, b, e)
         if res is None:
