@@ -2,7 +2,8 @@
 bit for bit: the anchors' over-straight test and the fillet's vertex distance
 (:mod:`zwcore.arcs._anchor_kernels`), a beam level's ranking
 (:mod:`zwcore.arcs._ranking`) and the dense check's one-piece first point
-(:func:`zwcore.arcs._dense._one_piece_distance`, :func:`zwcore.arcs._jumps.piece_growth_at`).
+(:func:`zwcore.arcs._dense._one_piece_distance`, :func:`zwcore.arcs._jumps.piece_growth_at`)
+and the landing biarc's tries (:func:`zwcore.arcs._anchor_kernels.landing_pair`).
 Each reference below is the numpy formulation as it stood before (copied, not
 imported): a kernel that drifts from it fails here.
 """
@@ -15,11 +16,13 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from zwcore.arcs._anchor_kernels import anchors_hit, min_segment_distance
+from zwcore.arcs._anchor_kernels import anchors_hit, landing_pair, min_segment_distance
+from zwcore.arcs._anchors import StraightRuns
 from zwcore.arcs._dense import _nearest_piece, _one_piece_distance
 from zwcore.arcs._geometry import points_to_segments_distance
 from zwcore.arcs._jumps import piece_growth, piece_growth_at
 from zwcore.arcs._kernels import reach_lines
+from zwcore.arcs._pieces import ToleranceBand
 from zwcore.arcs._ranking import rank_candidates, stable_lexsort
 
 
@@ -193,3 +196,59 @@ def test_one_piece_first_point_is_the_general_path(seed, kappa, f, dx, dy, th):
     want_d, want_q = _nearest_piece(geo, np.array([0], dtype=np.int64), x, y)
     assert (d, q) == (want_d, want_q)
     assert piece_growth_at(geo, 0, u, v, ang, gap, ux, uy) == piece_growth(geo, 0, x, y, ux, uy)
+
+
+#: whether each example of the landing test landed (both outcomes must occur)
+LANDED: list[bool] = []
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(0, 2**31), st.floats(0.01, 0.3), st.floats(-0.6, 0.6),
+       st.floats(-0.3, 0.3), st.integers(1, 5))
+def test_landing_pair_is_one_biarc_per_landing_point(seed, tol, turn, off, n_land):
+    """The landing kernel returns the first landing point whose biarc (with radii of at
+    least the tolerance) ``ToleranceBand.biarc`` finds, trying them one by one."""
+    rng = np.random.default_rng(seed)
+    # an arc bending onto a straight run, sampled at a quarter of a millimetre
+    s = np.arange(0.0, 30.0, 0.25)
+    r = rng.uniform(8.0, 40.0)
+    th = np.minimum(s, 12.0) / r
+    head = np.stack([r * np.sin(th), r * (1 - np.cos(th))], 1)
+    d = np.array([math.cos(th[-1]), math.sin(th[-1])])
+    tail = head[s <= 12.0][-1] + (s[s > 12.0] - 12.0)[:, None] * d
+    samples = np.ascontiguousarray(np.vstack([head[s <= 12.0], tail])
+                                   + rng.normal(0.0, 0.1 * tol, (len(s), 2)))
+    band = ToleranceBand(samples, tol, 0.9, None)
+    k = int(rng.integers(0, 20))
+    a0 = turn + math.atan2(samples[k + 1, 1] - samples[k, 1], samples[k + 1, 0] - samples[k, 0])
+    p0 = samples[k] + off * tol * np.array([-math.sin(a0), math.cos(a0)])
+    t0 = np.array([math.cos(a0), math.sin(a0)])
+    i0 = int(np.searchsorted(s, 12.0)) + 1
+    ms = sorted({int(m) for m in rng.integers(i0, len(s) - 1, n_land)})
+    q = samples[i0]
+    p1s = np.array([q + float((samples[m] - q) @ d) * d for m in ms])
+    i, f, m1 = landing_pair(samples, p0, t0, k, 0.0, np.array(ms, dtype=np.int64), p1s, d,
+                            band.splits_array(StraightRuns.LANDING_SPLITS), tol,
+                            band.dense_step, band.kmin, band.kcap)
+    want = None
+    for n, m in enumerate(ms):
+        got = band.biarc(p0, t0, k, 0.0, m, d, p1s[n], StraightRuns.LANDING_SPLITS)
+        if got is not None and max(abs(got[0].kappa), abs(got[1].kappa)) <= 1.0 / tol:
+            want = (n, got)
+            break
+    LANDED.append(want is not None)
+    if want is None:
+        assert i == -1
+        return
+    assert i == want[0]
+    pieces = band.biarc_pieces(p0, t0, k, ms[i], d, p1s[i], False, f, m1)
+    for a, b in zip(pieces, want[1], strict=True):
+        assert (a.kappa, a.length, a.k, a.j, a.e_end) == (b.kappa, b.length, b.k, b.j, b.e_end)
+        np.testing.assert_array_equal(a.end, b.end)
+        np.testing.assert_array_equal(a.t_end, b.t_end)
+
+
+def test_landing_examples_took_both_outcomes():
+    """The landing test above saw landings found and refused (else it proves little)."""
+    test_landing_pair_is_one_biarc_per_landing_point()
+    assert any(LANDED) and not all(LANDED)

@@ -6,7 +6,8 @@ anchor and level. The kernel does the same comparisons of the same figures (diff
 of the cumulative polyline length, exact equality of points), so its answers are those
 of the numpy formulation (``tests/test_arcfast8_kernels.py`` compares the two). The
 fillet between two anchors' lines measures the input's distance to the lines' vertex
-over the segments after each junction: one loop, no temporaries.
+over the segments after each junction: one loop, no temporaries. A landing biarc tries a
+few landing points in one call (:func:`landing_pair`).
 """
 
 from __future__ import annotations
@@ -15,12 +16,13 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+from zwcore.arcs._biarc import biarc
 from zwcore.arcs._kernels import seg_dist
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 
-__all__ = ["anchors_hit", "min_segment_distance"]
+__all__ = ["anchors_hit", "landing_pair", "min_segment_distance"]
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -65,3 +67,21 @@ def min_segment_distance(samples: FloatArray, x: float, y: float, k: int, hi: in
         d = min(d, seg_dist(x, y, samples[s, 0], samples[s, 1], samples[s + 1, 0],
                             samples[s + 1, 1]))
     return d
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def landing_pair(samples: FloatArray, p0: FloatArray, t0: FloatArray, k: int, e: float,
+                 ms: IntArray, p1s: FloatArray, d: FloatArray, splits: FloatArray, tol: float,
+                 step0: float, kmin: float, kcap: float) -> tuple[int, FloatArray, int]:
+    """The first landing point ``i`` (sample ``ms[i]``, point ``p1s[i]`` ``(L, 2)``) that
+    a verified biarc from ``(p0, t0)`` (sample ``k``, distance ``e``) reaches along
+    ``d`` with both radii at least ``tol`` (:func:`zwcore.arcs._biarc.biarc`, the same
+    tries in the same order as one call per landing point): ``(i, figures, m)`` as
+    :func:`~zwcore.arcs._biarc.biarc` returns them (``i = -1``: none)."""
+    for i in range(len(ms)):
+        got, f, m = biarc(samples, p0, t0, k, e, ms[i], d, p1s[i], splits, tol, step0, kmin,
+                          kcap)
+        if got < 0 or max(abs(f[0]), abs(f[7])) > 1.0 / tol:
+            continue
+        return i, f, m
+    return -1, np.zeros(10), 0

@@ -12,7 +12,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from zwcore.arcs import _kernels
-from zwcore.arcs._anchor_kernels import anchors_hit, min_segment_distance
+from zwcore.arcs._anchor_kernels import anchors_hit, landing_pair, min_segment_distance
 from zwcore.arcs._geometry import (
     arc_point,
     sagitta,
@@ -247,20 +247,24 @@ class StraightRuns:
         if first > last or (
                 self.cum[first] - self.cum[k] > self.LANDING_SPAN * max(reach, 1e-300)):
             return None
-        tried = set()
-        ms = self.cum.searchsorted(self.cum[first] + self._offsets * self.tol, side="right")
-        for m in ms.tolist():
+        ms: list[int] = []
+        at = self.cum.searchsorted(self.cum[first] + self._offsets * self.tol, side="right")
+        for m in at.tolist():
             m = min(max(m - 1, first), last)
-            if m in tried:
-                continue
-            tried.add(m)
-            p1 = nxt.q + float((self.samples[m] - nxt.q) @ nxt.d) * nxt.d
-            got = band.biarc(p, t, k, e, m, nxt.d, p1, self.LANDING_SPLITS)
-            if got is None or max(abs(got[0].kappa), abs(got[1].kappa)) > 1.0 / self.tol:
-                continue
-            got[1].t_end = nxt.d.copy()  # exactly the anchor's direction
-            return got
-        return None
+            if m not in ms:
+                ms.append(m)
+        # the landing points (feet of the samples on the line), tried in one kernel call
+        p1s = np.array([nxt.q + float((self.samples[m] - nxt.q) @ nxt.d) * nxt.d for m in ms])
+        i, f, m1 = landing_pair(
+            self.samples, np.asarray(p, dtype=np.float64), np.asarray(t, dtype=np.float64), k,
+            float(e), np.array(ms, dtype=np.int64), p1s, nxt.d,
+            band.splits_array(self.LANDING_SPLITS), self.tol, band.dense_step, band.kmin,
+            band.kcap)
+        if i < 0:
+            return None
+        got = band.biarc_pieces(p, t, k, ms[i], nxt.d, p1s[i], False, f, m1)
+        got[1].t_end = nxt.d.copy()  # exactly the anchor's direction
+        return got
 
     def _last_before(
         self, p: FloatArray, t: FloatArray, kap: float, k: int, hi: int, s_end: float

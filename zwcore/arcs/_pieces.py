@@ -23,10 +23,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from zwcore.arcs import _biarc, _kernels
-from zwcore.arcs._geometry import (
-    local_uv,
-    rotate1,
-)
+from zwcore.arcs._geometry import rotate1
 
 FloatArray = NDArray[np.float64]
 
@@ -268,17 +265,29 @@ class ToleranceBand:
         """
         at_sample = p1 is None
         p1 = self.samples[b] if p1 is None else p1
+        got, f, m = _biarc.biarc(
+            self.samples, np.asarray(p0, dtype=np.float64), np.asarray(t0, dtype=np.float64),
+            k, float(e), b, np.asarray(t1, dtype=np.float64),
+            np.asarray(p1, dtype=np.float64), self.splits_array(splits), self.tol,
+            self.dense_step, self.kmin, self.kcap)
+        if got < 0:
+            return None
+        return self.biarc_pieces(p0, t0, k, b, t1, p1, at_sample, f, m)
+
+    def splits_array(self, splits: tuple[float, ...]) -> FloatArray:
+        """The biarc splits ``splits`` as an array for the kernel (built once)."""
         key = splits if splits is self.BIARC_SPLITS else tuple(splits)
         arr = self._splits.get(key)
         if arr is None:
             arr = self._splits[key] = np.array(key, dtype=np.float64)
-        got, f, m = _biarc.biarc(
-            self.samples, np.asarray(p0, dtype=np.float64), np.asarray(t0, dtype=np.float64),
-            k, float(e), b, np.asarray(t1, dtype=np.float64),
-            np.asarray(p1, dtype=np.float64), arr, self.tol, self.dense_step, self.kmin,
-            self.kcap)
-        if got < 0:
-            return None
+        return arr
+
+    def biarc_pieces(
+        self, p0: FloatArray, t0: FloatArray, k: int, b: int, t1: FloatArray, p1: FloatArray,
+        at_sample: bool, f: FloatArray, m: int,
+    ) -> list[Piece]:
+        """The two pieces of a biarc the kernel found (its figures ``f`` ``(10,)`` and the
+        first arc's last sample ``m``; see :meth:`biarc`)."""
         k1, s1, jx, jy, tjx, tjy, e1, k2, s2, e2 = f.tolist()
         jn = np.array([jx, jy])
         tj = np.array([tjx, tjy])
