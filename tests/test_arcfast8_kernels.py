@@ -2,7 +2,7 @@
 bit for bit: the anchors' over-straight test and the fillet's vertex distance
 (:mod:`zwcore.arcs._anchor_kernels`), a beam level's ranking
 (:mod:`zwcore.arcs._ranking`) and the dense check's one-piece first point
-(:func:`zwcore.arcs._dense._one_piece_distance`, :func:`zwcore.arcs._jumps.piece_growth_at`)
+(:func:`zwcore.arcs._jumps.one_piece_distance`, :func:`zwcore.arcs._jumps.piece_growth_at`)
 and the landing biarc's tries (:func:`zwcore.arcs._anchor_kernels.landing_pair`).
 Each reference below is the numpy formulation as it stood before (copied, not
 imported): a kernel that drifts from it fails here.
@@ -18,9 +18,9 @@ from hypothesis import strategies as st
 
 from zwcore.arcs._anchor_kernels import anchors_hit, landing_pair, min_segment_distance
 from zwcore.arcs._anchors import StraightRuns
-from zwcore.arcs._dense import _nearest_piece, _one_piece_distance
+from zwcore.arcs._dense import _nearest_piece
 from zwcore.arcs._geometry import points_to_segments_distance
-from zwcore.arcs._jumps import piece_growth, piece_growth_at
+from zwcore.arcs._jumps import one_piece_distance, piece_growth, piece_growth_at
 from zwcore.arcs._kernels import reach_lines
 from zwcore.arcs._pieces import ToleranceBand
 from zwcore.arcs._ranking import rank_candidates, stable_lexsort
@@ -192,7 +192,7 @@ def test_one_piece_first_point_is_the_general_path(seed, kappa, f, dx, dy, th):
     geo = np.array([[px, py, tx, ty, kappa, length, ex, ey]])
     x, y = x0 + 0.05 * dx, y0 + 0.05 * dy
     ux, uy = math.cos(th), math.sin(th)
-    d, q, u, v, ang, gap = _one_piece_distance(geo, 0, x, y)
+    d, q, u, v, ang, gap = one_piece_distance(geo, 0, x, y)
     want_d, want_q = _nearest_piece(geo, np.array([0], dtype=np.int64), x, y)
     assert (d, q) == (want_d, want_q)
     assert piece_growth_at(geo, 0, u, v, ang, gap, ux, uy) == piece_growth(geo, 0, x, y, ux, uy)

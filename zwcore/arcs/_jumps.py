@@ -21,7 +21,8 @@ from zwcore.arcs._kernels import arc_angle1, circle_gap1, local1
 
 FloatArray = NDArray[np.float64]
 
-__all__ = ["SLACK", "piece_growth", "piece_growth_at", "safe_move", "segment_growth"]
+__all__ = ["SLACK", "last_below", "one_piece_distance", "piece_growth", "piece_growth_at",
+           "safe_move", "segment_growth"]
 
 #: share of the tolerance the figures may fall short of the maximum over the samples:
 #: a point is jumped over when its distance cannot exceed the maximum so far by more
@@ -163,3 +164,65 @@ def segment_growth(samples: FloatArray, s: int, x: float, y: float, tx: float, t
     sgn = -1.0 if kappa * cos < 0.0 else 1.0
     w0 = (y - ay) * ex - (x - ax) * ey
     return sgn * w0, sgn * (ex * qy - ey * qx), reach
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def one_piece_distance(geo: FloatArray, q: int, x: float,
+                        y: float) -> tuple[float, int, float, float, float, float]:
+    """:func:`~zwcore.arcs._dense._nearest_piece` of the one piece ``q`` (``qs == [q]``),
+    with the point's local coordinates ``(u, v)``, its foot's angle and its signed gap to
+    the circle (arcs; 0 for lines) that :func:`~zwcore.arcs._dense.point_arc_distance`
+    measures on the way: the dense check's growth bound and few-point maximum of a
+    segment take them as they are (:func:`piece_growth_at`,
+    :func:`~zwcore.arcs._dense._segment_max`)."""
+    px, py, tx, ty, kappa, length = geo[q, 0], geo[q, 1], geo[q, 2], geo[q, 3], \
+        geo[q, 4], geo[q, 5]
+    u, v = local1(x, y, px, py, tx, ty)
+    ang = 0.0
+    gap = 0.0
+    if kappa == 0.0:
+        if 0.0 <= u <= length:
+            d = abs(v)
+        else:
+            d = min(math.hypot(u, v), math.hypot(x - geo[q, 6], y - geo[q, 7]))
+    else:
+        gap = circle_gap1(u, v, kappa)
+        d = abs(gap)
+        ang = arc_angle1(u, v, kappa)
+        if not d >= np.inf:
+            # (point_arc_distance with nothing known yet)
+            d_ends = min(math.hypot(u, v), math.hypot(x - geo[q, 6], y - geo[q, 7]))
+            d = min(d, d_ends) if ang <= abs(kappa * length) else d_ends
+    # (as _nearest_piece: a figure that is not below infinity names no piece)
+    if not d < np.inf:
+        return np.inf, -1, u, v, ang, gap
+    return d, q, u, v, ang, gap
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def last_below(kappa: float, ds: float, i: int, i_r: int, s_par: float, e0: float,
+                rate: float, top: float, tol: float, scale: float) -> bool:
+    """True when the last point ``i_r`` of a portion
+    (:func:`~zwcore.arcs._dense._portion_max`) is, by a
+    margin above the rounding, farther from ``lseg`` than none of the points ``i, c2,
+    c3`` measured (``top``: their largest offset), so it cannot be the peak.
+
+    With ``e = +-w`` convex (``0 <= e'' <= |kappa|``) from point ``i`` on: ``e`` at
+    ``i_r`` is at most ``e0 + rate h + |kappa| h^2 / 2``; ``-e`` is concave with its top
+    at the parallel point ``s_par`` (between ``c2`` and ``c3``), where the tangent runs
+    along the segment, so past it ``-e'' >= |kappa| cos(|kappa| D)`` (the tangent has
+    turned by ``|kappa| D`` from the segment's direction, ``D`` the way from ``s_par``)
+    and ``-e`` at ``i_r`` lies at least ``|kappa| (cos(|kappa| D) D^2 - ds^2) / 2``
+    below the better of ``c2, c3`` (one of them is within ``ds / 2`` of the top,
+    ``-e'' >= -|kappa|``). Both must clear the margin (a billionth of the tolerance
+    and 1e-13 of the coordinates' size)."""
+    margin = 1e-9 * tol + 1e-13 * scale
+    ak = abs(kappa)
+    h = (i_r - i) * ds
+    dist = i_r * ds - s_par
+    ang = ak * dist
+    if not ang < 0.5 * math.pi:
+        return False
+    if not 0.5 * ak * (math.cos(ang) * dist * dist - ds * ds) > 2.0 * margin:
+        return False
+    return e0 + rate * h + 0.5 * ak * h * h < top - 2.0 * margin

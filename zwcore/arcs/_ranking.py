@@ -14,12 +14,15 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+from zwcore.arcs._anchors import StraightRuns
 from zwcore.arcs._kernels import reach_lines
+from zwcore.arcs._pieces import ToleranceBand
+from zwcore.arcs._states import Cands, approx_lengths
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 
-__all__ = ["rank_candidates", "stable_lexsort"]
+__all__ = ["rank_candidates", "rank_level", "stable_lexsort"]
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -114,3 +117,27 @@ def rank_candidates(samples: FloatArray, cum: FloatArray, ends: FloatArray,
             out[m] = order[i]
             m += 1
     return out, reach
+
+
+def rank_level(
+    band: ToleranceBand, c: Cands, b: int, sp_all: FloatArray, sk_all: IntArray,
+    sr: StraightRuns | None, before: IntArray | None,
+) -> tuple[IntArray, IntArray]:
+    """The order in which a level's candidates ``c`` are verified, and their reach
+    (:func:`rank_candidates`): with straight runs to follow (``sr``), by the arcs over
+    them in each candidate's chain first, ``before[s]`` those in state ``s``'s chain
+    (``sp_all, sk_all``: the states' points and samples as arrays).
+    """
+    js = c.j
+    if sr is None or before is None:
+        n_over = np.zeros(len(js), dtype=np.int64)
+    else:
+        sp = sp_all[c.si]
+        chord = np.hypot(c.end[:, 0] - sp[:, 0], c.end[:, 1] - sp[:, 1])
+        flat = sr.are_over(sk_all[c.si], js, c.kappa, approx_lengths(c, chord))
+        # arcs over straight runs in the chain so far, this candidate's included
+        n_over = before[c.si] + flat
+    return rank_candidates(
+        band.samples, band.cum, np.ascontiguousarray(c.end), np.ascontiguousarray(c.t_end),
+        np.asarray(js, dtype=np.int64), b, band.reach_stride, band.work_tol, c.bonus,
+        c.kappa, n_over, c.special)

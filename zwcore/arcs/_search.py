@@ -34,10 +34,10 @@ from numpy.typing import NDArray
 from zwcore.arcs._anchors import AnchorPiece, StraightRuns
 from zwcore.arcs._geometry import arc_points, local_uv, rotate
 from zwcore.arcs._pieces import Piece, ToleranceBand
-from zwcore.arcs._ranking import rank_candidates
+from zwcore.arcs._ranking import rank_level
 from zwcore.arcs._select import candidates, candidates_level, select_verified
 from zwcore.arcs._start import free_start, free_start_tangents, full_circle, one_piece_to_end
-from zwcore.arcs._states import Cands, State, approx_lengths, level_arrays, unwind
+from zwcore.arcs._states import Cands, State, level_arrays, unwind
 from zwcore.arcs._unstick import bridge, fallback
 
 FloatArray = NDArray[np.float64]
@@ -351,27 +351,11 @@ class Fitter:
         sk_all: NDArray[np.int64],
     ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
         """The order in which the candidates ``c`` are verified, and their reach
-        (``sp_all, sk_all``: the states' points and samples as arrays): by the arcs over
-        straight runs in their chains (with anchors), the next piece's reach, lines
-        first, the furthest end; pieces onto straight runs first
-        (:func:`~zwcore.arcs._ranking.rank_candidates`)."""
-        band = self.band
-        js = c.j
-        sr = self.straight
-        if sr is None:
-            n_over = np.zeros(len(js), dtype=np.int64)
-        else:
-            sp = sp_all[c.si]
-            chord = np.hypot(c.end[:, 0] - sp[:, 0], c.end[:, 1] - sp[:, 1])
-            ks = sk_all[c.si]
-            flat = sr.are_over(ks, js, c.kappa, approx_lengths(c, chord))
-            # arcs over straight runs in the chain so far, this candidate's included
-            before = np.array([self._n_over(st) for st in level], dtype=np.int64)
-            n_over = before[c.si] + flat
-        return rank_candidates(
-            self.samples, self.cum, np.ascontiguousarray(c.end), np.ascontiguousarray(c.t_end),
-            np.asarray(js, dtype=np.int64), b, band.reach_stride, band.work_tol, c.bonus,
-            c.kappa, n_over, c.special)
+        (:func:`~zwcore.arcs._ranking.rank_level`; ``sp_all, sk_all``: the states' points
+        and samples as arrays)."""
+        before = None if self.straight is None else np.array(
+            [self._n_over(st) for st in level], dtype=np.int64)
+        return rank_level(self.band, c, b, sp_all, sk_all, self.straight, before)
 
     def _verified(
         self, level: list[State], c: Cands, b: int,
