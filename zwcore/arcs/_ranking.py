@@ -1,11 +1,11 @@
-"""Compiled ranking of a beam level's candidate pieces (:meth:`zwcore.arcs._search.Fitter._rank`).
+"""Ranking of a beam level's candidate pieces (:meth:`zwcore.arcs._search.Fitter._rank`).
 
 Each level ranks a few hundred candidates by how far the next piece reaches from their
-ends. The reach scan was compiled already; the score, the lexicographic order and the
-split of pieces onto straight runs were some fifteen numpy calls per level, more than
-the arithmetic. Here they are one loop and one sort by the same keys (numpy's
-``lexsort``: the same order, ties by index), on the same figures
-(``tests/test_arcfast8_kernels.py`` compares the two).
+ends. The reach scan was compiled already; the scores and sort keys were some ten numpy
+calls per level more, now one loop in the same kernel call (:func:`rank_keys`, the same
+figures: ``tests/test_arcfast8_kernels.py`` compares the two). The sort stays numpy's
+``lexsort``: numba's sorts took twice its time on these keys (a third of the scores
+tie).
 """
 
 from __future__ import annotations
@@ -22,75 +22,22 @@ from zwcore.arcs._states import Cands, approx_lengths
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 
-__all__ = ["rank_candidates", "rank_level", "stable_lexsort"]
+__all__ = ["rank_candidates", "rank_keys", "rank_level"]
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def stable_lexsort(neg_j: IntArray, isarc: NDArray[np.bool_], neg_score: FloatArray,
-                   n_over: IntArray) -> IntArray:
-    """``numpy.lexsort((neg_j, isarc, neg_score, n_over))``: ``n_over`` the primary key,
-    then ``neg_score``, ``isarc`` and ``neg_j``, ties in index order (``(C,)`` each; the
-    scores not NaN).
-
-    The keys with the index make a total order, so any sort by them gives lexsort's
-    order: the scores by one quicksort, each run of equal scores by the rest packed
-    into one integer (unique: the index is in it), then a counting sort by ``n_over``
-    (stable, few distinct values).
-    """
-    n = len(neg_j)
-    order = np.argsort(neg_score)
-    if n == 0:
-        return order
-    jmin = neg_j.min()
-    span = neg_j.max() - jmin + 1
-    i = 0
-    while i < n:
-        e = i + 1
-        while e < n and neg_score[order[e]] == neg_score[order[i]]:
-            e += 1
-        if e - i > 1:
-            key = np.empty(e - i, dtype=np.int64)
-            for m in range(i, e):
-                c = order[m]
-                key[m - i] = ((1 if isarc[c] else 0) * span + (neg_j[c] - jmin)) * n + c
-            key.sort()
-            for m in range(i, e):
-                order[m] = key[m - i] % n
-        i = e
-    lo = n_over.min()
-    nb = n_over.max() - lo + 1
-    if nb == 1:
-        return order
-    start = np.zeros(nb + 1, dtype=np.int64)
-    for c in range(n):
-        start[n_over[c] - lo + 1] += 1
-    for v in range(nb):
-        start[v + 1] += start[v]
-    out = np.empty(n, dtype=np.int64)
-    for m in range(n):
-        c = order[m]
-        v = n_over[c] - lo
-        out[start[v]] = c
-        start[v] += 1
-    return out
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def rank_candidates(samples: FloatArray, cum: FloatArray, ends: FloatArray,
-                    t_ends: FloatArray, js: IntArray, b: int, stride: int, wt: float,
-                    bonus: FloatArray, kappa: FloatArray, n_over: IntArray,
-                    special: NDArray[np.bool_]) -> tuple[IntArray, IntArray]:
-    """The order in which candidate pieces are verified, and their reach.
+def rank_keys(samples: FloatArray, cum: FloatArray, ends: FloatArray, t_ends: FloatArray,
+              js: IntArray, b: int, stride: int, wt: float, bonus: FloatArray,
+              kappa: FloatArray) -> tuple[IntArray, FloatArray, NDArray[np.bool_], IntArray]:
+    """The reach of each candidate piece and its sort keys: ``(reach, -score, is an arc,
+    -js)``, each ``(C,)``.
 
     Candidate ``c`` ends at ``ends[c]`` ``(C, 2)`` with tangent ``t_ends[c]`` standing
     for sample ``js[c]``; ``reach``: the last sample the next piece from there covers
     (:func:`~zwcore.arcs._kernels.reach_lines`, scans at ``stride`` with working
     half-width ``wt``; ``b`` for a candidate at the run's end ``b``). The score is that
     reach's arc length or, where a line from there reaches far, the line's with a 30 %
-    bonus on its own length, plus ``bonus[c]``. The order: fewest ``n_over`` (arcs over
-    straight runs in the chain; zeros without anchors), then the highest score, lines
-    before arcs, the furthest end, the index; pieces onto straight runs
-    (``special``) before the rest, each group in that order.
+    bonus on its own length, plus ``bonus[c]``.
     """
     n = len(js)
     reach, lreach = reach_lines(samples, ends, t_ends, js, b, stride, wt)
@@ -105,18 +52,27 @@ def rank_candidates(samples: FloatArray, cum: FloatArray, ends: FloatArray,
         neg_score[c] = -(max(cum[reach[c]], lscore) + bonus[c])
         neg_j[c] = -js[c]
         isarc[c] = kappa[c] != 0.0
-    order = stable_lexsort(neg_j, isarc, neg_score, n_over)
-    out = np.empty(n, dtype=np.int64)
-    m = 0
-    for i in range(n):
-        if special[order[i]]:
-            out[m] = order[i]
-            m += 1
-    for i in range(n):
-        if not special[order[i]]:
-            out[m] = order[i]
-            m += 1
-    return out, reach
+    return reach, neg_score, isarc, neg_j
+
+
+def rank_candidates(samples: FloatArray, cum: FloatArray, ends: FloatArray,
+                    t_ends: FloatArray, js: IntArray, b: int, stride: int, wt: float,
+                    bonus: FloatArray, kappa: FloatArray, n_over: IntArray | None,
+                    special: NDArray[np.bool_]) -> tuple[IntArray, IntArray]:
+    """The order in which candidate pieces are verified, and their reach
+    (:func:`rank_keys`): fewest ``n_over`` (arcs over straight runs in the chain; None:
+    no anchors), then the highest score, lines before arcs, the furthest end, the index
+    (numpy's ``lexsort``, faster than numba's sorts on a few hundred keys with many
+    ties); pieces onto straight runs (``special``) before the rest, each group in that
+    order."""
+    reach, neg_score, isarc, neg_j = rank_keys(samples, cum, ends, t_ends, js, b, stride,
+                                               wt, bonus, kappa)
+    if n_over is None:
+        return np.lexsort((neg_j, isarc, neg_score)), reach
+    order = np.lexsort((neg_j, isarc, neg_score, n_over))
+    if special.any():
+        order = np.concatenate([order[special[order]], order[~special[order]]])
+    return order, reach
 
 
 def rank_level(
@@ -129,9 +85,8 @@ def rank_level(
     (``sp_all, sk_all``: the states' points and samples as arrays).
     """
     js = c.j
-    if sr is None or before is None:
-        n_over = np.zeros(len(js), dtype=np.int64)
-    else:
+    n_over = None
+    if sr is not None and before is not None:
         sp = sp_all[c.si]
         chord = np.hypot(c.end[:, 0] - sp[:, 0], c.end[:, 1] - sp[:, 1])
         flat = sr.are_over(sk_all[c.si], js, c.kappa, approx_lengths(c, chord))
