@@ -15,7 +15,15 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from zwcore.arcs._jumps import SLACK, piece_growth, safe_move, segment_growth
+from zwcore.arcs._jumps import (
+    SLACK,
+    last_below,
+    one_piece_distance,
+    piece_growth,
+    piece_growth_at,
+    safe_move,
+    segment_growth,
+)
 from zwcore.arcs._kernels import (
     arc_angle1,
     arc_xy,
@@ -108,11 +116,13 @@ def _nearest_piece(geo: FloatArray, qs: IntArray, x: float, y: float) -> tuple[f
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def _segment_max(samples: FloatArray, off: IntArray, s: int, hi: int, geo: FloatArray,
-                 qs: IntArray, q: int, tol: float, d0: float) -> float:
+                 qs: IntArray, q: int, tol: float, d0: float, known: bool, uk: float,
+                 vk: float, ak: float) -> float:
     """The largest distance of the dense points ``off[s]..hi-1`` of segment ``s`` to the
     pieces ``qs``, exactly, when every point's foot lies inside piece ``q`` and ``q`` is
     the nearest piece where that distance peaks; else -1 (walk the points). ``d0``: the
-    first point's distance, measured by the caller (``q`` the nearest there).
+    first point's distance, measured by the caller (``q`` the nearest there); with
+    ``known`` also its local coordinates ``(uk, vk)`` and (arcs) its foot's angle ``ak``.
 
     Along a line the offset ``e`` from the piece (a line's ``v``, a circle's ``rho - R``)
     is linear or convex (``rho`` is), so over the evenly spaced points ``|e| = max(e,
@@ -129,14 +139,14 @@ def _segment_max(samples: FloatArray, off: IntArray, s: int, hi: int, geo: Float
         geo[q, 4], geo[q, 5]
     x0, y0 = _dense_point(samples, off, s, i0)
     x1, y1 = _dense_point(samples, off, s, i1)
-    u0, v0 = local1(x0, y0, px, py, tx, ty)
+    u0, v0 = (uk, vk) if known else local1(x0, y0, px, py, tx, ty)
     u1, v1 = local1(x1, y1, px, py, tx, ty)
     c2 = i0
     if kappa == 0.0:
         if not (0.0 <= u0 <= length and 0.0 <= u1 <= length):
             return -1.0
     else:
-        a0 = arc_angle1(u0, v0, kappa)
+        a0 = ak if known else arc_angle1(u0, v0, kappa)
         a1 = arc_angle1(u1, v1, kappa)
         sweep = abs(kappa * length)
         # (the foot turns monotonically, by less than pi, along a line)
@@ -215,12 +225,21 @@ def _polyline_to_chain(samples: FloatArray, geo: FloatArray, ks: IntArray, js: I
         # the spacing of the segment's dense points
         dl = sl / max(off[s + 1] - off[s], 1)
         i = off[s]
+        # one piece near (most segments): its figures at a point measured once
+        single = len(qs) == 1
         while i < hi:
             x, y = _dense_point(samples, off, s, i)
-            d, q = _nearest_piece(geo, qs, x, y)
+            if single:
+                d, q, u, v, ang, gap = one_piece_distance(geo, qs[0], x, y)
+            else:
+                d, q = _nearest_piece(geo, qs, x, y)
+                u = v = ang = gap = 0.0
             e0, rate, curv, reach = 0.0, 1.0, 0.0, 0.0
             if q >= 0 and d <= tol:
-                e0, rate, curv, reach = piece_growth(geo, q, x, y, ux, uy)
+                if single:
+                    e0, rate, curv, reach = piece_growth_at(geo, q, u, v, ang, gap, ux, uy)
+                else:
+                    e0, rate, curv, reach = piece_growth(geo, q, x, y, ux, uy)
             if not d <= tol:
                 d = _nearest_piece(geo, every, x, y)[0]
             worst = max(worst, d)
@@ -231,7 +250,8 @@ def _polyline_to_chain(samples: FloatArray, geo: FloatArray, ks: IntArray, js: I
                                hi))
             if i == off[s] and i + 1 + skip < hi and q >= 0 and d <= tol:
                 # the whole segment from a few points, where the closed form holds
-                top = _segment_max(samples, off, s, hi, geo, qs, q, tol, d)
+                top = _segment_max(samples, off, s, hi, geo, qs, q, tol, d, single, u, v,
+                                   ang)
                 if top >= 0.0:
                     worst = max(worst, top)
                     break
@@ -322,7 +342,8 @@ def _portion_max(samples: FloatArray, foot: FloatArray, k: int, px: float, py: f
     does, which is at most ``|w|`` and equal to it where ``lseg`` is the nearest).
     ``d0``: point ``i``'s distance, measured by the caller (``lseg`` the nearest there);
     ``(e0, rate)``: its growth from there (:func:`~zwcore.arcs._jumps.segment_growth`).
-    The last point is not measured where it cannot be the peak (:func:`_last_below`).
+    The last point is not measured where it cannot be the peak
+    (:func:`~zwcore.arcs._jumps.last_below`).
     """
     c2 = i
     s_par = -1.0
@@ -349,7 +370,7 @@ def _portion_max(samples: FloatArray, foot: FloatArray, k: int, px: float, py: f
     best_w = d0
     best_d = d0
     top = max(d0, w2, w3)
-    if not (s_par >= 0.0 and c3 < i_r and _last_below(
+    if not (s_par >= 0.0 and c3 < i_r and last_below(
             kappa, ds, i, i_r, s_par, e0, rate, top, tol, abs(px) + abs(py) + i_r * ds)):
         d1, w1 = _window_w(samples, foot, k, px, py, tx, ty, kappa, ds, i_r, lseg)
         if not d1 <= tol:
@@ -361,34 +382,6 @@ def _portion_max(samples: FloatArray, foot: FloatArray, k: int, px: float, py: f
     if w3 > best_w:
         best_w, best_d = w3, d3
     return best_w if best_d == best_w else -1.0
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def _last_below(kappa: float, ds: float, i: int, i_r: int, s_par: float, e0: float,
-                rate: float, top: float, tol: float, scale: float) -> bool:
-    """True when the last point ``i_r`` of a portion (:func:`_portion_max`) is, by a
-    margin above the rounding, farther from ``lseg`` than none of the points ``i, c2,
-    c3`` measured (``top``: their largest offset), so it cannot be the peak.
-
-    With ``e = +-w`` convex (``0 <= e'' <= |kappa|``) from point ``i`` on: ``e`` at
-    ``i_r`` is at most ``e0 + rate h + |kappa| h^2 / 2``; ``-e`` is concave with its top
-    at the parallel point ``s_par`` (between ``c2`` and ``c3``), where the tangent runs
-    along the segment, so past it ``-e'' >= |kappa| cos(|kappa| D)`` (the tangent has
-    turned by ``|kappa| D`` from the segment's direction, ``D`` the way from ``s_par``)
-    and ``-e`` at ``i_r`` lies at least ``|kappa| (cos(|kappa| D) D^2 - ds^2) / 2``
-    below the better of ``c2, c3`` (one of them is within ``ds / 2`` of the top,
-    ``-e'' >= -|kappa|``). Both must clear the margin (a billionth of the tolerance
-    and 1e-13 of the coordinates' size)."""
-    margin = 1e-9 * tol + 1e-13 * scale
-    ak = abs(kappa)
-    h = (i_r - i) * ds
-    dist = i_r * ds - s_par
-    ang = ak * dist
-    if not ang < 0.5 * math.pi:
-        return False
-    if not 0.5 * ak * (math.cos(ang) * dist * dist - ds * ds) > 2.0 * margin:
-        return False
-    return e0 + rate * h + 0.5 * ak * h * h < top - 2.0 * margin
 
 
 @njit(cache=True, nogil=True, error_model="numpy")

@@ -21,7 +21,8 @@ from zwcore.arcs._kernels import arc_angle1, circle_gap1, local1
 
 FloatArray = NDArray[np.float64]
 
-__all__ = ["SLACK", "piece_growth", "safe_move", "segment_growth"]
+__all__ = ["SLACK", "last_below", "one_piece_distance", "piece_growth", "piece_growth_at",
+           "safe_move", "segment_growth"]
 
 #: share of the tolerance the figures may fall short of the maximum over the samples:
 #: a point is jumped over when its distance cannot exceed the maximum so far by more
@@ -41,9 +42,22 @@ def piece_growth(geo: FloatArray, q: int, x: float, y: float, ux: float,
     ``rho - R``, ``rho`` the distance to the centre, convex along a line with
     ``0 <= rho'' <= 1 / rho`` (``rho >= rho0 / 2`` within the reach).
     """
-    px, py, tx, ty, kappa, length = geo[q, 0], geo[q, 1], geo[q, 2], geo[q, 3], \
-        geo[q, 4], geo[q, 5]
-    u, v = local1(x, y, px, py, tx, ty)
+    u, v = local1(x, y, geo[q, 0], geo[q, 1], geo[q, 2], geo[q, 3])
+    kappa = geo[q, 4]
+    if kappa == 0.0:
+        return piece_growth_at(geo, q, u, v, 0.0, 0.0, ux, uy)
+    return piece_growth_at(geo, q, u, v, arc_angle1(u, v, kappa), circle_gap1(u, v, kappa),
+                           ux, uy)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def piece_growth_at(geo: FloatArray, q: int, u: float, v: float, ang: float, gap: float,
+                    ux: float, uy: float) -> tuple[float, float, float, float]:
+    """:func:`piece_growth` of a point already in the piece's frame: ``(u, v)`` its
+    local coordinates and, for an arc, ``ang`` its foot's angle (``arc_angle1``) and
+    ``gap`` its signed gap to the circle (``circle_gap1``), as the caller measured them
+    (the dense check's first point of a segment: measured once, not three times)."""
+    tx, ty, kappa, length = geo[q, 2], geo[q, 3], geo[q, 4], geo[q, 5]
     du = ux * tx + uy * ty
     dv = uy * tx - ux * ty
     if kappa == 0.0:
@@ -62,7 +76,6 @@ def piece_growth(geo: FloatArray, q: int, x: float, y: float, ux: float,
     if not n > 0.0:
         return 0.0, 1.0, 0.0, 0.0
     rho = n / abs(kappa)
-    ang = arc_angle1(u, v, kappa)
     if not ang <= abs(kappa * length):
         # the foot is off the arc (the distance is to an end point)
         return 0.0, 1.0, 0.0, 0.0
@@ -76,7 +89,7 @@ def piece_growth(geo: FloatArray, q: int, x: float, y: float, ux: float,
         return 0.0, 1.0, 0.0, 0.0
     # rho - R: the signed gap is positive right of the piece, outside for kappa > 0
     sgn = 1.0 if kappa > 0.0 else -1.0
-    e0 = sgn * circle_gap1(u, v, kappa)
+    e0 = sgn * gap
     # the foot turns by at most h / (rho - h) <= 2 h / rho about the centre
     return e0, sgn * (du * gu + dv * gv) / n, 2.0 / rho, 0.5 * rho * min(margin, 1.0)
 
@@ -151,3 +164,65 @@ def segment_growth(samples: FloatArray, s: int, x: float, y: float, tx: float, t
     sgn = -1.0 if kappa * cos < 0.0 else 1.0
     w0 = (y - ay) * ex - (x - ax) * ey
     return sgn * w0, sgn * (ex * qy - ey * qx), reach
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def one_piece_distance(geo: FloatArray, q: int, x: float,
+                        y: float) -> tuple[float, int, float, float, float, float]:
+    """:func:`~zwcore.arcs._dense._nearest_piece` of the one piece ``q`` (``qs == [q]``),
+    with the point's local coordinates ``(u, v)``, its foot's angle and its signed gap to
+    the circle (arcs; 0 for lines) that :func:`~zwcore.arcs._dense.point_arc_distance`
+    measures on the way: the dense check's growth bound and few-point maximum of a
+    segment take them as they are (:func:`piece_growth_at`,
+    :func:`~zwcore.arcs._dense._segment_max`)."""
+    px, py, tx, ty, kappa, length = geo[q, 0], geo[q, 1], geo[q, 2], geo[q, 3], \
+        geo[q, 4], geo[q, 5]
+    u, v = local1(x, y, px, py, tx, ty)
+    ang = 0.0
+    gap = 0.0
+    if kappa == 0.0:
+        if 0.0 <= u <= length:
+            d = abs(v)
+        else:
+            d = min(math.hypot(u, v), math.hypot(x - geo[q, 6], y - geo[q, 7]))
+    else:
+        gap = circle_gap1(u, v, kappa)
+        d = abs(gap)
+        ang = arc_angle1(u, v, kappa)
+        if not d >= np.inf:
+            # (point_arc_distance with nothing known yet)
+            d_ends = min(math.hypot(u, v), math.hypot(x - geo[q, 6], y - geo[q, 7]))
+            d = min(d, d_ends) if ang <= abs(kappa * length) else d_ends
+    # (as _nearest_piece: a figure that is not below infinity names no piece)
+    if not d < np.inf:
+        return np.inf, -1, u, v, ang, gap
+    return d, q, u, v, ang, gap
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def last_below(kappa: float, ds: float, i: int, i_r: int, s_par: float, e0: float,
+                rate: float, top: float, tol: float, scale: float) -> bool:
+    """True when the last point ``i_r`` of a portion
+    (:func:`~zwcore.arcs._dense._portion_max`) is, by a
+    margin above the rounding, farther from ``lseg`` than none of the points ``i, c2,
+    c3`` measured (``top``: their largest offset), so it cannot be the peak.
+
+    With ``e = +-w`` convex (``0 <= e'' <= |kappa|``) from point ``i`` on: ``e`` at
+    ``i_r`` is at most ``e0 + rate h + |kappa| h^2 / 2``; ``-e`` is concave with its top
+    at the parallel point ``s_par`` (between ``c2`` and ``c3``), where the tangent runs
+    along the segment, so past it ``-e'' >= |kappa| cos(|kappa| D)`` (the tangent has
+    turned by ``|kappa| D`` from the segment's direction, ``D`` the way from ``s_par``)
+    and ``-e`` at ``i_r`` lies at least ``|kappa| (cos(|kappa| D) D^2 - ds^2) / 2``
+    below the better of ``c2, c3`` (one of them is within ``ds / 2`` of the top,
+    ``-e'' >= -|kappa|``). Both must clear the margin (a billionth of the tolerance
+    and 1e-13 of the coordinates' size)."""
+    margin = 1e-9 * tol + 1e-13 * scale
+    ak = abs(kappa)
+    h = (i_r - i) * ds
+    dist = i_r * ds - s_par
+    ang = ak * dist
+    if not ang < 0.5 * math.pi:
+        return False
+    if not 0.5 * ak * (math.cos(ang) * dist * dist - ds * ds) > 2.0 * margin:
+        return False
+    return e0 + rate * h + 0.5 * ak * h * h < top - 2.0 * margin

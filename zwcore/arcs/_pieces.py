@@ -23,10 +23,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from zwcore.arcs import _biarc, _kernels
-from zwcore.arcs._geometry import (
-    local_uv,
-    rotate1,
-)
+from zwcore.arcs._geometry import rotate1
 
 FloatArray = NDArray[np.float64]
 
@@ -222,19 +219,24 @@ class ToleranceBand:
         self, p: FloatArray, t: FloatArray, k: int, e: float, b: int
     ) -> Piece | None:
         """The verified piece from ``(p, t)`` (sample ``k``, distance ``e``) to sample ``b``."""
-        u, v = local_uv(p, t, self.samples[b : b + 1])
-        q2 = float(u[0] ** 2 + v[0] ** 2)
+        # (local_uv's arithmetic for one point, on floats)
+        ex = float(self.samples[b, 0]) - float(p[0])
+        ey = float(self.samples[b, 1]) - float(p[1])
+        tx, ty = float(t[0]), float(t[1])
+        u = ex * tx + ey * ty
+        v = ey * tx - ex * ty
+        q2 = u**2 + v**2
         if q2 <= 0.0:
             return None
-        kap = 2.0 * float(v[0]) / q2
+        kap = 2.0 * v / q2
         if abs(kap) * math.sqrt(q2) < 1e-13:
             kap = 0.0
         if not self.radius_ok(kap):
             return None
         # cheap interval test first: every sample's curvature interval holds kap (most
         # states are far from b and fail within the first few samples)
-        if not _kernels.kappa_fits(self.samples, float(p[0]), float(p[1]), float(t[0]),
-                                   float(t[1]), k, b, self.work_tol, kap, 1e-12 * abs(kap)):
+        if not _kernels.kappa_fits(self.samples, float(p[0]), float(p[1]), tx, ty, k, b,
+                                   self.work_tol, kap, 1e-12 * abs(kap)):
             return None
         res = self.verify(p, t, kap, k, b, e)
         if res is None:
@@ -263,17 +265,29 @@ class ToleranceBand:
         """
         at_sample = p1 is None
         p1 = self.samples[b] if p1 is None else p1
+        got, f, m = _biarc.biarc(
+            self.samples, np.asarray(p0, dtype=np.float64), np.asarray(t0, dtype=np.float64),
+            k, float(e), b, np.asarray(t1, dtype=np.float64),
+            np.asarray(p1, dtype=np.float64), self.splits_array(splits), self.tol,
+            self.dense_step, self.kmin, self.kcap)
+        if got < 0:
+            return None
+        return self.biarc_pieces(p0, t0, k, b, t1, p1, at_sample, f, m)
+
+    def splits_array(self, splits: tuple[float, ...]) -> FloatArray:
+        """The biarc splits ``splits`` as an array for the kernel (built once)."""
         key = splits if splits is self.BIARC_SPLITS else tuple(splits)
         arr = self._splits.get(key)
         if arr is None:
             arr = self._splits[key] = np.array(key, dtype=np.float64)
-        got, f, m = _biarc.biarc(
-            self.samples, np.asarray(p0, dtype=np.float64), np.asarray(t0, dtype=np.float64),
-            k, float(e), b, np.asarray(t1, dtype=np.float64),
-            np.asarray(p1, dtype=np.float64), arr, self.tol, self.dense_step, self.kmin,
-            self.kcap)
-        if got < 0:
-            return None
+        return arr
+
+    def biarc_pieces(
+        self, p0: FloatArray, t0: FloatArray, k: int, b: int, t1: FloatArray, p1: FloatArray,
+        at_sample: bool, f: FloatArray, m: int,
+    ) -> list[Piece]:
+        """The two pieces of a biarc the kernel found (its figures ``f`` ``(10,)`` and the
+        first arc's last sample ``m``; see :meth:`biarc`)."""
         k1, s1, jx, jy, tjx, tjy, e1, k2, s2, e2 = f.tolist()
         jn = np.array([jx, jy])
         tj = np.array([tjx, tjy])

@@ -31,12 +31,13 @@ from collections.abc import Callable
 import numpy as np
 from numpy.typing import NDArray
 
-from zwcore.arcs._anchors import StraightRuns
+from zwcore.arcs._anchors import AnchorPiece, StraightRuns
 from zwcore.arcs._geometry import arc_points, local_uv, rotate
 from zwcore.arcs._pieces import Piece, ToleranceBand
+from zwcore.arcs._ranking import rank_level
 from zwcore.arcs._select import candidates, candidates_level, select_verified
 from zwcore.arcs._start import free_start, free_start_tangents, full_circle, one_piece_to_end
-from zwcore.arcs._states import Cands, State, approx_lengths, level_arrays, unwind
+from zwcore.arcs._states import Cands, State, level_arrays, unwind
 from zwcore.arcs._unstick import bridge, fallback
 
 FloatArray = NDArray[np.float64]
@@ -288,9 +289,13 @@ class Fitter:
                 out.append(Cands.anchored(si, extra))
         return out
 
-    def _level_candidates(self, level: list[State], b: int) -> list[Cands]:
+    def _level_candidates(
+        self, level: list[State], b: int
+    ) -> tuple[list[Cands], tuple[FloatArray, FloatArray, NDArray[np.int64]]]:
         """:meth:`_candidates` of all of ``level`` (no radius cap) in one kernel call, the
-        pieces onto straight runs after them (the ranking keeps them apart: same order)."""
+        pieces onto straight runs after them (the ranking keeps them apart: same order;
+        all states' in one part), and the states' points, tangents and samples as
+        arrays (for the ranking and the verification of the same level)."""
         sp, stt, sk, sjm, lo_all, up_all, b_off = level_arrays(level, b, self._bounds)
         si, jj, kk, ends, tends, bonus = candidates_level(
             self.samples, self.cum, sp, stt, sk, sjm, lo_all, up_all, b_off,
@@ -299,13 +304,14 @@ class Fitter:
         out = [Cands(si, jj, kk, ends, tends, bonus, np.full(n, np.nan),
                      np.zeros(n, dtype=bool))] if n else []
         if self.straight is not None:
+            extra: list[tuple[int, AnchorPiece]] = []
             for i, st in enumerate(level):
                 if sjm[i] > st.k:
                     assert st.t is not None
-                    extra = self.straight.candidates(st.p, st.t, st.k, b)
-                    if extra:
-                        out.append(Cands.anchored(i, extra))
-        return out
+                    extra.extend((i, x) for x in self.straight.candidates(st.p, st.t, st.k, b))
+            if extra:
+                out.append(Cands.anchored_level(extra))
+        return out, (sp, stt, sk)
 
     def _capped_kappas(
         self, js: list[int], k: int, lo1: FloatArray, up1: FloatArray
@@ -327,12 +333,13 @@ class Fitter:
         then candidates rank by the arcs over straight runs in their chain, and landing
         biarcs (:meth:`StraightRuns.landing_biarc`) join one level later.
         """
+        arrays = None
         if self.band.kmin > 0.0:
             parts = [c for si, st in enumerate(level) for c in self._candidates(si, st, b)
                      if len(c)]
         else:
-            parts = self._level_candidates(level, b)
-        out: list[State] = self._verified(level, Cands.join(parts), b) if parts else []
+            parts, arrays = self._level_candidates(level, b)
+        out: list[State] = self._verified(level, Cands.join(parts), b, arrays) if parts else []
         if self.straight is not None:
             out.extend(self._landings(level, b))
         if not out:
@@ -340,45 +347,38 @@ class Fitter:
         return out
 
     def _rank(
-        self, level: list[State], c: Cands, b: int
+        self, level: list[State], c: Cands, b: int, sp_all: FloatArray,
+        sk_all: NDArray[np.int64],
     ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
-        """The order in which the candidates ``c`` are verified, and their reach."""
-        band = self.band
-        js = c.j
-        reach, lreach = band.reach_with_lines(c.end, c.t_end, js, b)
-        reach = np.where(js >= b, b, reach)
-        lreach = np.where(js >= b, b, lreach)
-        lscore = self.cum[lreach] + 0.3 * (self.cum[lreach] - self.cum[js])
-        score = np.maximum(self.cum[reach], lscore) + c.bonus
-        isarc = c.kappa != 0.0
-        sr = self.straight
-        if sr is None:
-            return np.lexsort((-js, isarc, -score)), reach
-        sp = np.array([st.p for st in level])[c.si]
-        chord = np.hypot(c.end[:, 0] - sp[:, 0], c.end[:, 1] - sp[:, 1])
-        ks = np.array([st.k for st in level], dtype=np.int64)[c.si]
-        flat = sr.are_over(ks, js, c.kappa, approx_lengths(c, chord))
-        # arcs over straight runs in the chain so far, this candidate's included
-        before = np.array([self._n_over(st) for st in level], dtype=np.int64)
-        n_over = before[c.si] + flat
-        order = np.lexsort((-js, isarc, -score, n_over))
-        order = np.concatenate([order[c.special[order]], order[~c.special[order]]])
-        return order, reach
+        """The order in which the candidates ``c`` are verified, and their reach
+        (:func:`~zwcore.arcs._ranking.rank_level`; ``sp_all, sk_all``: the states' points
+        and samples as arrays)."""
+        before = None if self.straight is None else np.array(
+            [self._n_over(st) for st in level], dtype=np.int64)
+        return rank_level(self.band, c, b, sp_all, sk_all, self.straight, before)
 
-    def _verified(self, level: list[State], c: Cands, b: int) -> list[State]:
+    def _verified(
+        self, level: list[State], c: Cands, b: int,
+        arrays: tuple[FloatArray, FloatArray, NDArray[np.int64]] | None = None,
+    ) -> list[State]:
         """The best verified candidates, in the order of :meth:`_rank`, at most
         :attr:`BEAM` of them (pieces onto straight runs at most half of them), one per
         end state (reach, end sample, end direction)
-        (:func:`zwcore.arcs._select.select_verified`)."""
+        (:func:`zwcore.arcs._select.select_verified`). ``arrays``: the states' points,
+        tangents and samples as arrays, when built already (:meth:`_level_candidates`).
+        """
         band = self.band
-        order, reach = self._rank(level, c, b)
+        if arrays is None:
+            assert all(st.t is not None for st in level)
+            arrays = (np.array([st.p for st in level]),
+                      np.array([st.t for st in level], dtype=np.float64),
+                      np.array([st.k for st in level], dtype=np.int64))
+        sp, stt, sk = arrays
+        order, reach = self._rank(level, c, b, sp, sk)
         n_special_max = self.BEAM // 2 if self.straight is not None else 0
-        sts = [st.t for st in level]
-        assert all(t is not None for t in sts)
         got, figs = select_verified(
-            self.samples, order.astype(np.int64), c.si, c.j, c.kappa, c.sig_end, c.special,
-            reach.astype(np.int64), c.t_end, np.array([st.p for st in level]),
-            np.array(sts, dtype=np.float64), np.array([st.k for st in level], dtype=np.int64),
+            self.samples, order, c.si, c.j, c.kappa, c.sig_end, c.special, reach,
+            c.t_end, sp, stt, sk,
             np.array([st.e for st in level], dtype=np.float64), self.BEAM, n_special_max,
             band.tol, band.dense_step)
         out: list[State] = []

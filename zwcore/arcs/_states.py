@@ -74,6 +74,19 @@ class Cands:
                      np.array([c[4] for c in extra]), np.ones(m, dtype=bool))
 
     @staticmethod
+    def anchored_level(
+        extra: Sequence[tuple[int, tuple[int, float, FloatArray, FloatArray, float]]],
+    ) -> Cands:
+        """The pieces onto straight runs from several states of a level, each with its
+        state's index (``(si, piece)``, pieces as in :meth:`anchored`): the arrays of
+        :meth:`anchored` per state joined, built once per level."""
+        m = len(extra)
+        return Cands(np.array([x[0] for x in extra], dtype=np.int64),
+                     np.array([x[1][0] for x in extra]), np.array([x[1][1] for x in extra]),
+                     np.array([x[1][2] for x in extra]), np.array([x[1][3] for x in extra]),
+                     np.zeros(m), np.array([x[1][4] for x in extra]), np.ones(m, dtype=bool))
+
+    @staticmethod
     def join(parts: list[Cands]) -> Cands:
         """The candidates of ``parts``, in order."""
         if len(parts) == 1:
