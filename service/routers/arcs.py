@@ -49,7 +49,8 @@ def arcs_result(points: np.ndarray, body: ArcsRequest) -> dict[str, Any]:
     chain: ArcChain = fit_arcs(points, body.tolerance, closed=body.closed,
                                corner_angle_deg=body.corner_angle_deg,
                                max_radius=body.max_radius,
-                               reserve=rounding_budget(4) if body.gcode else 0.0)
+                               reserve=rounding_budget(4) if body.gcode else 0.0,
+                               seam=body.seam)
     result: dict[str, Any] = {
         "tolerance": body.tolerance, "closed": body.closed,
         "segments": [_segment(s) for s in chain.segments],
@@ -59,6 +60,8 @@ def arcs_result(points: np.ndarray, body: ArcsRequest) -> dict[str, Any]:
             "max_deviation_chain": chain.max_deviation_chain,
             "max_kink_smooth_deg": math.degrees(chain.max_kink_smooth),
             "corners": list(chain.corners)},
+        "seam": {"mode": body.seam, "index": chain.seam_index,
+                 "start": list(chain.segments[0].start), "reversed": chain.seam_reversed},
     }
     path = chain
     if body.offset != 0.0:
