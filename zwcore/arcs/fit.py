@@ -298,7 +298,9 @@ def fit_arcs(
     if loop:
         # a loop's count depends on its direction as on its seam: fitted reversed too
         # (the runs of a curve with corners were each fitted both ways in _fit)
-        back, _ = _fit(raw[::-1].copy(), tol, closed, corner_angle_deg, max_radius, True)
+        # (from the same first point: the reversed fit starts where the forward one did)
+        back_raw = np.ascontiguousarray(np.roll(raw[::-1], 1, axis=0))
+        back, _ = _fit(back_raw, tol, closed, corner_angle_deg, max_radius, True)
         if len(back.segments) < len(chain.segments):
             chain, rev = _reversed(back), True
     return replace(chain, seam_index=_seam_index(raw, chain.segments[0].start),
