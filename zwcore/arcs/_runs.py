@@ -58,11 +58,22 @@ RESUME_FAR = 3.0
 #: capped at 120 mm: 43 -> 48; at 60 mm: 75 -> 81), so capped fits keep 0.95.
 WORK = 0.97
 WORK_CAPPED = 0.95
+#: :data:`WORK` of ``seam="free"`` (its runs fitted both ways, its loops from other seams
+#: and reversed; glyph rows even, chordal, noisy at 0.05 then 0.01, at 0.97 / 0.98 /
+#: 0.99: 404 / 403 / 401, 370 / 370 / 372, 421 / 420 / 420, 630 / 635 / 631, 566 / 562 /
+#: 565, 905 / 894 / 872). The default keeps 0.97: its chains stay as they were.
+WORK_FREE = 0.98
+#: Runs (between corners) of fewer pieces than this are not fitted backwards: on the
+#: glyph table no run of two pieces came out shorter (77 tried).
+REVERSE_MIN_PIECES = 3
 
 
-def work_share(max_radius: float | None) -> float:
-    """:data:`WORK` without a radius cap, :data:`WORK_CAPPED` with one."""
-    return WORK if max_radius is None else WORK_CAPPED
+def work_share(max_radius: float | None, free: bool = False) -> float:
+    """:data:`WORK` without a radius cap (:data:`WORK_FREE` with ``seam="free"``),
+    :data:`WORK_CAPPED` with one."""
+    if max_radius is not None:
+        return WORK_CAPPED
+    return WORK_FREE if free else WORK
 
 RunFit = tuple[list[Piece], list[int]]
 
@@ -71,10 +82,13 @@ class _RunFitter:
     """Fits one run of ``prep`` (samples ``a..b``) with the beam, its retries, its
     fallback and the refit along straight runs."""
 
-    def __init__(self, prep: Prepared, max_radius: float | None, bridge: bool) -> None:
+    def __init__(self, prep: Prepared, max_radius: float | None, bridge: bool,
+                 free: bool = False) -> None:
         self.prep = prep
         self.max_radius = max_radius
         self.bridge = bridge
+        #: ``seam="free"``: the first scans at :data:`WORK_FREE`
+        self.free = free
         #: runs fitted in closed form (:mod:`zwcore.arcs._polygon`); off: the beam only
         self.closed_form = bridge and max_radius is None
         #: every run so far was fitted in closed form
@@ -114,7 +128,7 @@ class _RunFitter:
 
     def run(self, a: int, b: int, t_start: FloatArray | None) -> RunFit:
         loop = self.prep.loop
-        work = work_share(self.max_radius)
+        work = work_share(self.max_radius, self.free)
         if self._band is None:
             self._band = self.fitter(work, []).band
         if self.closed_form and t_start is None:
@@ -227,15 +241,15 @@ def _copy_chain(st: State) -> State:
 
 
 def assemble(
-    prep: Prepared, max_radius: float | None, bridge: bool, reverse_runs: bool = False,
+    prep: Prepared, max_radius: float | None, bridge: bool, free: bool = False,
 ) -> tuple[list[Piece], list[int], list[int], bool]:
     """Every run fitted and joined: the pieces, the corner junctions, the forced corners
     (``-1``: the closing junction) and whether every run was a closed form.
     ``bridge``: allow biarc bridges and closed forms (off: the beam only).
-    ``reverse_runs`` (``seam="free"``, a curve whose runs all end at corners): each run
-    of more than one piece is also fitted the other way round, and the fewer pieces
-    kept (:func:`_reverse_runs`)."""
-    fit = _RunFitter(prep, max_radius, bridge)
+    ``free`` (``seam="free"``): the first scans at :data:`WORK_FREE`, and on a curve
+    whose runs all end at corners each run of :data:`REVERSE_MIN_PIECES` or more is also
+    fitted the other way round, the fewer pieces kept (:func:`_reverse_runs`)."""
+    fit = _RunFitter(prep, max_radius, bridge, free)
     bounds = prep.bounds
     n_runs = len(bounds) - 1
     results: list[RunFit | None] = [None] * n_runs
@@ -247,7 +261,7 @@ def assemble(
         if results[r] is None:
             results[r] = fit.run(bounds[r], bounds[r + 1], None)
     all_closed_form = fit.all_closed_form
-    if reverse_runs and not (prep.wrap or prep.loop):
+    if free and not (prep.wrap or prep.loop):
         all_closed_form &= _reverse_runs(prep, max_radius, bridge, results)
     pieces: list[Piece] = []
     corner_j: list[int] = []
@@ -265,20 +279,21 @@ def assemble(
 
 def _reverse_runs(prep: Prepared, max_radius: float | None, bridge: bool,
                   results: list[RunFit | None]) -> bool:
-    """Each run of ``results`` (fitted forwards, both ends at corners) of more than one
-    piece fitted again on the reversed samples; where that takes fewer pieces (and no
-    forced corner) it replaces the run, turned back to the input's direction. The
-    beam grows a chain from its start, so where its junctions fall, and what the last
-    piece must cover, depends on the direction (glyph table: 2-16 segments a row).
+    """Each run of ``results`` (fitted forwards, both ends at corners) of at least
+    :data:`REVERSE_MIN_PIECES` pieces fitted again on the reversed samples; where that
+    takes fewer pieces (and no forced corner) it replaces the run, turned back to the
+    input's direction. The beam grows a chain from its start, so where its junctions
+    fall, and what the last piece must cover, depends on the direction (glyph table:
+    2-16 segments a row).
     Returns whether every run fitted backwards was a closed form."""
     m = prep.m_last
     back = Prepared(prep.origin, np.ascontiguousarray(prep.samples[::-1]), prep.tol,
                     prep.closed, [m - b for b in reversed(prep.bounds)],
                     sorted(m - c for c in prep.cs), False, False)
-    fit = _RunFitter(back, max_radius, bridge)
+    fit = _RunFitter(back, max_radius, bridge, True)
     for r, got in enumerate(results):
         assert got is not None
-        if len(got[0]) < 2:
+        if len(got[0]) < REVERSE_MIN_PIECES:
             continue
         a, b = prep.bounds[r], prep.bounds[r + 1]
         pieces, forced = fit.run(m - b, m - a, None)
@@ -365,7 +380,7 @@ def _seam_fit(
         return None
     s = int(js[np.argmin(np.abs(cum[js] - share * cum[-1]))])
     rs = np.ascontiguousarray(np.vstack([samples[s:-1], samples[: s + 1]]))
-    fit = Fitter(rs, tol, work_share(max_radius), max_radius)
+    fit = Fitter(rs, tol, work_share(max_radius, True), max_radius)
     fit.cutoff = lambda level: behind(level, s)
     # (the first fit found no full circle)
     fit.one_piece_runs = False
