@@ -154,8 +154,8 @@ def test_glyph_loop_from_another_seam_saves_segments():
 
 
 def test_glyph_loop_fitted_backwards_is_returned_forwards():
-    # the outer loop of "%" sampled chordally at 0.05: the reversed fit saves a segment
-    pts = _glyph("%0", "chordal")
+    # the counter of "d" sampled chordally at 0.05: the reversed fit saves a segment
+    pts = _glyph("d1", "chordal")
     chain = fit_arcs(pts, 0.05, closed=True, seam="free")
     # (the reversed curve from the same first point)
     back = fit_arcs(np.roll(pts[::-1], 1, axis=0), 0.05, closed=True, seam="free")
