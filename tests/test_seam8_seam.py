@@ -210,6 +210,8 @@ def test_http_free_seam_is_reported(client: TestClient) -> None:
     free = client.post("/v1/arcs", json={**body, "seam": "free"})
     assert plain.status_code == free.status_code == 200, (plain.text, free.text)
     p, f = plain.json(), free.json()
+    # two tasks: a cached chain of one seam is never served for the other
+    assert p["task_id"] != f["task_id"]
     assert p["seam"] == {"mode": "first_point", "index": 0, "start": pts[0].tolist(),
                          "reversed": False}
     assert p["segments"][0]["start"] == pts[0].tolist()

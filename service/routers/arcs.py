@@ -161,7 +161,10 @@ async def _points_arcs(raw: bytes, request: Request, settings: Settings, store: 
         raise LimitExceededError(
             "tolerance", f"curve length {length:.6g} mm over tolerance {body.tolerance:g} mm "
             f"exceeds {settings.max_arc_resolution:g}; use a larger tolerance")
-    params = body.model_dump(exclude={"points"})
+    # (the default seam is left out of the task id: a request of before the option names
+    # the same task; the core's build in every task id already keeps old results apart)
+    params = body.model_dump(exclude={"points"} | ({"seam"} if body.seam == "first_point"
+                                                   else set()))
     response = await serve_task(request, store, pool, operation="fit_arcs", params=params,
                                 arrays={"points": points}, compute=arcs_result,
                                 args=(points, body.model_copy(update={"points": []})),
