@@ -291,16 +291,24 @@ def fit_arcs(
         raise InvalidInputError("seam", f"must be one of {', '.join(SEAMS)}")
     tol = float(tolerance) - float(reserve)
     closed = bool(closed)
-    if not (closed and seam == "free"):
-        return _fit(raw, tol, closed, corner_angle_deg, max_radius, False)[0]
-    chain, loop = _fit(raw, tol, closed, corner_angle_deg, max_radius, True)
+    if closed and seam == "free":
+        return _fit_free(raw, tol, corner_angle_deg, max_radius)
+    return _fit(raw, tol, closed, corner_angle_deg, max_radius, False)[0]
+
+
+def _fit_free(
+    raw: FloatArray, tol: float, corner_angle_deg: float, max_radius: float | None
+) -> ArcChain:
+    """The closed chain of ``raw`` ``(N, 2)`` with ``seam="free"``: where it starts and
+    whether it was fitted reversed filled in."""
+    chain, loop = _fit(raw, tol, True, corner_angle_deg, max_radius, True)
     rev = False
     if loop:
         # a loop's count depends on its direction as on its seam: fitted reversed too
-        # (the runs of a curve with corners were each fitted both ways in _fit)
-        # (from the same first point: the reversed fit starts where the forward one did)
+        # (the runs of a curve with corners were each fitted both ways in _fit), from
+        # the same first point (the reversed fit starts where the forward one did)
         back_raw = np.ascontiguousarray(np.roll(raw[::-1], 1, axis=0))
-        back, _ = _fit(back_raw, tol, closed, corner_angle_deg, max_radius, True)
+        back, _ = _fit(back_raw, tol, True, corner_angle_deg, max_radius, True)
         if len(back.segments) < len(chain.segments):
             chain, rev = _reversed(back), True
     return replace(chain, seam_index=_seam_index(raw, chain.segments[0].start),
