@@ -417,7 +417,15 @@ def main() -> None:
                     help="only the arc requests of bench/load.py: N bodies, in-process")
     ap.add_argument("--repeat", type=int, default=11, metavar="N",
                     help="fits per curve of the first table (best and median; default 11)")
+    ap.add_argument("--seam", choices=("first_point", "free"), default="first_point",
+                    help="fit_arcs' seam: where closed chains start (default first_point)")
     args = ap.parse_args()
+    if args.seam != "first_point":
+        import functools
+
+        global fit_arcs  # every fit of this run with that seam
+        fit_arcs = functools.partial(fit_arcs, seam=args.seam)
+    print(f"fit_arcs seam: {args.seam}")
     if args.load_mix:
         _warm_up()
         load_mix(args.load_mix)

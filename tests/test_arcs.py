@@ -245,20 +245,26 @@ def glyph_sets() -> dict[str, list[tuple[str, np.ndarray, np.ndarray]]]:
 
 #: glyph rows where the C1 fit still needs more segments than ArcWelder (issue 15: the
 #: beam is 7-13 % above the asymptotic floor of joined chains, which C1 does not raise;
-#: docs/arcs.md "Counts against ArcWelder")
-_GLYPH_ROWS_OVER = {("chordal", 0.05), ("noisy", 0.05), ("chordal", 0.01)}
+#: docs/arcs.md "Counts against ArcWelder"), per ``seam``: with ``"free"`` (the chain
+#: of a closed curve may start elsewhere, runs fitted both ways) chordal 0.01 is at 562
+#: of 563; chordal 0.05 (370 of 333) and noisy 0.05 (420 of 374) are still over
+_GLYPH_ROWS_OVER = {
+    "first_point": {("chordal", 0.05), ("noisy", 0.05), ("chordal", 0.01)},
+    "free": {("chordal", 0.05), ("noisy", 0.05)},
+}
 
 
-@pytest.mark.parametrize("row", [
-    pytest.param(r, marks=pytest.mark.xfail(
+@pytest.mark.parametrize(("seam", "row"), [
+    pytest.param(seam, r, marks=pytest.mark.xfail(
         strict=True, reason="issue 15: more segments than ArcWelder on this row"))
-    if r in _GLYPH_ROWS_OVER else r
-    for r in ARCWELDER_GLYPH_REFERENCE], ids=lambda r: f"{r[0]}-{r[1]}")
-def test_glyph_row_no_more_segments_than_arcwelder(row, glyph_sets):
+    if r in _GLYPH_ROWS_OVER[seam] else (seam, r)
+    for seam in ("first_point", "free") for r in ARCWELDER_GLYPH_REFERENCE],
+    ids=lambda v: v if isinstance(v, str) else f"{v[0]}-{v[1]}")
+def test_glyph_row_no_more_segments_than_arcwelder(seam, row, glyph_sets):
     # the issue's target: at most ArcWelder's segments (measured with its binary and
     # stored) in every row of the glyph table, the total over the row's 34 contours
     name, tol = row
-    total = sum(len(fit_arcs(pts, tol, closed=True).segments)
+    total = sum(len(fit_arcs(pts, tol, closed=True, seam=seam).segments)
                 for _label, pts, _corners in glyph_sets[name])
     assert total <= ARCWELDER_GLYPH_REFERENCE[row]
 
@@ -762,6 +768,10 @@ def jagged(draw):
 @settings(max_examples=60, deadline=None,
           suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
 @given(jagged())
+# found by hypothesis: a closed curve all within 0.2 tolerances of its first point, the
+# fallback's polyline of no length, gave one line of length zero; a small full circle now
+@example((np.array([[61135.5703, -76333.9327], [61135.4928, -76334.0360],
+                    [61135.5990, -76333.8945]]), 1.0, True))
 def test_fallback_chain_is_valid_by_construction(fallback_everywhere, case):
     assert_fits_validly(*case)
 

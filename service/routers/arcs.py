@@ -49,7 +49,8 @@ def arcs_result(points: np.ndarray, body: ArcsRequest) -> dict[str, Any]:
     chain: ArcChain = fit_arcs(points, body.tolerance, closed=body.closed,
                                corner_angle_deg=body.corner_angle_deg,
                                max_radius=body.max_radius,
-                               reserve=rounding_budget(4) if body.gcode else 0.0)
+                               reserve=rounding_budget(4) if body.gcode else 0.0,
+                               seam=body.seam)
     result: dict[str, Any] = {
         "tolerance": body.tolerance, "closed": body.closed,
         "segments": [_segment(s) for s in chain.segments],
@@ -59,6 +60,8 @@ def arcs_result(points: np.ndarray, body: ArcsRequest) -> dict[str, Any]:
             "max_deviation_chain": chain.max_deviation_chain,
             "max_kink_smooth_deg": math.degrees(chain.max_kink_smooth),
             "corners": list(chain.corners)},
+        "seam": {"mode": body.seam, "index": chain.seam_index,
+                 "start": list(chain.segments[0].start), "reversed": chain.seam_reversed},
     }
     path = chain
     if body.offset != 0.0:
@@ -158,7 +161,10 @@ async def _points_arcs(raw: bytes, request: Request, settings: Settings, store: 
         raise LimitExceededError(
             "tolerance", f"curve length {length:.6g} mm over tolerance {body.tolerance:g} mm "
             f"exceeds {settings.max_arc_resolution:g}; use a larger tolerance")
-    params = body.model_dump(exclude={"points"})
+    # (the default seam is left out of the task id: a request of before the option names
+    # the same task; the core's build in every task id already keeps old results apart)
+    params = body.model_dump(exclude={"points"} | ({"seam"} if body.seam == "first_point"
+                                                   else set()))
     response = await serve_task(request, store, pool, operation="fit_arcs", params=params,
                                 arrays={"points": points}, compute=arcs_result,
                                 args=(points, body.model_copy(update={"points": []})),

@@ -24,6 +24,13 @@ class ArcsRequest(StrictModel):
         0.0, description="signed tool offset, mm (> 0: left of the direction of travel)")
     gcode: StrictBool = Field(False, description="also return the NC program")
     feed: FiniteFloat = Field(1000.0, gt=0, description="feed rate for the program, mm/min")
+    seam: Literal["first_point", "free"] = Field(
+        "first_point",
+        description="where a closed chain starts: \"first_point\" at the first point; "
+                    "\"free\" wherever fewer segments result (a curve with corners at its "
+                    "first corner, a corner-free loop at a point of the input polyline, fitted "
+                    "in either direction; the chain still runs in the input's direction, "
+                    "`seam` in the result says where it starts). Open curves: no effect")
 
 
 class SegmentOut(BaseModel):
@@ -46,6 +53,17 @@ class ArcsSummary(BaseModel):
     corners: list[int] = Field(description="junctions kept sharp (i: between segment i and i+1)")
 
 
+class SeamOut(BaseModel):
+    mode: Literal["first_point", "free"] = Field(description="the request's `seam`")
+    index: int = Field(
+        description="input point the chain starts at (0 for \"first_point\"); when it "
+                    "starts between two points, the first of them in the input's order")
+    start: tuple[float, float] = Field(description="where the chain starts, mm")
+    reversed: bool = Field(
+        description="the chain was fitted to the reversed curve (fewer segments); it is "
+                    "returned in the input's direction all the same")
+
+
 class OffsetOut(BaseModel):
     distance: float
     segments: list[SegmentOut]
@@ -65,5 +83,6 @@ class ArcsResult(BaseModel):
     closed: bool
     segments: list[SegmentOut]
     summary: ArcsSummary
+    seam: SeamOut
     offset: OffsetOut | None = None
     gcode: str | None = None

@@ -19,6 +19,7 @@ an extra vertex beside them; collinear and repeated vertices are dropped.
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass
 
@@ -68,6 +69,11 @@ def fillet_stretch(
     with ``e`` its distance from ``S[m]`` (the chain then continues from there).
     """
     poly = _virtual_polyline(S, tol, p, t, k, m, mode, t_end)
+    if mode == "tangent" and _no_length(poly, tol):
+        assert t_end is not None
+        loop = _loop_circle(S, tol, p, t, k, m, t_end)
+        if loop is not None:
+            return [loop], None
     _simplify(poly, tol)
     _split_reversals(poly, tol)
     fil = _fillets(poly, tol, mode)
@@ -184,6 +190,34 @@ def _virtual_polyline(
     disp.append(near_end)
     legdev = [max(disp[x], disp[x + 1]) for x in range(len(verts) - 1)]
     return _Polyline(verts, legdev, pinned_first, len(verts) - 2 if pinned_last else -1)
+
+
+def _no_length(poly: _Polyline, tol: float) -> bool:
+    """The virtual polyline has no length to fillet (its legs add up to at most
+    ``_SHORT`` tolerances): a loop closing where it starts, every sample near there."""
+    V = poly.V
+    return sum(float(np.hypot(*(b - a))) for a, b in itertools.pairwise(V)) <= _SHORT * tol
+
+
+def _loop_circle(
+    S: FloatArray, tol: float, p: FloatArray, t: FloatArray, k: int, m: int,
+    t_end: FloatArray,
+) -> Piece | None:
+    """A full circle from ``p`` with tangent ``t`` back to ``S[m]`` (standing for
+    samples ``k..m``), when the stretch closes on itself with that tangent and every
+    sample is within ``near < tol`` of ``p``, else None. A radius of ``(tol - near) / 4``
+    keeps it inside the band both ways: the circle's points are within its diameter
+    ``(tol - near) / 2`` of ``p``, a point of the polyline, and every point of the
+    polyline is within ``near`` of ``p``, a point of the circle. (A polyline of no
+    length has no vertex to fillet: filleting it gave one line of length zero.)"""
+    q = S[m]
+    near = float(np.hypot(S[k : m + 1, 0] - p[0], S[k : m + 1, 1] - p[1]).max())
+    if not (float(np.hypot(*(q - p))) <= _SHORT * tol and float(t @ t_end) > 1.0 - 1e-12
+            and near < tol):
+        return None
+    r = 0.25 * (tol - near)
+    return Piece(p.copy(), t.copy(), 1.0 / r, 2.0 * math.pi * r, k, m, q.copy(),
+                 t_end.copy(), 0.0)
 
 
 def _simplify(poly: _Polyline, tol: float) -> None:

@@ -1,7 +1,10 @@
 """The runs of a curve (between corners) fitted one by one and joined into one chain
-(steps 2-6 of :mod:`zwcore.arcs.fit`), and the start-tangent sweep of loops."""
+(steps 2-6 of :mod:`zwcore.arcs.fit`), and the second fits of loops: from turned start
+tangents at the first point (``seam="first_point"``) or from other seams (``"free"``)."""
 
 from __future__ import annotations
+
+from collections.abc import Callable
 
 import numpy as np
 from numpy.typing import NDArray
@@ -20,7 +23,10 @@ from zwcore.arcs.verify import deviations
 
 FloatArray = NDArray[np.float64]
 
-__all__ = ["LOOP_START_TURNS", "LOOP_SWEEP_MAX_SAMPLES", "assemble", "sweep_loop_start"]
+__all__ = [
+    "LOOP_SEAMS", "LOOP_START_TURNS", "LOOP_SWEEP_MAX_SAMPLES", "assemble", "short_closure",
+    "sweep_loop_seams", "sweep_loop_start",
+]
 
 #: Turns (radians) of the start tangent tried for a corner-free closed curve.
 LOOP_START_TURNS = (-0.01, 0.01, -0.02, 0.02, -0.03, 0.03)
@@ -28,6 +34,15 @@ LOOP_START_TURNS = (-0.01, 0.01, -0.02, 0.02, -0.03, 0.03)
 #: first fit at the same sample (its start costs one piece it wins back, if at all, at
 #: the closure: a chain two behind has never come out shorter on the benchmarks).
 LOOP_SWEEP_BEHIND = 2
+#: Other seams tried for a corner-free loop with ``seam="free"``, as shares of its
+#: length (the first fit's junction nearest there; :func:`_seam_fit`): fewer segments
+#: than the turned start tangents for less CPU (docs/arcs.md, "Closed curves").
+LOOP_SEAMS: tuple[float, ...] = (0.25, 0.5, 0.75)
+#: Other seams are tried only when the first fit's closing biarc is shorter than this
+#: share of two typical pieces (:func:`short_closure`): on the glyph table (session 7)
+#: the seams saved 45 segments on the 39 loops with such a closure, 8 on the other 27
+#: (for 40 % of the seams' CPU)
+LOOP_SHORT_CLOSURE = 0.5
 #: Loops with more samples than this are fitted from one start tangent only (time).
 LOOP_SWEEP_MAX_SAMPLES = 5_000
 #: A refit along straight runs goes on from the plain fit's last level whose states were
@@ -43,11 +58,22 @@ RESUME_FAR = 3.0
 #: capped at 120 mm: 43 -> 48; at 60 mm: 75 -> 81), so capped fits keep 0.95.
 WORK = 0.97
 WORK_CAPPED = 0.95
+#: :data:`WORK` of ``seam="free"`` (its runs fitted both ways, its loops from other seams
+#: and reversed; glyph rows even, chordal, noisy at 0.05 then 0.01, at 0.97 / 0.98 /
+#: 0.99: 404 / 403 / 401, 370 / 370 / 372, 421 / 420 / 420, 630 / 635 / 631, 566 / 562 /
+#: 565, 905 / 894 / 872). The default keeps 0.97: its chains stay as they were.
+WORK_FREE = 0.98
+#: Runs (between corners) of fewer pieces than this are not fitted backwards: on the
+#: glyph table no run of two pieces came out shorter (77 tried).
+REVERSE_MIN_PIECES = 3
 
 
-def work_share(max_radius: float | None) -> float:
-    """:data:`WORK` without a radius cap, :data:`WORK_CAPPED` with one."""
-    return WORK if max_radius is None else WORK_CAPPED
+def work_share(max_radius: float | None, free: bool = False) -> float:
+    """:data:`WORK` without a radius cap (:data:`WORK_FREE` with ``seam="free"``),
+    :data:`WORK_CAPPED` with one."""
+    if max_radius is not None:
+        return WORK_CAPPED
+    return WORK_FREE if free else WORK
 
 RunFit = tuple[list[Piece], list[int]]
 
@@ -56,10 +82,13 @@ class _RunFitter:
     """Fits one run of ``prep`` (samples ``a..b``) with the beam, its retries, its
     fallback and the refit along straight runs."""
 
-    def __init__(self, prep: Prepared, max_radius: float | None, bridge: bool) -> None:
+    def __init__(self, prep: Prepared, max_radius: float | None, bridge: bool,
+                 free: bool = False) -> None:
         self.prep = prep
         self.max_radius = max_radius
         self.bridge = bridge
+        #: ``seam="free"``: the first scans at :data:`WORK_FREE`
+        self.free = free
         #: runs fitted in closed form (:mod:`zwcore.arcs._polygon`); off: the beam only
         self.closed_form = bridge and max_radius is None
         #: every run so far was fitted in closed form
@@ -99,7 +128,7 @@ class _RunFitter:
 
     def run(self, a: int, b: int, t_start: FloatArray | None) -> RunFit:
         loop = self.prep.loop
-        work = work_share(self.max_radius)
+        work = work_share(self.max_radius, self.free)
         if self._band is None:
             self._band = self.fitter(work, []).band
         if self.closed_form and t_start is None:
@@ -212,12 +241,15 @@ def _copy_chain(st: State) -> State:
 
 
 def assemble(
-    prep: Prepared, max_radius: float | None, bridge: bool
+    prep: Prepared, max_radius: float | None, bridge: bool, free: bool = False,
 ) -> tuple[list[Piece], list[int], list[int], bool]:
     """Every run fitted and joined: the pieces, the corner junctions, the forced corners
     (``-1``: the closing junction) and whether every run was a closed form.
-    ``bridge``: allow biarc bridges and closed forms (off: the beam only)."""
-    fit = _RunFitter(prep, max_radius, bridge)
+    ``bridge``: allow biarc bridges and closed forms (off: the beam only).
+    ``free`` (``seam="free"``): the first scans at :data:`WORK_FREE`, and on a curve
+    whose runs all end at corners each run of :data:`REVERSE_MIN_PIECES` or more is also
+    fitted the other way round, the fewer pieces kept (:func:`_reverse_runs`)."""
+    fit = _RunFitter(prep, max_radius, bridge, free)
     bounds = prep.bounds
     n_runs = len(bounds) - 1
     results: list[RunFit | None] = [None] * n_runs
@@ -228,6 +260,9 @@ def assemble(
     for r in range(n_runs):
         if results[r] is None:
             results[r] = fit.run(bounds[r], bounds[r + 1], None)
+    all_closed_form = fit.all_closed_form
+    if free and not (prep.wrap or prep.loop):
+        all_closed_form &= _reverse_runs(prep, max_radius, bridge, results)
     pieces: list[Piece] = []
     corner_j: list[int] = []
     forced_j: list[int] = []
@@ -239,7 +274,44 @@ def assemble(
         pieces.extend(run_pieces)
         if r < n_runs - 1 or (prep.closed and prep.cs and not prep.wrap):
             corner_j.append(len(pieces) - 1)
-    return pieces, corner_j, forced_j, fit.all_closed_form
+    return pieces, corner_j, forced_j, all_closed_form
+
+
+def _reverse_runs(prep: Prepared, max_radius: float | None, bridge: bool,
+                  results: list[RunFit | None]) -> bool:
+    """Each run of ``results`` (fitted forwards, both ends at corners) of at least
+    :data:`REVERSE_MIN_PIECES` pieces fitted again on the reversed samples; where that
+    takes fewer pieces (and no forced corner) it replaces the run, turned back to the
+    input's direction. The beam grows a chain from its start, so where its junctions
+    fall, and what the last piece must cover, depends on the direction (glyph table:
+    2-16 segments a row).
+    Returns whether every run fitted backwards was a closed form."""
+    m = prep.m_last
+    back = Prepared(prep.origin, np.ascontiguousarray(prep.samples[::-1]), prep.tol,
+                    prep.closed, [m - b for b in reversed(prep.bounds)],
+                    sorted(m - c for c in prep.cs), False, False)
+    fit = _RunFitter(back, max_radius, bridge, True)
+    for r, got in enumerate(results):
+        assert got is not None
+        if len(got[0]) < REVERSE_MIN_PIECES:
+            continue
+        a, b = prep.bounds[r], prep.bounds[r + 1]
+        pieces, forced = fit.run(m - b, m - a, None)
+        if not forced and len(pieces) < len(got[0]):
+            results[r] = (_turned(pieces, prep.samples), [])
+    return fit.all_closed_form
+
+
+def _turned(pieces: list[Piece], samples: FloatArray) -> list[Piece]:
+    """The chain ``pieces`` of the reversed ``samples`` ``(M, 2)`` run the other way:
+    the same pieces in the input's direction, indexing ``samples``."""
+    m = len(samples) - 1
+    out = []
+    for pc in reversed(pieces):
+        j = m - pc.k
+        out.append(Piece(pc.end.copy(), -pc.t_end, -pc.kappa, pc.length, m - pc.j, j,
+                         pc.p.copy(), -pc.t, float(np.hypot(*(samples[j] - pc.p)))))
+    return out
 
 
 def sweep_loop_start(
@@ -287,4 +359,87 @@ def sweep_loop_start(
         ap, ac = deviations(samples, alt, tol)
         if ap <= lim and ac <= lim:
             best = (alt, ap, ac)
+    return best
+
+
+def _seam_fit(
+    samples: FloatArray, tol: float, max_radius: float | None, pieces: list[Piece],
+    share: float, behind: Callable[[list[State], int], bool], lim: float,
+) -> tuple[list[Piece], float, float, int] | None:
+    """The loop ``samples`` (``(M, 2)``, the first repeated at the end) fitted from
+    another seam: the sample ending the first fit's (``pieces``) junction nearest
+    ``share`` of the loop's length, with free start tangents. Returns the chain (its
+    samples: ``samples`` rolled to start at the seam), its two deviations (each at most
+    ``lim``) and the seam's sample, or None. ``behind(level, s)``: the cutoff of a fit
+    whose sample 0 is sample ``s`` of ``samples``."""
+    m_last = len(samples) - 1
+    cum = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(samples, axis=0).T))])
+    js = np.array([pc.j for pc in pieces[:-1]], dtype=np.int64)
+    js = js[(js > 0) & (js < m_last)]
+    if js.size == 0:
+        return None
+    s = int(js[np.argmin(np.abs(cum[js] - share * cum[-1]))])
+    rs = np.ascontiguousarray(np.vstack([samples[s:-1], samples[: s + 1]]))
+    fit = Fitter(rs, tol, work_share(max_radius, True), max_radius)
+    fit.cutoff = lambda level: behind(level, s)
+    # (the first fit found no full circle)
+    fit.one_piece_runs = False
+    try:
+        alt, _ = fit.run(0, m_last, True, allow_forced=False)
+    except Stuck:
+        return None
+    ap, ac = deviations(rs, alt, tol)
+    return (alt, ap, ac, s) if ap <= lim and ac <= lim else None
+
+
+def short_closure(pieces: list[Piece]) -> bool:
+    """Whether the loop ``pieces`` closes with a short biarc: its last two pieces together
+    shorter than :data:`LOOP_SHORT_CLOSURE` times two of its other pieces (median)."""
+    if len(pieces) < 4:
+        return True
+    lengths = np.array([pc.length for pc in pieces])
+    return bool(lengths[-2:].sum() < LOOP_SHORT_CLOSURE * 2.0 * np.median(lengths[:-2]))
+
+
+def sweep_loop_seams(
+    prep: Prepared, max_radius: float | None, pieces: list[Piece], lim: float
+) -> tuple[list[Piece], float, float, int] | None:
+    """A shorter valid chain of a corner-free loop from another seam, or None
+    (``seam="free"``).
+
+    The first fit ``pieces`` starts at the first sample, a junction with a free tangent
+    that the closing biarc must meet again; where the loop starts changes the count in a
+    way no local rule predicts (the closure lands at a good or a bad place), so the loop
+    is also fitted from a few other seams (:data:`LOOP_SEAMS`, :func:`_seam_fit`) when
+    the first fit's closure is short (:func:`short_closure`). Returns the shortest when
+    shorter than ``pieces``: its pieces (indexing ``prep.samples`` rolled to start at the
+    seam), its two deviations (each at most ``lim``) and its seam sample. A seam fit
+    whose every state is :data:`LOOP_SWEEP_BEHIND` pieces behind the first fit over the
+    same stretch is dropped there (most of them).
+    """
+    if not short_closure(pieces):
+        return None
+    samples, m_last = prep.samples, prep.m_last
+    best: tuple[list[Piece], float, float, int] | None = None
+    # the first fit's progress: pieces finished by each sample
+    ends = np.array([pc.j for pc in pieces], dtype=np.int64)
+    n_first = len(pieces)
+
+    def behind(level: list[State], seam: int) -> bool:
+        """Every chain of ``level`` (of a fit from sample ``seam``) is LOOP_SWEEP_BEHIND
+        pieces behind a chain shorter than the best so far (its length estimated from
+        the first fit's progress: its pieces finished between the seam and there)."""
+        n_best = n_first if best is None else len(best[0])
+        at = np.array([st.k for st in level], dtype=np.int64) + seam
+        before = int(np.searchsorted(ends, seam, side="right"))
+        done = np.searchsorted(ends, at, side="right") - before
+        over = at > m_last  # past the first fit's seam: the rest of its lap, then more
+        done[over] = n_first - before + np.searchsorted(ends, at[over] - m_last, side="right")
+        ahead = min(st.depth - int(d) for st, d in zip(level, done, strict=True))
+        return n_first + ahead >= n_best + LOOP_SWEEP_BEHIND
+
+    for share in LOOP_SEAMS:
+        got = _seam_fit(samples, prep.tol, max_radius, pieces, share, behind, lim)
+        if got is not None and len(got[0]) < len(pieces if best is None else best[0]):
+            best = got
     return best

@@ -46,6 +46,14 @@ Method (as built)
    tangents (``LOOP_START_TURNS``) and the shortest valid chain is kept; a turned fit
    is dropped as soon as its whole beam is ``LOOP_SWEEP_BEHIND`` pieces behind the
    first fit at the same sample.
+6b. Seam ``"free"`` (closed curves only; the default ``"first_point"`` starts the chain
+   at the first point): a closed curve with corners starts at its first corner (a
+   smooth first point would be a junction the chain does not need) and each of its
+   runs of more than one piece is also fitted backwards (the fewer pieces kept); a
+   loop whose first fit closes with a short biarc is fitted again from other seams
+   (``LOOP_SEAMS``) instead of the turned tangents, and the whole loop is also fitted
+   reversed; the shortest valid chain is kept, returned in the input's direction, with
+   where it starts (``seam_index``) and whether it was fitted reversed.
 7. Verification: every piece is checked two-sided with conservative analytic
    bounds while fitting; the finished chain is measured densely
    (:mod:`zwcore.arcs.verify`), and a bridged chain that fails that measurement is
@@ -56,15 +64,20 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from zwcore.arcs._pieces import Piece
-from zwcore.arcs._prepare import prepare, validate
-from zwcore.arcs._runs import LOOP_SWEEP_MAX_SAMPLES, assemble, sweep_loop_start
+from zwcore.arcs._prepare import Prepared, prepare, validate
+from zwcore.arcs._runs import (
+    LOOP_SWEEP_MAX_SAMPLES,
+    assemble,
+    sweep_loop_seams,
+    sweep_loop_start,
+)
 from zwcore.arcs.verify import deviations
 from zwcore.errors import InvalidInputError
 
@@ -74,6 +87,10 @@ __all__ = ["ArcChain", "Segment", "chain_tangents", "fit_arcs", "segment_points"
 
 #: Default corner angle: turning sharper than this (over the tolerance scale) stays sharp.
 DEFAULT_CORNER_ANGLE_DEG = 30.0
+#: Where a closed chain may start: at the first input point (the contract of design.md,
+#: the default) or wherever fewer segments result (:func:`fit_arcs`, ``seam``).
+SEAMS = ("first_point", "free")
+Seam = Literal["first_point", "free"]
 
 
 @dataclass(frozen=True)
@@ -143,6 +160,13 @@ class ArcChain:
     max_kink_smooth: float
     tolerance: float = 0.0
     forced_corners: tuple[int, ...] = field(default=())
+    #: Index of the input point the chain starts at: 0 unless ``seam="free"`` moved the
+    #: start of a closed chain; when it starts between two input points, the first of
+    #: them (in the input's order; the start itself is ``segments[0].start``).
+    seam_index: int = 0
+    #: The chain was fitted to the reversed curve (``seam="free"``); it is returned in
+    #: the input's direction all the same.
+    seam_reversed: bool = False
 
     @property
     def n_arcs(self) -> int:
@@ -207,6 +231,7 @@ def fit_arcs(
     corner_angle_deg: float = DEFAULT_CORNER_ANGLE_DEG,
     max_radius: float | None = None,
     reserve: float = 0.0,
+    seam: Seam = "first_point",
 ) -> ArcChain:
     """Fit a tangent-continuous chain of arcs and lines to an ordered point curve.
 
@@ -237,6 +262,13 @@ def fit_arcs(
         Part of ``tolerance`` kept free for what follows the fit, in ``[0,
         tolerance)``: the chain is fitted within ``tolerance - reserve`` (for a G-code
         program within ``tolerance``: :func:`zwcore.arcs.gcode.rounding_budget`).
+    seam : {"first_point", "free"}
+        Where a closed chain starts. ``"first_point"``: at the first input point.
+        ``"free"``: where fewer segments result (a closed curve with corners at its
+        first corner, a loop possibly at another point of the input polyline, fitted
+        in either direction); the chain still runs in the input's direction and
+        ``seam_index`` / ``seam_reversed`` say where it starts and how it was fitted.
+        Ignored for open curves.
 
     Returns
     -------
@@ -255,30 +287,119 @@ def fit_arcs(
     if not (isinstance(reserve, int | float) and 0.0 <= reserve < tolerance):
         raise InvalidInputError(
             "tolerance", f"must exceed the reserve {reserve:g} mm (the G-code rounding)")
+    if seam not in SEAMS:
+        raise InvalidInputError("seam", f"must be one of {', '.join(SEAMS)}")
     tol = float(tolerance) - float(reserve)
     closed = bool(closed)
-    prep = prepare(raw, tol, closed, corner_angle_deg)
+    if closed and seam == "free":
+        return _fit_free(raw, tol, corner_angle_deg, max_radius)
+    return _fit(raw, tol, closed, corner_angle_deg, max_radius, False)[0]
+
+
+def _fit_free(
+    raw: FloatArray, tol: float, corner_angle_deg: float, max_radius: float | None
+) -> ArcChain:
+    """The closed chain of ``raw`` ``(N, 2)`` with ``seam="free"``: where it starts and
+    whether it was fitted reversed filled in."""
+    chain, loop = _fit(raw, tol, True, corner_angle_deg, max_radius, True)
+    rev = False
+    if loop:
+        # a loop's count depends on its direction as on its seam: fitted reversed too
+        # (the runs of a curve with corners were each fitted both ways in _fit), from
+        # the same first point (the reversed fit starts where the forward one did)
+        back_raw = np.ascontiguousarray(np.roll(raw[::-1], 1, axis=0))
+        back, _ = _fit(back_raw, tol, True, corner_angle_deg, max_radius, True)
+        if len(back.segments) < len(chain.segments):
+            chain, rev = _reversed(back), True
+    return replace(chain, seam_index=_seam_index(raw, chain.segments[0].start),
+                   seam_reversed=rev)
+
+
+def _fit(
+    raw: FloatArray, tol: float, closed: bool, corner_angle_deg: float,
+    max_radius: float | None, free: bool,
+) -> tuple[ArcChain, bool]:
+    """The chain of ``raw`` ``(N, 2)`` at ``tol`` (steps 1-7) and whether it is a loop
+    fitted from more than one start (not a closed form, at most
+    ``LOOP_SWEEP_MAX_SAMPLES`` samples). ``free``: seam ``"free"`` (a closed curve with
+    corners from its first corner, each of its runs fitted both ways; a loop's second
+    fits from other seams)."""
+    prep = _prepared(raw, tol, closed, corner_angle_deg, free)
     samples = prep.samples
-    pieces, corner_j, forced_j, closed_form = assemble(prep, max_radius, True)
+    pieces, corner_j, forced_j, closed_form = assemble(prep, max_radius, True, free)
     dev_p, dev_c = deviations(samples, pieces, tol)
     lim = tol * (1.0 + 1e-12)
     # (written so that a NaN figure counts as a failure: ``max`` would let it through)
     if not (dev_p <= lim and dev_c <= lim):
         # safety net: a bridged chain that the dense measurement rejects is refitted
         # without bridges (forced corners instead, never a tolerance violation)
-        pieces, corner_j, forced_j, closed_form = assemble(prep, max_radius, False)
+        pieces, corner_j, forced_j, closed_form = assemble(prep, max_radius, False, free)
         dev_p, dev_c = deviations(samples, pieces, tol)
     # (a closed-form loop, a filleted polygon, has no start tangent to sweep)
-    if (prep.loop and not closed_form and len(pieces) > 2
-            and prep.m_last <= LOOP_SWEEP_MAX_SAMPLES):
-        swept = sweep_loop_start(prep, max_radius, pieces, lim)
-        if swept is not None:
-            pieces, dev_p, dev_c = swept
-            corner_j, forced_j = [], []
+    sweep = (prep.loop and not closed_form and len(pieces) > 2
+             and prep.m_last <= LOOP_SWEEP_MAX_SAMPLES)
+    if sweep:
+        if free:
+            seamed = sweep_loop_seams(prep, max_radius, pieces, lim)
+            if seamed is not None:
+                pieces, dev_p, dev_c, _s = seamed
+                corner_j, forced_j = [], []
+        else:
+            swept = sweep_loop_start(prep, max_radius, pieces, lim)
+            if swept is not None:
+                pieces, dev_p, dev_c = swept
+                corner_j, forced_j = [], []
     n_seg = len(pieces)
     forced_j = [n_seg - 1 if f == -1 else f for f in forced_j]
     all_corners = sorted(set(corner_j) | set(forced_j))
-    return _chain_of(pieces, prep.origin, closed, all_corners, forced_j, dev_p, dev_c, tol)
+    chain = _chain_of(pieces, prep.origin, closed, all_corners, forced_j, dev_p, dev_c, tol)
+    return chain, sweep
+
+
+def _prepared(
+    raw: FloatArray, tol: float, closed: bool, corner_angle_deg: float, free: bool
+) -> Prepared:
+    """:func:`prepare` of ``raw`` ``(N, 2)``; with ``free``, a closed curve with corners
+    from its first corner on (a junction at a smooth first point costs the two runs
+    meeting there a short piece each: 1-4 segments a glyph row, 21 on noisy 0.01)."""
+    prep = prepare(raw, tol, closed, corner_angle_deg)
+    if not (free and prep.wrap):
+        return prep
+    # (the corner's sample is an input point)
+    at = prep.samples[prep.cs[0]] + prep.origin
+    i = int(np.argmin(np.hypot(raw[:, 0] - at[0], raw[:, 1] - at[1])))
+    return prepare(np.roll(raw, -i, axis=0), tol, closed, corner_angle_deg)
+
+
+def _seam_index(raw: FloatArray, start: tuple[float, float]) -> int:
+    """Index of the input point ``raw`` ``(N, 2)`` (a closed curve) where a chain
+    starting at ``start`` (a point of the closed polyline) starts: that point, else the
+    first point of the polyline segment it lies on (the nearest)."""
+    p = np.asarray(start)
+    b = np.roll(raw, -1, axis=0)
+    d = b - raw
+    dd = np.einsum("ij,ij->i", d, d)
+    f = np.clip(np.einsum("ij,ij->i", p - raw, d) / np.where(dd > 0.0, dd, 1.0), 0.0, 1.0)
+    gap = np.hypot(*(raw + f[:, None] * d - p).T)
+    # (the nearest point first: a start at a point is also the end of the segment before)
+    at = np.hypot(*(raw - p).T)
+    i = int(np.argmin(at))
+    scale = max(float(np.abs(raw).max()), 1.0)
+    return i if at[i] <= max(float(gap.min()), 1e-9 * scale) else int(np.argmin(gap))
+
+
+def _reversed(chain: ArcChain) -> ArcChain:
+    """The closed ``chain`` run the other way round, from the same start: segments in
+    reverse order, each reversed; junction ``i`` becomes ``n - 2 - i`` (mod ``n``)."""
+    n = len(chain.segments)
+    segs = tuple(
+        Segment(s.kind, s.end, s.start, s.center, s.radius,
+                None if s.ccw is None else not s.ccw, None if s.sweep is None else -s.sweep)
+        for s in reversed(chain.segments))
+    return replace(
+        chain, segments=segs,
+        corners=tuple(sorted((n - 2 - c) % n for c in chain.corners)),
+        forced_corners=tuple(sorted((n - 2 - c) % n for c in chain.forced_corners)))
 
 
 def _chain_of(
