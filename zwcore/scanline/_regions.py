@@ -40,6 +40,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import partial
 
 import numpy as np
 from numba import njit
@@ -57,6 +58,7 @@ from zwcore.scanline._chain_time import (
 )
 from zwcore.scanline._reach import ball_reach, concave_radii, within_distance
 from zwcore.scanline._reach_cut import CuttingRegion, material_grid
+from zwcore.scanline._threads import each
 from zwcore.sim import RegionBox
 
 __all__ = ["TOOL_CHANGE_MIN", "TOOL_CHANGE_MM", "Chain", "MainBall", "finishing_chain",
@@ -178,9 +180,29 @@ class _Reach:
             if k not in self._rho:
                 self._rho[k] = concave_radii(zk, k * self.dx, k * self.dy)
             got = ball_reach(zk, k * self.dx, k * self.dy, radius, self.tol, self._rho[k])
-            self._rest[key] = got.rest
-            self._cl[key] = got.cl
+            self._cl[key] = got.cl  # (before the rest: a thread that finds the rest
+            self._rest[key] = got.rest  # finds the CL too)
         return self._rest[key]
+
+    def main_times(self, balls: list[Tool]) -> list[BallTime]:
+        """:meth:`main_time` of every ball, on two threads (:mod:`._threads`): first every
+        ball's rest on its lattice (the nodal closings, most of the work), then the
+        estimates (their kernels), each a task the threads share, costliest first (the
+        finest lattices). The same figures as one by one: each task's result depends on
+        the part and the ball alone, and the caches hold the same values whichever thread
+        fills them."""
+        keys = [(b.radius, lattice(b.radius, self.dx, self.dy)) for b in balls]
+        for k in sorted({k for _, k in keys}):  # the lattices' concave radii, once each
+            if k not in self._rho:
+                self._rho[k] = concave_radii(self.z[::k, ::k], k * self.dx, k * self.dy)
+        todo = sorted(set(keys), key=lambda key: (key[1], -key[0]))
+        each([partial(self.rest, r, k) for r, k in todo])
+        order = sorted(range(len(balls)), key=lambda j: (keys[j][1], -keys[j][0]))
+        got = each([partial(self.main_time, balls, j) for j in order])
+        out: list[BallTime] = [got[0]] * len(balls)
+        for j, t in zip(order, got, strict=True):
+            out[j] = t
+        return out
 
     def safety(self, k: int) -> B8:
         """Fine nodes near detail sharper than ``k > 1`` cells."""
@@ -422,7 +444,7 @@ def _plan(balls: list[Tool], reach: _Reach, bound: bool = True
     """
     n = len(balls)
     # every ball over the whole part first: its scan direction serves its rest regions
-    mains = [reach.main_time(balls, j) for j in range(n)]
+    mains = reach.main_times(balls)
     best: list[float] = [math.inf] * n
     after: list[int | None] = [None] * n
     floor = [0.0] * n  # per next ball: its cost after the largest previous ball so far
