@@ -39,6 +39,7 @@ library ball leaves (the roughing before it is that ball or a larger one).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from functools import partial
 
@@ -58,7 +59,7 @@ from zwcore.scanline._chain_time import (
 )
 from zwcore.scanline._reach import ball_reach, concave_radii, within_distance
 from zwcore.scanline._reach_cut import CuttingRegion, material_grid
-from zwcore.scanline._threads import each
+from zwcore.scanline._threads import both, each
 from zwcore.sim import RegionBox
 
 __all__ = ["TOOL_CHANGE_MIN", "TOOL_CHANGE_MM", "Chain", "MainBall", "finishing_chain",
@@ -229,9 +230,10 @@ class _Reach:
         :func:`_upsample_where`: the lesser of its rest and its closing less the part,
         both interpolated bilinearly); cached for the latest ``prev`` only (full-size
         arrays)."""
-        if self._last_prev != prev:
+        if self._last_prev != prev:  # (set before two threads ask for the same prev)
             self._last_prev, self._material = prev, {}
-        if kn not in self._material:
+        got = self._material.get(kn)
+        if got is None:
             kp = lattice(prev, self.dx, self.dy)
             theirs = self.rest(prev, kp)
             zk = self.z[::kn, ::kn]
@@ -240,8 +242,44 @@ class _Reach:
             nodes = np.flatnonzero(theirs > self.tol)
             heights, blocks = material_grid(zk.shape, nodes,
                                             zk.ravel()[nodes] + theirs.ravel()[nodes])
-            self._material[kn] = _Material(theirs, nodes, heights, blocks)
-        return self._material[kn]
+            got = _Material(theirs, nodes, heights, blocks)
+            self._material[kn] = got
+        return got
+
+    def costs(self, prev: float, balls: list[Tool], order: list[int],
+              low: Callable[[int], float], options: list[tuple[float, int | None]]
+              ) -> Iterator[tuple[int, float | None]]:
+        """``(i, cost(prev, balls[i]))`` for the candidates ``order`` in turn, as long as
+        ``low(i)`` stays below the least option so far (``options``, which the caller
+        extends between the items): :func:`_plan`'s search, two candidates at a time on
+        two threads. The second of a pair is computed alongside the first and kept only
+        if the first's option leaves it a chance (as the one-by-one search would have
+        gone on to it); its figures depend on the pair alone, so the items are the same
+        as one by one. A pair of two balls of one radius (a custom library) is not run
+        side by side (they would share one :class:`CuttingRegion`)."""
+        if self._last_prev != prev:
+            self._last_prev, self._material = prev, {}
+
+        def least() -> float:
+            return min((o[0] for o in options), default=math.inf)
+
+        n = 0
+        while n < len(order):
+            a = order[n]
+            if low(a) >= least():
+                return
+            b = order[n + 1] if n + 1 < len(order) else None
+            if b is None or low(b) >= least() or balls[a].radius == balls[b].radius:
+                yield a, self.cost(prev, balls[a])
+                n += 1
+                continue
+            first, second = both(partial(self.cost, prev, balls[a]),
+                                 partial(self.cost, prev, balls[b]))
+            yield a, first
+            if low(b) >= least():
+                return
+            yield b, second
+            n += 2
 
     def _compare(self, prev: float, nxt: float) -> tuple[NDArray[np.int64], _Material, int]:
         """On the smaller ball's (finer) lattice ``kn``: the flat indices of the nodes where
@@ -454,11 +492,8 @@ def _plan(balls: list[Tool], reach: _Reach, bound: bool = True
         def low(m: int) -> float:
             return (floor[m] if bound else 0.0) + TOOL_CHANGE_MIN + best[m]
 
-        for i in sorted(range(j + 1, n), key=lambda m: (low(m), m)):
-            least = min((o[0] for o in options), default=math.inf)
-            if low(i) >= least:
-                break
-            minutes = reach.cost(balls[j].radius, balls[i])
+        order = sorted(range(j + 1, n), key=lambda m: (low(m), m))
+        for i, minutes in reach.costs(balls[j].radius, balls, order, low, options):
             if minutes is not None:
                 floor[i] = max(floor[i], minutes)
                 options.append((minutes + TOOL_CHANGE_MIN + best[i], i))

@@ -113,7 +113,7 @@ class LineSweep:
         """The first node row of the second thread's band: the rows about the line that
         halves the sweep's work, rounded to a multiple of :data:`BLOCK`."""
         m = split_at_weight(self.line_work)
-        return int(round(self.v[self.starts[m]] / self.dv / BLOCK)) * BLOCK
+        return round(float(self.v[self.starts[m]]) / self.dv / BLOCK) * BLOCK
 
     def drop(self, z: F64, cl0: F64) -> F64:
         """:func:`_stock_kernels.cl_part` at the positions (their order); a large sweep
