@@ -143,12 +143,14 @@ def _figures(zmap: ZMap, repeat: int) -> dict[str, object]:
         "left": f"p95 {ck.sim_left_over_part_p95:.4f} max {ck.sim_left_over_part_max:.3f}",
         "ok": ck.ok}
     if _threads is not None:
-        workers = _threads.WORKERS
-        _threads.WORKERS = 1
+        from zwcore.sim import _morph  # its dilations keep their own second thread
+
+        workers, dilation = _threads.WORKERS, _morph.THREADS
+        _threads.WORKERS = _morph.THREADS = 1
         t, c = time.perf_counter(), time.process_time()
         plan_scanline(zmap)
         out["one_thread"] = (time.perf_counter() - t, time.process_time() - c)
-        _threads.WORKERS = workers
+        _threads.WORKERS, _morph.THREADS = workers, dilation
         out["overlap"] = overlap
     return out
 
