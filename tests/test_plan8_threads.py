@@ -25,11 +25,12 @@ from hypothesis import strategies as st
 from tests.test_scanline_stock_sweep import _brute_cut, _cases
 from zwcore.grid.tools import default_tools
 from zwcore.grid.zmap import ZMap
-from zwcore.scanline import _regions, _stock_lines, _threads
+from zwcore.scanline import _passes, _reach, _regions, _stock_lines, _threads
 from zwcore.scanline import _stock_kernels as _k
 from zwcore.scanline._stock_state import BLOCK, Positions, block_max
 from zwcore.scanline._stock_sweep import cut_lines, line_starts
 from zwcore.scanline.planner import plan_scanline
+from zwcore.sim import _morph
 
 _Case = tuple[np.ndarray, float, float, float, np.ndarray, np.ndarray, np.ndarray]
 
@@ -80,6 +81,9 @@ def forced_threads(monkeypatch: pytest.MonkeyPatch) -> None:
     """Two threads for every split, however small the work."""
     monkeypatch.setattr(_threads, "WORKERS", 2)
     monkeypatch.setattr(_stock_lines, "THREAD_WORK", 0)
+    monkeypatch.setattr(_reach, "THREAD_NODES", 0)
+    monkeypatch.setattr(_passes, "THREAD_CELLS", 0)
+    monkeypatch.setattr(_morph, "THREAD_WORK", 0)
 
 
 @settings(max_examples=60, deadline=None)
@@ -205,6 +209,7 @@ def test_plan_is_the_same_on_two_threads(part: str, forced_threads: None,
     plans = []
     for workers in (1, 2):
         monkeypatch.setattr(_threads, "WORKERS", workers)
+        monkeypatch.setattr(_morph, "THREADS", workers)
         plans.append(_fields(plan_scanline(zmap)))
     _assert_same(plans[0], plans[1])
 
@@ -263,8 +268,6 @@ def test_dilation_in_two_runs_of_strips_equals_one(seed: int, ny: int, nx: int, 
     """The grey dilation with its strips on two threads (forced; small strips so there
     are several) equals one thread bit for bit, and is never below the brute force
     (nor above it by more than its stated rounding)."""
-    from zwcore.sim import _morph
-
     rng = np.random.default_rng(seed)
     z = rng.normal(0.0, 100.0 if wide else 1.0, (ny, nx))
     s = -rng.uniform(0.0, 1.0, (2 * a + 1, 2 * b + 1))
@@ -287,3 +290,30 @@ def test_dilation_in_two_runs_of_strips_equals_one(seed: int, ny: int, nx: int, 
             brute = np.maximum(brute, zp[i:i + ny, k:k + nx] + s[i, k])
     assert np.all(two >= brute)
     assert np.all(two - brute <= 4.0 * _morph.FLOAT32_MARGIN + 1e-9 * np.abs(brute).max())
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), ny=st.integers(1, 30), nx=st.integers(1, 30))
+def test_concave_radii_in_two_bands_equal_one(seed: int, ny: int, nx: int) -> None:
+    """The concave radii by two bands of rows on two threads equal one pass, and are at
+    most a plain numpy evaluation of the same formula along x at the inner nodes (the
+    least of four directions)."""
+    rng = np.random.default_rng(seed)
+    z = rng.normal(0.0, 1.0, (ny, nx)).cumsum(axis=0)
+    old = _threads.WORKERS, _reach.THREAD_NODES
+    try:
+        _threads.WORKERS, _reach.THREAD_NODES = 1, 1 << 62
+        one = _reach.concave_radii(z, 0.2, 0.3)
+        _threads.WORKERS, _reach.THREAD_NODES = 2, 0
+        two = _reach.concave_radii(z, 0.2, 0.3)
+    finally:
+        _threads.WORKERS, _reach.THREAD_NODES = old
+    assert np.array_equal(one, two)
+    if nx >= 3:
+        right = (z[:, 2:] - z[:, 1:-1]) / 0.2
+        left = (z[:, 1:-1] - z[:, :-2]) / 0.2
+        curv = (right - left) / 0.2
+        s = np.where(left * right > 0.0, np.minimum(np.abs(left), np.abs(right)), 0.0)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            rho = np.where(curv > 0.0, (1.0 + s * s) ** 1.5 / curv, np.inf)
+        assert np.all(one[:, 1:-1] <= rho * (1.0 + 1e-12))
