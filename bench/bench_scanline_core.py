@@ -11,7 +11,9 @@ planned), and not thinned (257², 513², with ``--big`` also 1025²), same run.
 ``--before PATH``: instead, the code of another checkout (``PATH``, e.g. ``git archive``
 of main) against this one, each in a subprocess, back to back: wall and CPU seconds, the
 passes, tools and regions and what the simulated stock leaves, for 513², 1025², 2049²
-and Mount Rushmore; the ratios this/before and the growth per x4 cells.
+and Mount Rushmore; the ratios this/before and the growth per x4 cells; for a checkout
+with the plan's second thread also the CPU seconds its threads ran side by side (on an
+idle machine the wall is the CPU less that) and one plan on one thread.
 """
 
 from __future__ import annotations
@@ -116,17 +118,41 @@ def unthinned(sizes: tuple[int, ...]) -> None:
 
 
 def _figures(zmap: ZMap, repeat: int) -> dict[str, object]:
-    """Best wall and CPU seconds of ``repeat`` plans, and the last plan's figures."""
-    best, cpu = float("inf"), float("inf")
+    """Best wall and CPU seconds of ``repeat`` plans, and the last plan's figures; with
+    the plan's second thread (``zwcore.scanline._threads``, absent before session 8):
+    the CPU seconds its two threads ran side by side in the best run (the wall they save
+    on idle cores) and the wall of one plan on one thread, same run."""
+    try:
+        from zwcore.scanline import _threads
+    except ImportError:
+        _threads = None  # type: ignore[assignment]
+    best, cpu, overlap = float("inf"), float("inf"), 0.0
     for _ in range(repeat):
+        if _threads is not None:
+            _threads.overlap_seconds(reset=True)
         t, c = time.perf_counter(), time.process_time()
         plan = plan_scanline(zmap)
-        best = min(best, time.perf_counter() - t)
+        wall = time.perf_counter() - t
+        if wall < best:
+            best = wall
+            overlap = _threads.overlap_seconds() if _threads is not None else 0.0
         cpu = min(cpu, time.process_time() - c)
     ck = plan.checks
-    return {"wall": best, "cpu": cpu, "passes": len(plan.stages), "regions": _regions(plan),
-            "left": f"p95 {ck.sim_left_over_part_p95:.4f} max {ck.sim_left_over_part_max:.3f}",
-            "ok": ck.ok}
+    out: dict[str, object] = {
+        "wall": best, "cpu": cpu, "passes": len(plan.stages), "regions": _regions(plan),
+        "left": f"p95 {ck.sim_left_over_part_p95:.4f} max {ck.sim_left_over_part_max:.3f}",
+        "ok": ck.ok}
+    if _threads is not None:
+        from zwcore.sim import _morph  # its dilations keep their own second thread
+
+        workers, dilation = _threads.WORKERS, _morph.THREADS
+        _threads.WORKERS = _morph.THREADS = 1
+        t, c = time.perf_counter(), time.process_time()
+        plan_scanline(zmap)
+        out["one_thread"] = (time.perf_counter() - t, time.process_time() - c)
+        _threads.WORKERS, _morph.THREADS = workers, dilation
+        out["overlap"] = overlap
+    return out
 
 
 def _child() -> None:
@@ -155,6 +181,12 @@ def _compare(before: str) -> None:
             print(f"{name:>6s} {part:>8s}: {r['wall']:.2f} s wall, {r['cpu']:.2f} s CPU, "
                   f"{r['passes']} passes: {r['regions']}; left over part {r['left']} mm, "
                   f"ok {r['ok']}")
+            if "overlap" in r:
+                one_wall, one_cpu = r["one_thread"]
+                print(f"{'':>15s}  two threads side by side {r['overlap']:.2f} s CPU (the "
+                      f"wall they save on idle cores: CPU - that = "
+                      f"{r['cpu'] - r['overlap']:.2f} s); one thread, same run: "
+                      f"{one_wall:.2f} s wall, {one_cpu:.2f} s CPU")
     for part in runs["this"]:
         b, a = runs["before"][part], runs["this"][part]
         print(f"this/before {part}: CPU {a['cpu'] / b['cpu']:.2f}, wall "

@@ -37,6 +37,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import partial
 from typing import Literal
 
 import numpy as np
@@ -44,6 +45,7 @@ from numba import njit
 from numpy.typing import NDArray
 
 from zwcore.errors import PlanningError
+from zwcore.scanline._threads import both
 from zwcore.scanline.results import ScanLines
 
 __all__ = ["StripPlan", "cell_cross_curvatures", "cell_cross_slopes", "plan_strips",
@@ -485,6 +487,10 @@ def _one_direction(direction: Literal["x", "y"], cell_slopes: F64, kappa: F64 | 
                      scan_lines * along, int(extra[0].size))
 
 
+#: Cells from which :func:`plan_strips` lays the two directions on two threads.
+THREAD_CELLS = 1 << 16
+
+
 def plan_strips(along_x: F64, along_y: F64, sx: float, sy: float, extent_mm: tuple[float, float],
                 radius: float, budget: float, what: str,
                 bends: tuple[F64, F64] | None = None) -> StripPlan:
@@ -510,8 +516,10 @@ def plan_strips(along_x: F64, along_y: F64, sx: float, sy: float, extent_mm: tup
     """
     ly, lx = extent_mm
     bx, by = (None, None) if bends is None else bends
-    px = _one_direction("x", along_x, bx, (sy, sx), (ly, lx), radius, budget, what)
-    py = _one_direction("y", along_y, by, (sx, sy), (lx, ly), radius, budget, what)
+    x = partial(_one_direction, "x", along_x, bx, (sy, sx), (ly, lx), radius, budget, what)
+    y = partial(_one_direction, "y", along_y, by, (sx, sy), (lx, ly), radius, budget, what)
+    # the two directions are independent: on two threads (_threads) when large
+    px, py = both(x, y) if along_x.size >= THREAD_CELLS else (x(), y())
     # The shorter path wins; on a tie the lines run along the larger spacing.
     if px.path_length != py.path_length:
         return px if px.path_length < py.path_length else py

@@ -30,6 +30,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+from zwcore.scanline._threads import both
 from zwcore.sim import nodal_closing, nodal_drop_cutter, refine_rest
 
 __all__ = ["BallReach", "ball_reach", "concave_radii", "within_distance"]
@@ -66,12 +67,14 @@ class BallReach:
     cl: F64 | None = None
 
 
-@njit("void(f8[:, :], f8, f8, f8[:, :])", cache=True, nogil=True)
-def _concave_kernel(z: F64, dx: float, dy: float, out: F64) -> None:
+@njit("void(f8[:, :], f8, f8, f8[:, :], i8, i8)", cache=True, nogil=True)
+def _concave_kernel(z: F64, dx: float, dy: float, out: F64, i0: int, i1: int) -> None:
+    """Rows ``i0..i1-1`` of :func:`concave_radii` (each row from its neighbours alone:
+    two threads take two bands)."""
     ny, nx = z.shape
     diag = math.hypot(dx, dy)
     steps = ((0, 1, dx), (1, 0, dy), (1, 1, diag), (1, -1, diag))
-    for i in range(ny):
+    for i in range(i0, i1):
         for k in range(nx):
             best = np.inf
             c = z[i, k]
@@ -112,8 +115,18 @@ def concave_radii(z: F64, dx: float, dy: float) -> F64:
     """
     out = np.empty(z.shape)
     z = np.require(z, dtype=np.float64, requirements=["C", "W"])  # (a read-only grid: copied)
-    _concave_kernel(z, float(dx), float(dy), out)
+    ny = z.shape[0]
+    if z.size < THREAD_NODES:
+        _concave_kernel(z, float(dx), float(dy), out, 0, ny)
+    else:  # two bands of rows on two threads (_threads): the same values
+        h = ny // 2
+        both(lambda: _concave_kernel(z, float(dx), float(dy), out, 0, h),
+             lambda: _concave_kernel(z, float(dx), float(dy), out, h, ny))
     return out
+
+
+#: Nodes from which :func:`concave_radii` runs on two threads.
+THREAD_NODES = 1 << 18
 
 
 def within_distance(seed: B8, distance: float, dx: float, dy: float) -> B8:

@@ -39,10 +39,11 @@ library ball leaves (the roughing before it is that ball or a larger one).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
+from functools import partial
 
 import numpy as np
-from numba import njit
 from numpy.typing import NDArray
 from scipy import ndimage
 
@@ -57,6 +58,8 @@ from zwcore.scanline._chain_time import (
 )
 from zwcore.scanline._reach import ball_reach, concave_radii, within_distance
 from zwcore.scanline._reach_cut import CuttingRegion, material_grid
+from zwcore.scanline._reach_grid import _pool_any, _upsample_where
+from zwcore.scanline._threads import both, each
 from zwcore.sim import RegionBox
 
 __all__ = ["TOOL_CHANGE_MIN", "TOOL_CHANGE_MM", "Chain", "MainBall", "finishing_chain",
@@ -178,9 +181,29 @@ class _Reach:
             if k not in self._rho:
                 self._rho[k] = concave_radii(zk, k * self.dx, k * self.dy)
             got = ball_reach(zk, k * self.dx, k * self.dy, radius, self.tol, self._rho[k])
-            self._rest[key] = got.rest
-            self._cl[key] = got.cl
+            self._cl[key] = got.cl  # (before the rest: a thread that finds the rest
+            self._rest[key] = got.rest  # finds the CL too)
         return self._rest[key]
+
+    def main_times(self, balls: list[Tool]) -> list[BallTime]:
+        """:meth:`main_time` of every ball, on two threads (:mod:`._threads`): first every
+        ball's rest on its lattice (the nodal closings, most of the work), then the
+        estimates (their kernels), each a task the threads share, costliest first (the
+        finest lattices). The same figures as one by one: each task's result depends on
+        the part and the ball alone, and the caches hold the same values whichever thread
+        fills them."""
+        keys = [(b.radius, lattice(b.radius, self.dx, self.dy)) for b in balls]
+        for k in sorted({k for _, k in keys}):  # the lattices' concave radii, once each
+            if k not in self._rho:
+                self._rho[k] = concave_radii(self.z[::k, ::k], k * self.dx, k * self.dy)
+        todo = sorted(set(keys), key=lambda key: (key[1], -key[0]))
+        each([partial(self.rest, r, k) for r, k in todo])
+        order = sorted(range(len(balls)), key=lambda j: (keys[j][1], -keys[j][0]))
+        got = each([partial(self.main_time, balls, j) for j in order])
+        out: list[BallTime] = [got[0]] * len(balls)
+        for j, t in zip(order, got, strict=True):
+            out[j] = t
+        return out
 
     def safety(self, k: int) -> B8:
         """Fine nodes near detail sharper than ``k > 1`` cells."""
@@ -207,9 +230,10 @@ class _Reach:
         :func:`_upsample_where`: the lesser of its rest and its closing less the part,
         both interpolated bilinearly); cached for the latest ``prev`` only (full-size
         arrays)."""
-        if self._last_prev != prev:
+        if self._last_prev != prev:  # (set before two threads ask for the same prev)
             self._last_prev, self._material = prev, {}
-        if kn not in self._material:
+        got = self._material.get(kn)
+        if got is None:
             kp = lattice(prev, self.dx, self.dy)
             theirs = self.rest(prev, kp)
             zk = self.z[::kn, ::kn]
@@ -218,8 +242,44 @@ class _Reach:
             nodes = np.flatnonzero(theirs > self.tol)
             heights, blocks = material_grid(zk.shape, nodes,
                                             zk.ravel()[nodes] + theirs.ravel()[nodes])
-            self._material[kn] = _Material(theirs, nodes, heights, blocks)
-        return self._material[kn]
+            got = _Material(theirs, nodes, heights, blocks)
+            self._material[kn] = got
+        return got
+
+    def costs(self, prev: float, balls: list[Tool], order: list[int],
+              low: Callable[[int], float], options: list[tuple[float, int | None]]
+              ) -> Iterator[tuple[int, float | None]]:
+        """``(i, cost(prev, balls[i]))`` for the candidates ``order`` in turn, as long as
+        ``low(i)`` stays below the least option so far (``options``, which the caller
+        extends between the items): :func:`_plan`'s search, two candidates at a time on
+        two threads. The second of a pair is computed alongside the first and kept only
+        if the first's option leaves it a chance (as the one-by-one search would have
+        gone on to it); its figures depend on the pair alone, so the items are the same
+        as one by one. A pair of two balls of one radius (a custom library) is not run
+        side by side (they would share one :class:`CuttingRegion`)."""
+        if self._last_prev != prev:
+            self._last_prev, self._material = prev, {}
+
+        def least() -> float:
+            return min((o[0] for o in options), default=math.inf)
+
+        n = 0
+        while n < len(order):
+            a = order[n]
+            if low(a) >= least():
+                return
+            b = order[n + 1] if n + 1 < len(order) else None
+            if b is None or low(b) >= least() or balls[a].radius == balls[b].radius:
+                yield a, self.cost(prev, balls[a])
+                n += 1
+                continue
+            first, second = both(partial(self.cost, prev, balls[a]),
+                                 partial(self.cost, prev, balls[b]))
+            yield a, first
+            if low(b) >= least():
+                return
+            yield b, second
+            n += 2
 
     def _compare(self, prev: float, nxt: float) -> tuple[NDArray[np.int64], _Material, int]:
         """On the smaller ball's (finer) lattice ``kn``: the flat indices of the nodes where
@@ -332,64 +392,6 @@ class _Reach:
         return got
 
 
-def _pool_any(fine: B8, k: int) -> B8:
-    """``ndimage.maximum_filter(fine, size=k)[::k, ::k]`` for an even ``k`` (the window
-    ``[i - k/2, i + k/2 - 1]`` about every ``k``-th node; the filter's reflected edges add
-    nothing outside it), by blocks instead of a full-size filter: ``(ny, nx)`` bool to
-    ``(ceil(ny / k), ceil(nx / k))``."""
-    ny, nx = fine.shape
-    h = k // 2
-    my, mx = -(-ny // k), -(-nx // k)
-    pad = np.zeros(((my + 1) * k, (mx + 1) * k), dtype=bool)
-    pad[h:h + ny, h:h + nx] = fine
-    blocks: B8 = np.asarray(pad.reshape(my + 1, k, mx + 1, k).any(axis=(1, 3)))
-    return blocks[:my, :mx]
-
-
-@njit("void(f8[:, :], f8[:, :], f8[:, :], i8, f8, f8[:, :])", cache=True, nogil=True)
-def _upsample_kernel(coarse: F64, zc: F64, zf: F64, f: int, tol: float, out: F64) -> None:
-    my, mx = coarse.shape
-    ny, nx = out.shape
-    for i in range(ny):
-        a0 = min(i // f, my - 1)
-        a1 = min(a0 + 1, my - 1)
-        wa = (i % f) / f
-        for k in range(nx):
-            b0 = min(k // f, mx - 1)
-            b1 = min(b0 + 1, mx - 1)
-            wb = (k % f) / f
-            c00, c01 = coarse[a0, b0], coarse[a0, b1]
-            c10, c11 = coarse[a1, b0], coarse[a1, b1]
-            if c00 > tol or c01 > tol or c10 > tol or c11 > tol:
-                w00, w01 = (1.0 - wa) * (1.0 - wb), (1.0 - wa) * wb
-                w10, w11 = wa * (1.0 - wb), wa * wb
-                rest = c00 * w00 + c01 * w01 + c10 * w10 + c11 * w11
-                closed = ((zc[a0, b0] + c00) * w00 + (zc[a0, b1] + c01) * w01
-                          + (zc[a1, b0] + c10) * w10 + (zc[a1, b1] + c11) * w11)
-                out[i, k] = min(rest, max(closed - zf[i, k], 0.0))
-            else:
-                out[i, k] = 0.0
-
-
-def _plain(a: NDArray[np.floating]) -> F64:
-    """``a`` as a writable C-ordered float64 array (the kernels' signatures; a read-only
-    grid, a stored z-map say, is copied)."""
-    return np.require(a, dtype=np.float64, requirements=["C", "W"])
-
-
-def _upsample_where(coarse: F64, zc: F64, f: int, zf: F64, tol: float) -> F64:
-    """A coarse lattice's rest ``(my, mx)`` (over the part ``zc`` there) at the fine
-    lattice's nodes ``zf`` ``(ny, nx)`` (``f`` times finer), where a cell corner exceeds
-    ``tol`` (0 elsewhere: there the interpolant is at most ``tol`` anyway), in one
-    compiled pass: the lesser of the rest interpolated bilinearly and the closing
-    (part plus rest) interpolated bilinearly less the fine part. Each alone makes up
-    material: the rest interpolated across a narrow slot's edge stands over the plate
-    beside it, the closing's chord over a concave wall stands above the wall."""
-    out = np.empty(zf.shape)
-    _upsample_kernel(_plain(coarse), _plain(zc), _plain(zf), int(f), float(tol), out)
-    return out
-
-
 def region_boxes(region: B8, dx: float, dy: float) -> tuple[int, tuple[RegionBox, ...]]:
     """Region count and the largest :data:`MAX_BOXES` regions' boxes (node positions from
     the grid's origin, mm), largest first."""
@@ -422,7 +424,7 @@ def _plan(balls: list[Tool], reach: _Reach, bound: bool = True
     """
     n = len(balls)
     # every ball over the whole part first: its scan direction serves its rest regions
-    mains = [reach.main_time(balls, j) for j in range(n)]
+    mains = reach.main_times(balls)
     best: list[float] = [math.inf] * n
     after: list[int | None] = [None] * n
     floor = [0.0] * n  # per next ball: its cost after the largest previous ball so far
@@ -432,11 +434,8 @@ def _plan(balls: list[Tool], reach: _Reach, bound: bool = True
         def low(m: int) -> float:
             return (floor[m] if bound else 0.0) + TOOL_CHANGE_MIN + best[m]
 
-        for i in sorted(range(j + 1, n), key=lambda m: (low(m), m)):
-            least = min((o[0] for o in options), default=math.inf)
-            if low(i) >= least:
-                break
-            minutes = reach.cost(balls[j].radius, balls[i])
+        order = sorted(range(j + 1, n), key=lambda m: (low(m), m))
+        for i, minutes in reach.costs(balls[j].radius, balls, order, low, options):
             if minutes is not None:
                 floor[i] = max(floor[i], minutes)
                 options.append((minutes + TOOL_CHANGE_MIN + best[i], i))

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from functools import partial
 
 import numpy as np
 from numpy.typing import NDArray
@@ -43,6 +44,7 @@ from zwcore.scanline._stock import (
     run_pass,
     stride_for,
 )
+from zwcore.scanline._threads import both
 from zwcore.scanline._tool_choice import Level, Stage
 
 __all__ = ["MAX_MODEL_NODES", "MAX_STAGES", "SCALLOP_FLUTE_SHARE", "passes", "upsampled"]
@@ -274,8 +276,12 @@ def _stage_passes(plan: _Plan, st: _Stage) -> F64:
     while True:
         model, strips, done, before, on_target = _one_pass(plan, st, not stalled)
         reached = done.lifted_nodes == 0
-        if plan.out:  # what the previous pass left over this one's model
-            plan.out[-1].left_next = left_over(before, upsampled(model, scale, zmap.shape))
+        # what the previous pass left over this one's model, and this one over the part
+        # (two threads: independent reads)
+        left_part, left_next = both(partial(left_over, plan.sim.stock, zmap.z),
+                                    partial(_left_next, plan, before, model, scale))
+        if left_next is not None:
+            plan.out[-1].left_next = left_next
         if not reached:
             lifts += 1
             if done.lowered == 0 or lifts > max_lifts:
@@ -289,12 +295,20 @@ def _stage_passes(plan: _Plan, st: _Stage) -> F64:
             lev.index, lev.sx, lev.sy, tool, model, strips,
             slope, st.rest, st.merged, lev.concave_radius,
             lev.clipped, lev.raised, region=st.region, sim=done,
-            left_part=left_over(plan.sim.stock, zmap.z)))
+            left_part=left_part))
         _bounds(plan)
         plan.leaves = plan.out[-1].leaves
         if reached:
             return model
         st.on = model
+
+
+def _left_next(plan: _Plan, before: F64, model: F64, scale: int
+               ) -> tuple[float, float] | None:
+    """What the previous pass left over this pass's model (None: no previous pass)."""
+    if not plan.out:
+        return None
+    return left_over(before, upsampled(model, scale, plan.zmap.shape))
 
 
 def _bounds(plan: _Plan) -> None:

@@ -50,7 +50,7 @@ from zwcore.scanline import _stock_bounds as _b
 from zwcore.scanline import _stock_kernels as _k
 from zwcore.scanline._stock_grid import GridMode
 from zwcore.scanline._stock_lazy import exact_base, lazy_state
-from zwcore.scanline._stock_lines import LineSweep, drop_nodes
+from zwcore.scanline._stock_lines import LineSweep, drop_nodes, per_position
 from zwcore.scanline._stock_state import (
     BLOCK,
     Last,
@@ -206,14 +206,20 @@ class StockSim:
         if grid is not None:
             return grid.top(self.stock, smax, self.part, px, py, tool)
         part, r = self.part, tool.radius
+        stock = self.stock
+
+        def top_at(x: F64, y: F64) -> F64:  # per position: split between two threads
+            return per_position(lambda a, b: _k.top(stock, smax, BLOCK, x[a:b], y[a:b], r,
+                                                    part.dx, part.dy), x.size, r, part.dx,
+                                part.dy)
+
         if not BOUNDS or px.size < BOUNDS_MIN:
-            return _k.top(self.stock, smax, BLOCK, px, py, r, part.dx, part.dy)
+            return top_at(px, py)
         grown = grow_blocks(smax, r, part.dx, part.dy)
         out, rest = _b.top_bounded(smax, grown, part.shape, px, py, r, part.dx, part.dy,
                                    BLOCK)
         if rest.size:
-            out[rest] = _k.top(self.stock, smax, BLOCK, px[rest], py[rest], r, part.dx,
-                               part.dy)
+            out[rest] = top_at(px[rest], py[rest])
         return out
 
     def _grid(self, pos: Positions, idx: NDArray[np.intp], px: F64, py: F64,

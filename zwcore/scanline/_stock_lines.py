@@ -5,6 +5,7 @@ less (:mod:`zwcore.scanline._stock`): positions sorted by line for
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -13,8 +14,10 @@ from numpy.typing import NDArray
 from zwcore.scanline import _stock_kernels as _k
 from zwcore.scanline import _stock_sweep as _sw
 from zwcore.scanline._stock_state import BLOCK, Positions
+from zwcore.scanline._threads import both, split_at_weight
 
-__all__ = ["SWEEP_RUN_SHARE", "SWEEP_SHARE", "LineSweep", "drop_nodes"]
+__all__ = ["SWEEP_RUN_SHARE", "SWEEP_SHARE", "THREAD_WORK", "LineSweep", "drop_nodes",
+           "per_position"]
 
 F64 = NDArray[np.float64]
 
@@ -39,6 +42,11 @@ SWEEP_SHARE = 0.05
 #: are unchanged; the kernels' results are the same either way.
 SWEEP_RUN_SHARE = 0.5
 
+#: Sweep node visits from which a sweep is split between two threads
+#: (:mod:`zwcore.scanline._threads`; about 20 ns each: below, the hand-off costs more
+#: than the second core saves).
+THREAD_WORK = 1 << 21
+
 
 @dataclass(frozen=True, eq=False)
 class LineSweep:
@@ -54,6 +62,8 @@ class LineSweep:
     r: float
     du: float
     dv: float
+    #: per line, its sweep's node visits (``_stock_sweep.sweep_work``)
+    line_work: F64
 
     @classmethod
     def of(cls, px: F64, py: F64, along: str | None, r: float, dx: float,
@@ -71,22 +81,61 @@ class LineSweep:
         if _sw.sweep_work(us, starts, r, du, dv) > max(SWEEP_SHARE,
                                                        SWEEP_RUN_SHARE) * per_position:
             return None
-        return cls(order, us, vs, starts, along_x, r, du, dv)
+        return cls(order, us, vs, starts, along_x, r, du, dv,
+                   _sw.line_work(us, starts, r, du, dv))
+
+    @property
+    def threaded(self) -> bool:
+        """Whether the sweep is worth two threads (:data:`THREAD_WORK`)."""
+        return self.starts.size > 2 and float(self.line_work.sum()) >= THREAD_WORK
 
     def cut(self, stock: F64, cl: F64, touched: NDArray[np.bool_],
             skip: NDArray[np.bool_]) -> None:
-        """:func:`_stock_kernels.cut` at the positions with CL ``cl`` (their order)."""
+        """:func:`_stock_kernels.cut` at the positions with CL ``cl`` (their order).
+
+        A large sweep runs on two threads, each over its band of node rows (split where
+        the lines' work is halved, at a block boundary): the bands' nodes are disjoint,
+        and so are their blocks of ``touched``."""
         s, t, k = (stock, touched, skip) if self.along_x else (stock.T, touched.T, skip.T)
-        _sw.cut_lines(s, self.u, self.v, np.ascontiguousarray(cl[self.order]),
-                      self.starts, self.r, self.du, self.dv, BLOCK, t, k)
+        c = np.ascontiguousarray(cl[self.order])
+
+        def band(lo: int, hi: int) -> None:
+            _sw.cut_lines(s, self.u, self.v, c, self.starts, self.r, self.du, self.dv,
+                          BLOCK, t, k, lo, hi)
+
+        mid = self._row_split(s.shape[0]) if self.threaded else 0
+        if mid <= 0 or mid >= s.shape[0]:
+            band(0, -1)
+            return
+        both(lambda: band(0, mid), lambda: band(mid, -1))
+
+    def _row_split(self, nv: int) -> int:
+        """The first node row of the second thread's band: the rows about the line that
+        halves the sweep's work, rounded to a multiple of :data:`BLOCK`."""
+        m = split_at_weight(self.line_work)
+        return round(float(self.v[self.starts[m]]) / self.dv / BLOCK) * BLOCK
 
     def drop(self, z: F64, cl0: F64) -> F64:
-        """:func:`_stock_kernels.cl_part` at the positions (their order)."""
+        """:func:`_stock_kernels.cl_part` at the positions (their order); a large sweep
+        on two threads, each over its lines (a position's CL depends on its line
+        alone)."""
         zz = z if self.along_x else np.ascontiguousarray(z.T)
+        c0 = np.ascontiguousarray(cl0[self.order])
+
+        def lines(a: int, b: int) -> F64:
+            j0, j1 = self.starts[a], self.starts[b]
+            got: F64 = _sw.cl_lines(zz, self.u[j0:j1], self.v[j0:j1], c0[j0:j1],
+                                    self.starts[a:b + 1] - j0, self.r, self.du, self.dv)
+            return got
+
+        count = self.starts.size - 1
         out = np.empty(self.order.size)
-        out[self.order] = _sw.cl_lines(zz, self.u, self.v,
-                                       np.ascontiguousarray(cl0[self.order]), self.starts,
-                                       self.r, self.du, self.dv)
+        if self.threaded:
+            m = split_at_weight(self.line_work)
+            first, second = both(lambda: lines(0, m), lambda: lines(m, count))
+            out[self.order] = np.concatenate((first, second))
+        else:
+            out[self.order] = lines(0, count)
         return out
 
 
@@ -97,4 +146,25 @@ def drop_nodes(z: F64, zmax: F64, pos: Positions, cl0: F64, r: float, dx: float,
     sweep = LineSweep.of(pos.x, pos.y, pos.along, r, dx, dy)
     if sweep is not None:
         return sweep.drop(z, cl0)
-    return _k.cl_part(z, zmax, BLOCK, pos.x, pos.y, cl0, r, dx, dy)
+    px, py = pos.x, pos.y
+    return per_position(lambda a, b: _k.cl_part(z, zmax, BLOCK, px[a:b], py[a:b], cl0[a:b],
+                                                 r, dx, dy), px.size, r, dx, dy)
+
+
+#: The per-position kernels' block skipping leaves about this share of the nodes within
+#: the radius to visit (:data:`SWEEP_SHARE`'s measure): for :func:`per_position`'s
+#: estimate of their work.
+BLOCK_VISIT_SHARE = 0.05
+
+
+def per_position(kernel: Callable[[int, int], F64], n: int, r: float, dx: float,
+                 dy: float) -> F64:
+    """``kernel(0, n)`` for a per-position kernel (its output for positions ``a..b-1``
+    depends on those alone), split between two threads at ``n / 2`` when its estimated
+    node visits reach :data:`THREAD_WORK`: the same values."""
+    work = n * math.pi * (r / dx + 1.0) * (r / dy + 1.0) * BLOCK_VISIT_SHARE
+    if n < 2 or work < THREAD_WORK:
+        return kernel(0, n)
+    h = n // 2
+    first, second = both(lambda: kernel(0, h), lambda: kernel(h, n))
+    return np.concatenate((first, second))

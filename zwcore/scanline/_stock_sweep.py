@@ -46,7 +46,7 @@ from numpy.typing import NDArray
 
 from zwcore.scanline._stock_kernels import RIM, _span
 
-__all__ = ["cl_lines", "cut_lines", "line_starts", "sweep_work"]
+__all__ = ["cl_lines", "cut_lines", "line_starts", "line_work", "sweep_work"]
 
 F64 = NDArray[np.float64]
 I64 = NDArray[np.int64]
@@ -179,12 +179,13 @@ def _parabolas(pu: F64, f: F64, j0: int, j1: int, a: float, pp: F64, pf: F64,
 
 
 @njit(cache=True, nogil=True)
-def _row_chunk_max(z: F64, c: int) -> F64:
-    """``(nv, ceil(nu / c))``: the largest node of every ``c`` consecutive nodes of a row."""
+def _row_chunk_max(z: F64, c: int, i_lo: int = 0, i_hi: int = -1) -> F64:
+    """``(nv, ceil(nu / c))``: the largest node of every ``c`` consecutive nodes of a row,
+    for the rows ``i_lo..i_hi-1`` (``i_hi < 0``: to the last; the others left unset)."""
     nv, nu = z.shape
     nc = (nu + c - 1) // c
     out = np.empty((nv, nc))
-    for i in range(nv):
+    for i in range(i_lo, nv if i_hi < 0 else i_hi):
         for m in range(nc):
             hi = -np.inf
             for k in range(m * c, min(nu, m * c + c)):
@@ -308,11 +309,15 @@ _NEAR = 1e-6
 @njit(cache=True, nogil=True)
 def cut_lines(s: F64, pu: F64, pv: F64, pc: F64, starts: I64, r: float, du: float,
               dv: float, b: int, touched: NDArray[np.bool_], skip: NDArray[np.bool_],
-              ) -> None:
+              i_lo: int = 0, i_hi: int = -1) -> None:
     """``s = min(s, c + h(|p - c|))`` at every node within ``r`` of each position, in
     place; ``touched`` (blocks of ``b x b`` nodes, ``(ceil(nv/b), ceil(nu/b))``) is set
     where a node was lowered. Blocks ``skip`` marks (the same shape) are left alone, and
     a row none of whose blocks in a line's reach is left is not swept for that line.
+    Only the rows ``i_lo..i_hi-1`` (``i_hi < 0``: to the last) are lowered: two threads
+    sweep two bands of rows (starting at multiples of ``b``) at once, and every row's
+    values are those of one call over all rows (each row sees the same lines in the same
+    order, and a line's envelope and bounds do not depend on which row builds them).
 
     A line on a node row sees the rows ``a`` above and below it alike (to the rounding of
     ``e``): one envelope serves both.
@@ -344,7 +349,9 @@ def cut_lines(s: F64, pu: F64, pv: F64, pc: F64, starts: I64, r: float, du: floa
     for bi in range(mb):
         for bk in range(nb):
             left[bi, bk + 1] = left[bi, bk] + (0 if skip[bi, bk] else 1)
-    rowmax = _row_chunk_max(s, _CHUNK)
+    nv = s.shape[0]
+    ilo, ihi = max(i_lo, 0), nv if i_hi < 0 else min(i_hi, nv)
+    rowmax = _row_chunk_max(s, _CHUNK, ilo, ihi)
     pp = np.empty(max(n, 1))
     pf = np.empty(max(n, 1))
     ps = np.empty(max(n, 1))
@@ -359,7 +366,7 @@ def cut_lines(s: F64, pu: F64, pv: F64, pc: F64, starts: I64, r: float, du: floa
     while lo2 < rin:
         hi2 = hi * hi if hi < r else rin
         _cut_phase(s, pu, pv, pc, starts, r, du, dv, b, touched, skip, left, rowmax, st,
-                   start, pp, pf, ps, lo2, hi2)
+                   start, pp, pf, ps, lo2, hi2, ilo, ihi)
         lo2 = hi2
         hi *= _BAND_GROWTH
 
@@ -368,9 +375,9 @@ def cut_lines(s: F64, pu: F64, pv: F64, pc: F64, starts: I64, r: float, du: floa
 def _cut_phase(s: F64, pu: F64, pv: F64, pc: F64, starts: I64, r: float, du: float,
                dv: float, b: int, touched: NDArray[np.bool_], skip: NDArray[np.bool_],
                left: I64, rowmax: F64, st: I64, start: F64, pp: F64, pf: F64, ps: F64,
-               lo2: float, hi2: float) -> None:
-    """:func:`cut_lines` over the rows whose squared distance from their line lies in
-    ``(lo2, hi2]``."""
+               lo2: float, hi2: float, ilo: int, ihi: int) -> None:
+    """:func:`cut_lines` over the rows ``ilo..ihi-1`` whose squared distance from their
+    line lies in ``(lo2, hi2]``."""
     nv, nu = s.shape
     r2, rin = r * r, r * r * RIM
     built = np.empty(2, dtype=np.int64)
@@ -395,6 +402,10 @@ def _cut_phase(s: F64, pu: F64, pv: F64, pc: F64, starts: I64, r: float, du: flo
                 continue  # done with its mirror row below
             other = 2 * iq - i
             two = mirror and other != i and i0 <= other <= i1
+            mine = ilo <= i < ihi
+            theirs = two and ilo <= other < ihi
+            if not (mine or theirs):
+                continue  # the other thread's rows
             if (left[i // b, bb] == left[i // b, ba]
                     and not (two and left[other // b, bb] > left[other // b, ba])):
                 continue  # every block of the row (and its mirror) in reach is settled
@@ -409,10 +420,11 @@ def _cut_phase(s: F64, pu: F64, pv: F64, pc: F64, starts: I64, r: float, du: flo
             if not gdone:
                 _chunk_bounds(pu, pc, j0, j1, 0.5 / r, ka, kb, du, pp, pf, ps, gline)
                 gdone = True
-            _cut_row(s[i], i, b, ey2, cmin + (r - math.sqrt(max(rho2, 0.0))), pu, pc, j0,
-                     j1, st, start, built, w, rho2, w, r, du, touched, skip, rowmax[i],
-                     curv, pp, pf, ps, gline)
-            if two:
+            if mine:
+                _cut_row(s[i], i, b, ey2, cmin + (r - math.sqrt(max(rho2, 0.0))), pu, pc,
+                         j0, j1, st, start, built, w, rho2, w, r, du, touched, skip,
+                         rowmax[i], curv, pp, pf, ps, gline)
+            if theirs:
                 ey_o = other * dv - q
                 e2 = ey_o * ey_o
                 if e2 <= rin:
@@ -539,6 +551,12 @@ def line_starts(pv: F64) -> I64:
 def sweep_work(pu: F64, starts: I64, r: float, du: float, dv: float) -> float:
     """Node visits of the sweep: per line, rows within ``r`` times (positions on the line
     + nodes its balls span)."""
+    return float(line_work(pu, starts, r, du, dv).sum())
+
+
+def line_work(pu: F64, starts: I64, r: float, du: float, dv: float) -> F64:
+    """:func:`sweep_work` per line, ``(lines,)``."""
     first, last = pu[starts[:-1]], pu[starts[1:] - 1]
     per_row = (starts[1:] - starts[:-1]) + (last - first + 2.0 * r) / du
-    return float(per_row.sum() * (2.0 * r / dv + 1.0))
+    out: F64 = per_row * (2.0 * r / dv + 1.0)
+    return out

@@ -59,6 +59,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Sequence
+from functools import partial
 
 import numpy as np
 from numpy.typing import NDArray
@@ -68,13 +69,21 @@ from zwcore.grid.tools import Tool, default_tools, tool_library
 from zwcore.grid.zmap import ZMap, positive_number, stock_top_at_or_above
 from zwcore.mrr.wavelets import Multiresolution, analyse
 from zwcore.scanline._checks import figures
-from zwcore.scanline._models import nested_targets
+from zwcore.scanline._models import Target, nested_targets
 from zwcore.scanline._passes import scallop_height
 from zwcore.scanline._reach_figures import with_reach
 from zwcore.scanline._regions import Chain, finishing_chain
 from zwcore.scanline._stage_passes import MAX_MODEL_NODES, MAX_STAGES
 from zwcore.scanline._stage_passes import passes as stage_passes
-from zwcore.scanline._tool_choice import Stage, ball_rest, choose, finishing_stages, levels
+from zwcore.scanline._threads import both
+from zwcore.scanline._tool_choice import (
+    Level,
+    Stage,
+    ball_rest,
+    choose,
+    finishing_stages,
+    levels,
+)
 from zwcore.scanline.results import ScanlineChecks, ScanlinePlan, ScanlineStage
 
 __all__ = [
@@ -154,10 +163,16 @@ def plan_scanline(zmap: ZMap, tools: Sequence[Tool] | None = None, *, tolerance:
 
     first, ceiling, g = _first_level_and_guard(zmap, mrr, library, requested)
     notes: list[str] = []
-    chain = finishing_chain(part, zmap.dx, zmap.dy, list(library), tol)
+    # the first round's targets and levels (under the ceiling) do not depend on the
+    # finishing chain: the plan's second thread builds them meanwhile (_threads)
+    cache: dict[int, float] = {}
+    early, chain = both(
+        partial(_targets_and_levels, zmap, mrr, first, ceiling, g, library,
+                float(curvature_smoothing), cache),
+        lambda: finishing_chain(part, zmap.dx, zmap.dy, list(library), tol))
     laps("reach")
     st, chosen = _stages(zmap, mrr, first, ceiling, g, requested, library,
-                         float(curvature_smoothing), notes, laps, chain, tol)
+                         float(curvature_smoothing), notes, laps, chain, tol, early, cache)
     final: list[F64] = []
     passes = stage_passes(zmap, chosen, st, tol, g, notes, final)
     laps("passes_simulated")
@@ -219,29 +234,45 @@ def _first_level_and_guard(zmap: ZMap, mrr: Multiresolution, library: Sequence[T
     return first, ceiling, g
 
 
+def _targets_and_levels(zmap: ZMap, mrr: Multiresolution, first: int, stock: float,
+                        g: float, library: Sequence[Tool], smoothing: float,
+                        cache: dict[int, float]) -> tuple[list[Target], list[Level]]:
+    """The nested targets under ``stock`` and their levels (``cache``: the part's concave
+    radius, filled)."""
+    targets = nested_targets(list(mrr.approximations), zmap.z, first, stock, g)
+    return targets, levels(zmap, mrr.depth, targets, smoothing, library, cache)
+
+
 def _stages(zmap: ZMap, mrr: Multiresolution, first: int, ceiling: float, g: float,
             requested: float | None, library: Sequence[Tool], smoothing: float,
-            notes: list[str], laps: _Laps, chain: Chain, tol: float
-            ) -> tuple[float, list[Stage]]:
+            notes: list[str], laps: _Laps, chain: Chain, tol: float,
+            early: tuple[list[Target], list[Level]] | None = None,
+            cache: dict[int, float] | None = None) -> tuple[float, list[Stage]]:
     """The stock top and the chosen stages (coarse to fine), with ``notes`` filled.
 
     With a default stock the top follows the first stage's ball (its flute
     length), which may change the targets and so the tools: up to three
     rounds, then the tools are kept and the targets rebuilt under the stock.
+    ``early``: the targets and levels under ``ceiling`` (the first round's), built
+    already (:func:`_targets_and_levels`, with ``cache``).
     """
     approx = list(mrr.approximations)
     part = zmap.z
     top = float(part.max())
     depth = mrr.depth
-    cache: dict[int, float] = {}
+    cache = {} if cache is None else cache
     st = ceiling
     built = math.nan
     chosen: list[Stage] = []
     for _ in range(3):
-        targets = nested_targets(approx, part, first, st, g)
-        built = st
-        laps("targets")
-        levs = levels(zmap, depth, targets, smoothing, library, cache)
+        if early is not None and st == ceiling:
+            targets, levs = early
+            built = st
+        else:
+            targets = nested_targets(approx, part, first, st, g)
+            built = st
+            laps("targets")
+            levs = levels(zmap, depth, targets, smoothing, library, cache)
         laps("curvature")
         notes.clear()
         chosen = choose(levs, library, notes, chain, tol, zmap)

@@ -15,6 +15,9 @@ raised by the rounding bound, so the result is never below the exact max.
 
 from __future__ import annotations
 
+import os
+from concurrent.futures import ThreadPoolExecutor
+
 import numpy as np
 from numba import njit
 from numpy.typing import NDArray
@@ -54,18 +57,45 @@ def _dilate_rows(zp: NDArray[np.floating], s: NDArray[np.floating], ny: int, nx:
     same = (quarter == quarter[:1]).all(axis=0) | ~np.isfinite(quarter).any(axis=0)
     # the live offsets column by column (``b`` ascending, then ``a``), as flat lists
     ob, oa = np.nonzero(alive.T)
-    _dilate_kernel(np.ascontiguousarray(zp), quarter, ob.astype(np.int64),
-                   oa.astype(np.int64), same.T[ob, oa].copy(), int(ny), int(nx),
-                   int(rows), acc)
+    zc = np.ascontiguousarray(zp)
+    obl, oal, shared = ob.astype(np.int64), oa.astype(np.int64), same.T[ob, oa].copy()
+
+    def strips(r0: int, r1: int) -> None:
+        _dilate_kernel(zc, quarter, obl, oal, shared, int(ny), int(nx), int(rows), acc,
+                       r0, r1)
+
+    # strips are independent (their own output rows): two threads take two runs of them
+    # on a large dilation (the kernel releases the GIL), the same values
+    strip_count = -(-ny // rows)
+    if THREADS > 1 and strip_count >= 2 and ny * nx * max(ob.size, 1) >= THREAD_WORK:
+        mid = (strip_count // 2) * rows
+        with ThreadPoolExecutor(1, thread_name_prefix="zw-dilate") as pool:
+            fut = pool.submit(strips, mid, ny)
+            strips(0, mid)
+            fut.result()
+    else:
+        strips(0, ny)
     return np.min(np.maximum(acc[0], acc[1:]), axis=0)
 
 
-@njit([f"void({t}[:, ::1], {t}[:, :, ::1], i8[::1], i8[::1], b1[::1], i8, i8, i8, {t}[:, :, ::1])"
-       for t in ("f4", "f8")], cache=True, nogil=True)
+#: Node-offset pairs (output nodes times live offsets) from which a dilation's strips run
+#: on two threads (below, starting the thread costs more than the second core saves).
+THREAD_WORK = 1 << 24
+
+#: Threads a large dilation uses: 2 on a machine with two cores or more (1: one thread,
+#: the tests' and the bench's reference).
+THREADS = 2 if (os.cpu_count() or 1) >= 2 else 1
+
+
+@njit([f"void({t}[:, ::1], {t}[:, :, ::1], i8[::1], i8[::1], b1[::1], i8, i8, i8, "
+        f"{t}[:, :, ::1], i8, i8)" for t in ("f4", "f8")], cache=True, nogil=True)
 def _dilate_kernel(zp: NDArray[np.floating], quarter: NDArray[np.floating],
                    ob: NDArray[np.int64], oa: NDArray[np.int64], shared: NDArray[np.bool_],
-                   ny: int, nx: int, rows: int, acc: NDArray[np.floating]) -> None:
-    """Per strip of ``rows`` output rows and column offset ``b``: ``X_b`` (the padded grid
+                   ny: int, nx: int, rows: int, acc: NDArray[np.floating], r_lo: int,
+                   r_hi: int) -> None:
+    """The strips starting at ``r_lo, r_lo + rows, ...`` below ``r_hi`` (``r_lo`` a
+    multiple of ``rows``: two threads take two runs of strips). Per strip of ``rows``
+    output rows and column offset ``b``: ``X_b`` (the padded grid
     folded at ``±b``); then per output row and row offset ``a`` the fold of ``X_b`` at
     ``±a`` once, and per function one add and max into its accumulator. The same
     rounded adds, in the grid's own precision, as vector passes over whole strips would
@@ -74,7 +104,7 @@ def _dilate_kernel(zp: NDArray[np.floating], quarter: NDArray[np.floating],
     A, B = (zp.shape[0] - ny) // 2, (zp.shape[1] - nx) // 2
     X = np.empty((rows + 2 * A, nx), dtype=zp.dtype)
     Y = np.empty(nx, dtype=zp.dtype)
-    for r0 in range(0, ny, rows):
+    for r0 in range(r_lo, min(r_hi, ny), rows):
         h = min(ny, r0 + rows) - r0
         n = 0
         while n < ob.size:
