@@ -18,7 +18,7 @@ from numpy.typing import NDArray
 
 from zwcore.toolpath.program import ARC_CCW, ARC_CW, RAPID, ProgramSettings, StagePath
 
-__all__ = ["iter_program", "program_text"]
+__all__ = ["PROGRAM_HEAD", "PROGRAM_TAIL", "iter_program", "iter_stage", "program_text"]
 
 #: Blocks per yielded chunk of text.
 CHUNK_BLOCKS = 20_000
@@ -90,8 +90,8 @@ def _body(codes: NDArray[np.int8], xyzij: NDArray[np.int64], feed10: NDArray[np.
 
 
 def _stage_blocks(path: StagePath, settings: ProgramSettings) -> Iterator[str]:
-    """The stage's text: setup blocks one per item, then its motion blocks in chunks (each
-    item ends without a line feed except the chunks, which end with one)."""
+    """The stage's text: setup blocks one per item, then its motion blocks in chunks (every
+    item ends with a line feed)."""
     dec = settings.decimals
     cd, tool = path.cutting, path.tool
     clear = _num(settings.clearance, dec)
@@ -124,12 +124,23 @@ def _stage_blocks(path: StagePath, settings: ProgramSettings) -> Iterator[str]:
     yield "M5\n"
 
 
+#: The program's first and last blocks (around its stages' text).
+PROGRAM_HEAD = "%\n(zwplan tool paths)\nG17 G21 G90 G94\n"
+PROGRAM_TAIL = "M30\n%\n"
+
+
+def iter_stage(path: StagePath, settings: ProgramSettings) -> Iterator[str]:
+    """One stage's text as chunks (tool change to ``M5``), each ending with a line feed."""
+    return _stage_blocks(path, settings)
+
+
 def iter_program(paths: Iterable[StagePath], settings: ProgramSettings) -> Iterator[str]:
-    """The program as chunks of text (for streaming); their concatenation is the program."""
-    yield "%\n(zwplan tool paths)\nG17 G21 G90 G94\n"
+    """The program as chunks of text (for streaming); their concatenation is the program:
+    :data:`PROGRAM_HEAD`, each stage's :func:`iter_stage`, :data:`PROGRAM_TAIL`."""
+    yield PROGRAM_HEAD
     for path in paths:
         yield from _stage_blocks(path, settings)
-    yield "M30\n%\n"
+    yield PROGRAM_TAIL
 
 
 def program_text(paths: Iterable[StagePath], settings: ProgramSettings) -> str:
