@@ -204,3 +204,57 @@ def test_a_failure_on_the_worker_reaches_the_caller(monkeypatch):
     monkeypatch.setattr(ProgramSimulation, "add", broken)
     with pytest.raises(InvalidInputError, match="broken on purpose"):
         scanline_toolpaths(part, plan, overlap=True)
+
+
+def _reference_words(path, settings):
+    """The writer's former numpy preparation of a stage's blocks (the oracle of the one-pass
+    kernel): codes, X Y Z I J in output units (I J only for arcs), F in tenths."""
+    from zwcore.toolpath.program import ARC_CCW, ARC_CW, RAPID
+    dec, cd, mv = settings.decimals, path.cutting, path.moves
+    sx, sy = round(float(path.start[0]), dec), round(float(path.start[1]), dec)
+    end = np.round(mv.end, dec) + 0.0
+    prev = np.vstack([[sx, sy, round(settings.clearance, dec)], end[:-1]])
+    ij = np.round(mv.center - prev[:, :2], dec) + 0.0
+    keep = np.any(np.abs(end - prev) > 0.5 * 10.0 ** -dec, axis=1) | (mv.kind >= ARC_CW)
+    codes = np.where(mv.kind == RAPID, 0, np.where(mv.kind == ARC_CCW, 3, np.where(
+        mv.kind == ARC_CW, 2, 1))).astype(np.int8)[keep]
+    feeds = np.where(mv.plunge, cd.plunge_feed, cd.feed)[keep]
+    fed = np.flatnonzero(codes != 0)
+    change = np.ones(len(fed), bool)
+    change[1:] = feeds[fed[1:]] != feeds[fed[:-1]]
+    feed10 = np.full(len(codes), -1, np.int64)
+    feed10[fed[change]] = np.rint(np.round(feeds[fed[change]], 1) * 10.0).astype(np.int64)
+    xyzij = np.rint(np.column_stack([end, np.nan_to_num(ij)])[keep] * 10.0 ** dec
+                    ).astype(np.int64)
+    xyzij[codes < 2, 3:] = 0
+    return codes, xyzij, feed10
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(0, 10_000), st.integers(1, 80), st.sampled_from([0.0, 0.3, 0.9]))
+def test_motion_words_kernel_is_the_former_numpy_preparation(seed, n, repeat):
+    from zwcore.toolpath.writer import _motion_words
+    rng = np.random.default_rng(seed)
+    path = _random_stage(rng, n)
+    mv = path.moves
+    # moves that stay put (to the output's precision or exactly), ends on half units,
+    # negative zeros, feeds that change and come back
+    stay = rng.random(n) < repeat
+    for k in np.flatnonzero(stay)[1:] if n > 1 else []:
+        mv.end[k] = mv.end[k - 1] + rng.choice([0.0, 4e-5, -4e-5, 6e-5], 3)
+    mv.end[rng.random((n, 3)) < 0.05] = -0.0
+    mv.end[rng.random((n, 3)) < 0.05] = rng.integers(-9999, 9999) * 1e-4 + 0.5e-4
+    mv.plunge[:] = rng.random(n) < 0.5
+    s = ProgramSettings(clearance=float(rng.choice([30.0, 12.34565])))
+    want = _reference_words(path, s)
+    codes, xyzij, feed10 = (np.empty(n, np.int8), np.empty((n, 5), np.int64),
+                            np.empty(n, np.int64))
+    sx, sy = round(float(path.start[0]), 4), round(float(path.start[1]), 4)
+    m = _motion_words(mv.kind, mv.end, mv.center, mv.plunge, sx, sy, round(s.clearance, 4),
+                      1e4, 0.5e-4, float(path.cutting.feed), float(path.cutting.plunge_feed),
+                      codes, xyzij, feed10)
+    got = xyzij[:m].copy()
+    got[codes[:m] < 2, 3:] = 0
+    np.testing.assert_array_equal(codes[:m], want[0])
+    np.testing.assert_array_equal(got, want[1])
+    np.testing.assert_array_equal(feed10[:m], want[2])
