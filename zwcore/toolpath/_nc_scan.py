@@ -22,6 +22,18 @@ from numpy.typing import NDArray
 OK, UNREADABLE, REFUSED, WRONG_H, NOT_METRIC, ARC_NO_START = 0, 1, 2, 3, 4, 5
 #: Motion G codes (the modal group the reader models) and refused modes.
 REFUSED_G = (20, 91, 18, 19, 41, 42)
+#: Slots of the modal state :func:`scan_program` reads at its start and leaves at its end
+#: (a program read in pieces carries it from one piece to the next; integers and flags are
+#: exact in float64).
+(S_X, S_Y, S_Z, S_MODE, S_FEED, S_SELECTED, S_ACTIVE, S_OFFSET, S_SPINDLE, S_METRIC,
+ S_ABSOLUTE, S_XY_PLANE, S_LINE, STATE_SIZE) = range(14)
+
+
+def initial_state() -> NDArray[np.float64]:
+    """The modal state before a program: no position, no feed, no tool, nothing set."""
+    state = np.zeros(STATE_SIZE)
+    state[[S_X, S_Y, S_Z, S_FEED]] = math.nan
+    return state
 
 _SPACE, _TAB, _CR, _LF = 32, 9, 13, 10
 _PLUS, _MINUS, _DOT, _PCT, _SEMI, _LPAR, _RPAR = 43, 45, 46, 37, 59, 40, 41
@@ -61,19 +73,25 @@ def _number(buf: NDArray[np.uint8], i: int, end: int) -> tuple[float, int]:
 @njit(cache=True, nogil=True)
 def scan_program(buf: NDArray[np.uint8], motion: NDArray[np.int8], end: NDArray[np.float64],
                  center: NDArray[np.float64], feed: NDArray[np.float64],
-                 tool: NDArray[np.int64], flags: NDArray[np.uint8], err: NDArray[np.int64]
-                 ) -> int:
-    """Read the program in ``buf``; fill one row per motion block; return the row count.
+                 tool: NDArray[np.int64], flags: NDArray[np.uint8], err: NDArray[np.int64],
+                 state: NDArray[np.float64]) -> int:
+    """Read the program (or a piece of it: whole lines) in ``buf``; fill one row per
+    motion block; return the row count.
 
     ``flags`` bit 0: length offset active, bit 1: spindle on. ``err``: ``[code, line
-    number (1-based), byte offset of the line, value]``; ``err[4]``: 1 if ``M30``/``M2``
-    was seen.
+    number (1-based), byte offset of the line, value]``; ``err[4]``: set to 1 if
+    ``M30``/``M2`` was seen. ``state`` (:data:`STATE_SIZE`, from :func:`initial_state`):
+    the modal state before the first line, the state after the last line on return (after
+    an error: unspecified).
     """
     n = len(buf)
-    pos_x = pos_y = pos_z = math.nan
-    mode, f_act, selected, active = 0, math.nan, 0, 0
-    offset = spindle = metric = absolute = xy_plane = False
-    rows, lineno, i = 0, 0, 0
+    pos_x, pos_y, pos_z = state[S_X], state[S_Y], state[S_Z]
+    mode, f_act = int(state[S_MODE]), state[S_FEED]
+    selected, active = int(state[S_SELECTED]), int(state[S_ACTIVE])
+    offset, spindle = state[S_OFFSET] != 0.0, state[S_SPINDLE] != 0.0
+    metric, absolute = state[S_METRIC] != 0.0, state[S_ABSOLUTE] != 0.0
+    xy_plane = state[S_XY_PLANE] != 0.0
+    rows, lineno, i = 0, int(state[S_LINE]), 0
     has = np.zeros(26, np.bool_)
     val = np.zeros(26)
     while i < n:
@@ -179,4 +197,11 @@ def scan_program(buf: NDArray[np.uint8], motion: NDArray[np.int8], end: NDArray[
         flags[rows] = (1 if offset else 0) | (2 if spindle else 0)
         rows += 1
         pos_x, pos_y, pos_z = nx, ny, nz
+    state[S_X], state[S_Y], state[S_Z] = pos_x, pos_y, pos_z
+    state[S_MODE], state[S_FEED] = mode, f_act
+    state[S_SELECTED], state[S_ACTIVE] = selected, active
+    state[S_OFFSET], state[S_SPINDLE] = 1.0 if offset else 0.0, 1.0 if spindle else 0.0
+    state[S_METRIC], state[S_ABSOLUTE] = 1.0 if metric else 0.0, 1.0 if absolute else 0.0
+    state[S_XY_PLANE] = 1.0 if xy_plane else 0.0
+    state[S_LINE] = lineno
     return rows

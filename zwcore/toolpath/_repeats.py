@@ -18,7 +18,7 @@ I64 = NDArray[np.int64]
 #: The bits of -0.0 (compared and hashed as 0.0).
 _NEG_ZERO = np.int64(-(2**63))
 
-__all__ = ["repeat_of"]
+__all__ = ["RepeatTable", "repeat_of"]
 
 
 def repeat_of(p0: F64, p1: F64, radius: F64, insert: NDArray[np.bool_]) -> NDArray[np.int64]:
@@ -40,14 +40,45 @@ def repeat_of(p0: F64, p1: F64, radius: F64, insert: NDArray[np.bool_]) -> NDArr
     (n,) int64
         In program order: ``src[i] < i`` with ``insert[src[i]]`` and equal keys, or -1.
     """
-    n = len(p0)
-    src = np.empty(n, np.int64)
-    cap = 16
-    while cap < 2 * n + 2:
-        cap *= 2
-    _repeat_kernel(_bits(p0), _bits(p1), np.ascontiguousarray(radius, np.float64).view(np.int64),
-                   np.ascontiguousarray(insert, np.bool_), np.full(cap, -1, np.int32), src)
-    return src
+    return RepeatTable().add(p0, p1, radius, insert)
+
+
+class RepeatTable:
+    """:func:`repeat_of` over moves that come in pieces: each piece's moves are looked up
+    among every earlier piece's too (indices count from the first piece's first move), so
+    the pieces give what their concatenation gives."""
+
+    def __init__(self) -> None:
+        self._keys = np.empty((0, 7), np.int64)  # p0, p1, radius bits per move
+        self._insert = np.empty(0, np.bool_)
+        self._table = np.full(16, -1, np.int32)
+        self._n = 0
+
+    def add(self, p0: F64, p1: F64, radius: F64, insert: NDArray[np.bool_]
+            ) -> NDArray[np.int64]:
+        """:func:`repeat_of` of the next piece's moves; ``(m,) int64`` sources."""
+        m = len(p0)
+        first, n = self._n, self._n + m
+        if n > len(self._keys):  # room for twice as many (amortised copies)
+            keys = np.empty((max(2 * n, 16), 7), np.int64)
+            keys[:first] = self._keys[:first]
+            ins = np.empty(len(keys), np.bool_)
+            ins[:first] = self._insert[:first]
+            self._keys, self._insert = keys, ins
+        self._keys[first:n, 0:3] = _bits(p0)
+        self._keys[first:n, 3:6] = _bits(p1)
+        self._keys[first:n, 6] = np.ascontiguousarray(radius, np.float64).view(np.int64)
+        self._insert[first:n] = insert
+        src = np.empty(n, np.int64)
+        if len(self._table) < 2 * n + 2:  # load <= 1/2: a larger table, refilled
+            cap = len(self._table)
+            while cap < 2 * n + 2:
+                cap *= 2
+            self._table = np.full(cap, -1, np.int32)
+            first = 0
+        _repeat_kernel(self._keys[:n], self._insert[:n], self._table, src, first)
+        self._n = n
+        return src[self._n - m:]
 
 
 def _bits(a: F64) -> I64:
@@ -67,13 +98,10 @@ def _mix(h: np.uint64, v: np.int64) -> np.uint64:
 
 
 @njit(cache=True, nogil=True)
-def _slot(p0: I64, p1: I64, r: I64, i: int, mask: np.uint64) -> np.uint64:
+def _slot(keys: I64, i: int, mask: np.uint64) -> np.uint64:
     h = np.uint64(1469598103934665603)
-    for c in range(3):
-        h = _mix(h, p0[i, c])
-        h = _mix(h, p1[i, c])
-    if len(r):
-        h = _mix(h, r[i])
+    for c in range(7):
+        h = _mix(h, keys[i, c])
     h ^= h >> np.uint64(33)
     h *= np.uint64(0xFF51AFD7ED558CCD)
     h ^= h >> np.uint64(33)
@@ -81,22 +109,23 @@ def _slot(p0: I64, p1: I64, r: I64, i: int, mask: np.uint64) -> np.uint64:
 
 
 @njit(cache=True, nogil=True)
-def _same(a0: I64, a1: I64, ar: I64, j: int, b0: I64, b1: I64, br: I64, i: int) -> bool:
-    for c in range(3):
-        if _word(a0[j, c]) != _word(b0[i, c]) or _word(a1[j, c]) != _word(b1[i, c]):
+def _same(keys: I64, j: int, i: int) -> bool:
+    for c in range(7):
+        if _word(keys[j, c]) != _word(keys[i, c]):
             return False
-    return not len(ar) or _word(ar[j]) == _word(br[i])
+    return True
 
 
 @njit(cache=True, nogil=True)
-def _repeat_kernel(p0: I64, p1: I64, r: I64, insert: NDArray[np.bool_],
-                   table: NDArray[np.int32], src: I64) -> None:
+def _repeat_kernel(keys: I64, insert: NDArray[np.bool_], table: NDArray[np.int32], src: I64,
+                   first: int) -> None:
     """Open addressing (linear probing, load <= 1/2; int32 slots, half the memory to miss
-    in) over the moves with ``insert``; keys (the floats' bits) are compared exactly, the
-    hash only picks the slot."""
+    in) over the moves with ``insert``; keys (the floats' bits: start, end, radius) are
+    compared exactly, the hash only picks the slot. Moves before ``first`` are in
+    ``table`` already."""
     mask = np.uint64(len(table) - 1)
-    for i in range(len(p0)):
-        slot = _slot(p0, p1, r, i, mask)
+    for i in range(first, len(keys)):
+        slot = _slot(keys, i, mask)
         src[i] = -1
         while True:
             j = int(table[slot])
@@ -104,7 +133,7 @@ def _repeat_kernel(p0: I64, p1: I64, r: I64, insert: NDArray[np.bool_],
                 if insert[i]:
                     table[slot] = np.int32(i)
                 break
-            if _same(p0, p1, r, j, p0, p1, r, i):
+            if _same(keys, j, i):
                 src[i] = j
                 break
             slot = (slot + np.uint64(1)) & mask

@@ -9,8 +9,10 @@ the program (:mod:`zwcore.toolpath.writer`), read it back with the independent p
 from __future__ import annotations
 
 import math
+import os
 import time
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -25,11 +27,11 @@ from zwcore.grid.zmap import ZMap, finite_number
 from zwcore.scanline.results import ScanlinePlan, ScanlineStage, stage_at_nodes
 from zwcore.toolpath._polyline import PartBounds
 from zwcore.toolpath.contour_paths import contour_stage_path
-from zwcore.toolpath.parse import parse_program
+from zwcore.toolpath.parse import ProgramReader
 from zwcore.toolpath.program import CuttingData, ProgramSettings, StagePath
 from zwcore.toolpath.scanline_paths import CLHeights, scanline_stage_path, sim_cl_heights
-from zwcore.toolpath.simulate import ProgramCheck, simulate_program
-from zwcore.toolpath.writer import iter_program
+from zwcore.toolpath.simulate import ProgramCheck, ProgramSimulation
+from zwcore.toolpath.writer import PROGRAM_HEAD, PROGRAM_TAIL, iter_stage
 
 __all__ = ["Toolpaths", "contour_toolpaths", "scanline_toolpaths", "tool_numbers"]
 
@@ -122,33 +124,129 @@ def _clearance(clearance: float | None, stock_top: float) -> float:
     return c
 
 
-def _finish(part: ZMap, stages: list[StagePath], settings: ProgramSettings, stock_top: float,
-            tolerance: float, models: list[F64 | None], verify: bool, max_bytes: int | None,
-            reach: NDArray[np.bool_] | None, timings: list[tuple[str, float]],
-            cpu: list[tuple[str, float]] | None = None) -> Toolpaths:
-    cpu = [] if cpu is None else cpu
-    t, c = time.perf_counter(), time.process_time()
-    chunks, size = [], 0
-    for chunk in iter_program(stages, settings):
-        size += len(chunk)
-        if max_bytes is not None and size > max_bytes:
-            raise LimitExceededError("program", f"the NC program exceeds {max_bytes} bytes")
-        chunks.append(chunk)
-    text = "".join(chunks)
-    timings.append(("program", time.perf_counter() - t))
-    cpu.append(("program", time.process_time() - c))
-    check = None
-    if verify:
+def _cores() -> int:
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (
+        os.cpu_count() or 1)
+
+
+class _ProgramRun:
+    """The program written stage by stage as the paths come and, with ``verify``, each
+    stage's text read back (:class:`~zwcore.toolpath.parse.ProgramReader`, modal state
+    carried from stage to stage) and simulated on the running stock
+    (:class:`~zwcore.toolpath.simulate.ProgramSimulation`).
+
+    With ``overlap`` this runs on one worker thread, stage after stage in order, while the
+    caller lays the next stage's paths (the kernels release the GIL): the text, the reading
+    and the figures are those of the whole program written, read and simulated at once
+    (the reader and the simulation carry everything across stages; tests compare).
+    ``max_bytes`` is checked as each piece of text is written; a failure on the worker
+    surfaces at the caller's next :meth:`submit` or at :meth:`close`.
+    """
+
+    def __init__(self, part: ZMap, settings: ProgramSettings, table: Mapping[int, Tool],
+                 stock_top: float, tolerance: float, models: Callable[[int], F64 | None],
+                 reach: NDArray[np.bool_] | None, verify: bool, max_bytes: int | None,
+                 overlap: bool) -> None:
+        self.settings, self.max_bytes = settings, max_bytes
+        self.chunks: list[str] = []
+        self.size = 0
+        self.reader = ProgramReader() if verify else None
+        self.sim = (ProgramSimulation(table, part, stock_top, tolerance=tolerance,
+                                      stage_models=models, reach=reach) if verify else None)
+        self.wall = dict.fromkeys(("program", "parse", "simulate"), 0.0)
+        self.cpu = dict.fromkeys(("program", "parse", "simulate"), 0.0)
+        self.pool = ThreadPoolExecutor(1, thread_name_prefix="verify") if overlap else None
+        self.pending: list[Future[None]] = []
+        self._run([PROGRAM_HEAD])
+
+    def submit(self, path: StagePath) -> None:
+        """Write (and verify) the next stage."""
+        self._raise_failed()
+        if self.pool is None:
+            self._stage(path)
+        else:
+            self.pending.append(self.pool.submit(self._stage, path))
+
+    def close(self) -> tuple[str, ProgramCheck | None]:
+        """Wait for the stages, write the end; the text and the check."""
+        try:
+            for f in self.pending:
+                f.result()
+        finally:
+            self.abort()
+        self._run([PROGRAM_TAIL], final=True)
+        check = None
+        if self.reader is not None and self.sim is not None:
+            if self.reader.rows == 0:
+                raise InvalidInputError("program", "no motion blocks")
+            t, c = time.perf_counter(), time.process_time()
+            check = self.sim.check()
+            self._took("simulate", t, c)
+        return "".join(self.chunks), check
+
+    def abort(self) -> None:
+        """Stop the worker (stages not started are dropped)."""
+        if self.pool is not None:
+            self.pool.shutdown(wait=True, cancel_futures=True)
+            self.pool = None
+
+    def _raise_failed(self) -> None:
+        done = [f for f in self.pending if f.done()]
+        for f in done:
+            f.result()  # raises the worker's error here, as early as it is known
+        self.pending = [f for f in self.pending if not f.done()]
+
+    def _took(self, phase: str, t: float, c: float) -> None:
+        # CPU of the process: exact per phase when sequential; overlapped it also counts
+        # the paths laid meanwhile (the caller reports the total instead)
+        self.wall[phase] += time.perf_counter() - t
+        self.cpu[phase] += time.process_time() - c
+
+    def _stage(self, path: StagePath) -> None:
+        self._run(iter_stage(path, self.settings))
+
+    def _run(self, pieces: Iterable[str], final: bool = False) -> None:
         t, c = time.perf_counter(), time.process_time()
-        prog = parse_program(text)
-        timings.append(("parse", time.perf_counter() - t))
-        cpu.append(("parse", time.process_time() - c))
+        text = []
+        for chunk in pieces:
+            self.size += len(chunk)
+            if self.max_bytes is not None and self.size > self.max_bytes:
+                raise LimitExceededError("program", f"the NC program exceeds {self.max_bytes} "
+                                         "bytes")
+            text.append(chunk)
+        self.chunks.extend(text)
+        self._took("program", t, c)
+        if self.reader is None or self.sim is None:
+            return
         t, c = time.perf_counter(), time.process_time()
-        table = {p.cutting.tool_number: p.tool for p in stages}
-        check = simulate_program(prog, table, part, stock_top, tolerance=tolerance,
-                                 stage_models=models, reach=reach)
-        timings.append(("simulate", time.perf_counter() - t))
-        cpu.append(("simulate", time.process_time() - c))
+        prog = self.reader.read("".join(text), final=final)
+        self._took("parse", t, c)
+        t, c = time.perf_counter(), time.process_time()
+        if len(prog.motion):
+            self.sim.add(prog)
+        self._took("simulate", t, c)
+
+
+def _finish(run: _ProgramRun, stages: list[StagePath], settings: ProgramSettings,
+            started: tuple[float, float], overlap: bool) -> Toolpaths:
+    """Close the run (the paths are laid); the timings: sequential, per phase (wall and
+    CPU); overlapped, the paths' wall, the worker's wall per phase (during the paths), the
+    wall left after the paths (``verify_after_paths``) and the CPU of the whole
+    (``total``)."""
+    t = time.perf_counter()
+    paths, paths_cpu = t - started[0], time.process_time() - started[1]
+    if not overlap:  # the stages' programs were written and verified in between
+        paths -= sum(run.wall.values())
+        paths_cpu -= sum(run.cpu.values())
+    timings, cpu = [("paths", paths)], [("paths", paths_cpu)]
+    text, check = run.close()
+    phases = ("program", "parse", "simulate") if check is not None else ("program",)
+    timings += [(k, run.wall[k]) for k in phases]
+    if overlap:
+        timings.append(("verify_after_paths", time.perf_counter() - t))
+        cpu = [("total", time.process_time() - started[1])]
+    else:
+        cpu += [(k, run.cpu[k]) for k in phases]
     return Toolpaths(tuple(stages), settings, text, check, tuple(timings), tuple(cpu))
 
 
@@ -158,7 +256,8 @@ def scanline_toolpaths(part: ZMap, plan: ScanlinePlan, cl_heights: CLHeights = s
                        clearance: float | None = None, rapid_feed: float = DEFAULT_RAPID_FEED,
                        verify: bool = True, max_bytes: int | None = None,
                        reach: NDArray[np.bool_] | None = None,
-                       regions: Sequence[NDArray[np.bool_] | None] | None = None) -> Toolpaths:
+                       regions: Sequence[NDArray[np.bool_] | None] | None = None,
+                       overlap: bool | None = None) -> Toolpaths:
     """Scan-line paths of every stage of a plan, the program and its simulation.
 
     Parameters
@@ -181,6 +280,10 @@ def scanline_toolpaths(part: ZMap, plan: ScanlinePlan, cl_heights: CLHeights = s
     regions : sequence of (my, mx) bool or None, optional
         Per stage, where it cuts on its model's nodes; ``None`` entry: everywhere.
         Default: each stage's own ``region`` (the plan's rest regions, issue 11).
+    overlap : bool, optional
+        Write, read back and simulate each stage's program on a worker thread while the
+        next stage's paths are laid (the same text and figures); default: when the process
+        may use two cores or more.
     """
     clear = _clearance(clearance, plan.stock_top)
     tools = list(dict.fromkeys(s.tool for s in plan.stages))
@@ -191,7 +294,29 @@ def scanline_toolpaths(part: ZMap, plan: ScanlinePlan, cl_heights: CLHeights = s
     if len(regions) != len(plan.stages):
         raise InvalidInputError("regions", f"one per stage ({len(plan.stages)}), got "
                                 f"{len(regions)}")
+    overlap = _cores() >= 2 if overlap is None else overlap
     t, c = time.perf_counter(), time.process_time()
+    numbers = [data[st.tool.id].tool_number for st in plan.stages]
+
+    def model(i: int) -> F64:
+        return stage_at_nodes(plan.stages[i], part)
+
+    run = _ProgramRun(part, settings, {data[tl.id].tool_number: tl for tl in tools},
+                      plan.stock_top, plan.tolerance, _stretch_models(numbers, model), reach,
+                      verify, max_bytes, overlap)
+    try:
+        stages = _scanline_stages(part, plan, cl_heights, data, clear, rapid_feed, regions, run)
+    except BaseException:
+        run.abort()
+        raise
+    return _finish(run, stages, settings, (t, c), overlap)
+
+
+def _scanline_stages(part: ZMap, plan: ScanlinePlan, cl_heights: CLHeights,
+                     data: Mapping[str, CuttingData], clear: float, rapid_feed: float,
+                     regions: Sequence[NDArray[np.bool_] | None], run: _ProgramRun
+                     ) -> list[StagePath]:
+    """Every stage's path in order, each handed to ``run`` as soon as it is laid."""
     stages: list[StagePath] = []
     before: F64 | None = None
     bounds = PartBounds(part)  # the part's block bounds, built once for every stage
@@ -213,34 +338,30 @@ def scanline_toolpaths(part: ZMap, plan: ScanlinePlan, cl_heights: CLHeights = s
         # the bound is a grid per stage: pass it on, keep none (Rushmore: 42 of 2.9 MB)
         before = path.stock_after
         stages.append(replace(path, stock_after=None))
-    timings = [("paths", time.perf_counter() - t)]
-    cpu = [("paths", time.process_time() - c)]
-
-    def model(i: int) -> F64:
-        return stage_at_nodes(plan.stages[i], part)
-
-    return _finish(part, stages, settings, plan.stock_top, plan.tolerance,
-                   _merge_models(stages, model) if verify else [], verify, max_bytes, reach,
-                   timings, cpu)
+        run.submit(stages[-1])
+    return stages
 
 
-def _merge_models(stages: list[StagePath], model: Callable[[int], F64]) -> list[F64 | None]:
+def _stretch_models(numbers: Sequence[int], model: Callable[[int], F64]
+                    ) -> Callable[[int], F64 | None]:
     """The model after each tool stretch (consecutive stages with the same tool number form
-    one stretch in the parsed program: its last model), ``model(i)`` the model of stage
-    ``i`` at the part's nodes (built for the stretches' last stages only)."""
-    out: list[F64 | None] = []
-    for i, p in enumerate(stages):
-        if i + 1 < len(stages) and stages[i + 1].cutting.tool_number == p.cutting.tool_number:
-            continue
-        out.append(model(i))
-    return out
+    one stretch in the parsed program: its last model) as ``s -> model``; ``model(i)`` the
+    model of stage ``i`` at the part's nodes (built when the stretch is measured)."""
+    last = [i for i in range(len(numbers))
+            if i + 1 == len(numbers) or numbers[i + 1] != numbers[i]]
+
+    def of(s: int) -> F64 | None:
+        return model(last[s]) if s < len(last) else None
+
+    return of
 
 
 def contour_toolpaths(part: ZMap, plan: ContourPlan, *,
                       cutting: Mapping[str, CuttingData] | None = None,
                       clearance: float | None = None, tolerance: float = 0.05,
                       stepover_fraction: float = 0.4, rapid_feed: float = DEFAULT_RAPID_FEED,
-                      verify: bool = True, max_bytes: int | None = None) -> Toolpaths:
+                      verify: bool = True, max_bytes: int | None = None,
+                      overlap: bool | None = None) -> Toolpaths:
     """Contour paths of every stage of a plan, the program and its simulation.
 
     Parameters
@@ -250,6 +371,8 @@ def contour_toolpaths(part: ZMap, plan: ContourPlan, *,
     stepover_fraction : float
         Clearing ring distance as a fraction of the tool diameter, in (0, 0.5] so that
         rings are less than a radius apart.
+    overlap : bool, optional
+        As :func:`scanline_toolpaths`.
     """
     if not (math.isfinite(stepover_fraction) and 0.0 < stepover_fraction <= 0.5):
         raise InvalidInputError("stepover", f"must lie in (0, 0.5] of the diameter, got "
@@ -258,16 +381,25 @@ def contour_toolpaths(part: ZMap, plan: ContourPlan, *,
     tools = list(dict.fromkeys(s.tool for s in plan.stages))
     data = tool_numbers(tools, cutting)
     settings = ProgramSettings(clearance=clear, rapid_feed=rapid_feed)
-    t = time.perf_counter()
-    stages = [contour_stage_path(part, st, i, data[st.tool.id], clearance=clear,
-                                 tolerance=tolerance,
-                                 stepover=stepover_fraction * st.tool.diameter)
-              for i, st in enumerate(plan.stages)]
-    timings = [("paths", time.perf_counter() - t)]
+    overlap = _cores() >= 2 if overlap is None else overlap
+    t, c = time.perf_counter(), time.process_time()
 
     def model(i: int) -> F64:
         st = plan.stages[i]
         return cells_at_fine_nodes(st.model, st.scale, part.shape)
 
-    return _finish(part, stages, settings, plan.stock_top, tolerance,
-                   _merge_models(stages, model) if verify else [], verify, max_bytes, None, timings)
+    run = _ProgramRun(part, settings, {data[tl.id].tool_number: tl for tl in tools},
+                      plan.stock_top, tolerance,
+                      _stretch_models([data[st.tool.id].tool_number for st in plan.stages],
+                                      model), None, verify, max_bytes, overlap)
+    stages: list[StagePath] = []
+    try:
+        for i, st in enumerate(plan.stages):
+            stages.append(contour_stage_path(part, st, i, data[st.tool.id], clearance=clear,
+                                             tolerance=tolerance,
+                                             stepover=stepover_fraction * st.tool.diameter))
+            run.submit(stages[-1])
+    except BaseException:
+        run.abort()
+        raise
+    return _finish(run, stages, settings, (t, c), overlap)

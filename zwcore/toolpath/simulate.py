@@ -11,9 +11,11 @@ envelope (it removes nothing, ``<= 0`` over the stock) and its gouge is that mov
 
 from __future__ import annotations
 
+import functools
 import itertools
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -22,12 +24,12 @@ from zwcore.errors import InvalidInputError
 from zwcore.grid.tools import Tool
 from zwcore.grid.zmap import ZMap
 from zwcore.toolpath import sweep as sweep_mod
-from zwcore.toolpath._repeats import repeat_of
+from zwcore.toolpath._repeats import RepeatTable
 from zwcore.toolpath.parse import ParsedProgram
 from zwcore.toolpath.sweep import BlockBounds, GridFrame, arc_chords, block_size, sweep_moves
 
-__all__ = ["ProgramCheck", "StageCheck", "simulate_program", "simulate_stretch", "stock_grid",
-           "tool_spans"]
+__all__ = ["ProgramCheck", "ProgramSimulation", "StageCheck", "StretchRun", "simulate_program",
+           "simulate_stretch", "stock_grid", "tool_spans"]
 
 F64 = NDArray[np.float64]
 
@@ -163,50 +165,195 @@ def stock_grid(stock: F64 | float, part: ZMap) -> F64:
     return np.ascontiguousarray(grid, dtype=np.float64).copy()
 
 
+class _Grow:
+    """A 1-d array appended to in pieces (doubling; a view of what is in it)."""
+
+    def __init__(self, dtype: type) -> None:
+        self._a: NDArray[Any] = np.empty(0, dtype)
+        self._n = 0
+
+    def extend(self, v: NDArray[Any]) -> None:
+        n = self._n + len(v)
+        if n > len(self._a):
+            a = np.empty(max(2 * n, 1024), self._a.dtype)
+            a[:self._n] = self._a[:self._n]
+            self._a = a
+        self._a[self._n:n] = v
+        self._n = n
+
+    @property
+    def values(self) -> NDArray[Any]:
+        return self._a[:self._n]
+
+
+class StretchRun:
+    """One tool stretch simulated on a stock grid in place, its moves coming in pieces
+    (:meth:`add`, in program order); :meth:`check` measures it. Repeats are looked up among
+    every earlier piece's moves and a piece's first move trails the last one swept before
+    it, so any split gives the stock and the figures of the whole stretch at once.
+
+    Parameters
+    ----------
+    stock : (ny, nx) float64
+        C-contiguous, lowered in place.
+    part : ZMap
+    tool : Tool
+    model : (ny, nx) float64 or None, or a callable giving it
+        The stretch's stage model (called by :meth:`check`).
+    """
+
+    def __init__(self, stock: F64, part: ZMap, tool: Tool,
+                 model: F64 | Callable[[], F64 | None] | None) -> None:
+        self.stock, self.part, self.tool, self.model = stock, part, tool, model
+        self.before = stock.copy()
+        self.frame = GridFrame(part.x0, part.y0, part.dx, part.dy, part.shape)
+        spacing = min(part.dx, part.dy)
+        self.sagitta = ARC_SAGITTA_FRACTION * spacing
+        # blocks of nodes a move provably leaves alone are skipped (the same stock, the
+        # same figures wherever they are > 0: ``sweep_moves``)
+        self.bounds = (BlockBounds(self.frame, stock, part.z, block_size(tool.radius, spacing))
+                       if SKIP_BLOCKS and tool.radius >= sweep_mod.MIN_BLOCK_RADIUS * spacing
+                       else None)
+        self.repeats = RepeatTable()
+        self.last: tuple[F64, F64, float, bool] | None = None  # the last move swept
+        self.number = -1
+        self.moves = 0
+        self.over_part = _Grow(np.float64)  # per straight piece, for repeats' lookups
+        self.rapid_pen = -np.inf
+        self.below = _Grow(np.int64)
+        self.lengths = _Grow(np.float64)
+        self.feed = _Grow(np.bool_)
+        self.met = _Grow(np.bool_)
+
+    def add(self, prog: ParsedProgram, a: int, b: int) -> None:
+        """Run moves ``a..b-1`` of ``prog`` (the stretch's next ones) on the stock."""
+        if self.number < 0:
+            self.number = int(prog.tool[a])
+        p0, p1, grow, owner = _as_segments(prog, a, b, self.sagitta)
+        rapid = prog.motion[owner] == 0
+        radius = self.tool.radius + grow
+        over_stock, over_part = np.zeros(len(p0)), np.full(len(p0), -np.inf)
+        # a move that repeats one that already cut removes nothing and gouges as that one did
+        first = len(self.over_part.values)
+        src = (self.repeats.add(p0, p1, radius, ~rapid) if SKIP_REPEATS
+               else np.full(len(p0), -1, np.int64))
+        new = np.flatnonzero(src < 0)
+        over_stock[new], over_part[new] = sweep_moves(
+            self.frame, p0[new], p1[new], radius[new], self.tool.kind == "ball", self.stock,
+            ref=self.part.z, apply=~rapid[new], bounds=self.bounds, trail=SKIP_TRAILING,
+            before=self.last)
+        if len(new):
+            k = new[-1]
+            self.last = (p0[k].copy(), p1[k].copy(), float(radius[k]), bool(~rapid[k]))
+        self.over_part.extend(over_part)
+        every = self.over_part.values  # a repeat's source was swept (here or before)
+        rep = np.flatnonzero(src >= 0)
+        every[first + rep] = every[src[rep]]
+        over_part = every[first:]
+        met = np.zeros(b - a, bool)
+        met[owner[over_stock > CUT_EPS] - a] = True
+        self.met.extend(met)
+        self.below.extend(owner[over_part > CUT_EPS] - a + self.moves)
+        d = prog.end[a:b] - prog.start[a:b]
+        lengths = np.sqrt(np.einsum("ij,ij->i", d, d))
+        lengths[~np.isfinite(lengths)] = 0.0
+        self.lengths.extend(lengths)
+        self.feed.extend(prog.motion[a:b] != 0)
+        pen = over_stock[rapid]
+        if len(pen):
+            self.rapid_pen = max(self.rapid_pen, float(pen.max()))
+        self.moves += b - a
+
+    def check(self) -> StageCheck:
+        """The stretch's figures, its moves so far run."""
+        stock, part = self.stock, self.part
+        model = self.model() if callable(self.model) else self.model
+        over = None if model is None else stock - model
+        feed, met, lengths = self.feed.values, self.met.values, self.lengths.values
+        return StageCheck(
+            tool_number=self.number, moves=self.moves,
+            over_model_max=None if over is None else float(over.max()),
+            over_model_p95=None if over is None else float(np.percentile(over, 95)),
+            gouge=float(max(0.0, (part.z - stock).max())),
+            # a retract from a cutting position touches the stock it just cut (a tie)
+            rapid_in_material=self.rapid_pen if self.rapid_pen > TIE_EPS else 0.0,
+            removed_volume=float((self.before - stock).sum() * part.cell_area),
+            air_feed_length=float(lengths[feed & ~met].sum()),
+            feed_length=float(lengths[feed].sum()),
+            below_part_moves=len(np.unique(self.below.values)))
+
+
 def simulate_stretch(stock: F64, part: ZMap, prog: ParsedProgram, a: int, b: int, tool: Tool,
                      model: F64 | None) -> StageCheck:
     """Run moves ``a..b-1`` of one tool on ``stock`` (in place) and measure them."""
-    before = stock.copy()
-    frame = GridFrame(part.x0, part.y0, part.dx, part.dy, part.shape)
-    p0, p1, grow, owner = _as_segments(prog, a, b, ARC_SAGITTA_FRACTION * min(part.dx, part.dy))
-    rapid = prog.motion[owner] == 0
-    radius = tool.radius + grow
-    over_stock, over_part = np.zeros(len(p0)), np.full(len(p0), -np.inf)
-    # a move that repeats one that already cut removes nothing and gouges as that one did
-    src = (repeat_of(p0, p1, radius, ~rapid) if SKIP_REPEATS
-           else np.full(len(p0), -1, np.int64))
-    new = np.flatnonzero(src < 0)
-    # blocks of nodes a move provably leaves alone are skipped (the same stock, the same
-    # figures wherever they are > 0: ``sweep_moves``)
-    spacing = min(part.dx, part.dy)
-    bounds = (BlockBounds(frame, stock, part.z, block_size(tool.radius, spacing))
-              if SKIP_BLOCKS and tool.radius >= sweep_mod.MIN_BLOCK_RADIUS * spacing else None)
-    over_stock[new], over_part[new] = sweep_moves(frame, p0[new], p1[new], radius[new],
-                                                  tool.kind == "ball", stock, ref=part.z,
-                                                  apply=~rapid[new], bounds=bounds,
-                                                  trail=SKIP_TRAILING)
-    rep = np.flatnonzero(src >= 0)
-    over_part[rep] = over_part[src[rep]]
-    met = np.zeros(b - a, bool)
-    met[owner[over_stock > CUT_EPS] - a] = True
-    below = np.unique(owner[over_part > CUT_EPS])
-    d = prog.end[a:b] - prog.start[a:b]
-    lengths = np.sqrt(np.einsum("ij,ij->i", d, d))
-    lengths[~np.isfinite(lengths)] = 0.0
-    feed = prog.motion[a:b] != 0
-    rapid_pen = over_stock[rapid]
-    over = None if model is None else stock - model
-    return StageCheck(
-        tool_number=int(prog.tool[a]), moves=b - a,
-        over_model_max=None if over is None else float(over.max()),
-        over_model_p95=None if over is None else float(np.percentile(over, 95)),
-        gouge=float(max(0.0, (part.z - stock).max())),
-        # a retract from a cutting position touches the stock it just cut (a tie, not a cut)
-        rapid_in_material=float(rapid_pen.max()) if len(rapid_pen) and rapid_pen.max() > TIE_EPS
-        else 0.0,
-        removed_volume=float((before - stock).sum() * part.cell_area),
-        air_feed_length=float(lengths[feed & ~met].sum()),
-        feed_length=float(lengths[feed].sum()), below_part_moves=len(below))
+    run = StretchRun(stock, part, tool, model)
+    run.add(prog, a, b)
+    return run.check()
+
+
+class ProgramSimulation:
+    """A parsed program simulated as it comes, piece by piece (:meth:`add`: what
+    :class:`~zwcore.toolpath.parse.ProgramReader` returns for each piece of text);
+    :meth:`check` gives what :func:`simulate_program` gives for the whole program.
+
+    Parameters are those of :func:`simulate_program`; ``stage_models`` may be a callable
+    ``s -> model`` of the ``s``-th tool stretch (called when the stretch is measured, so that
+    it needs to exist only then).
+    """
+
+    def __init__(self, tools: Mapping[int, Tool], part: ZMap, stock: F64 | float, *,
+                 tolerance: float,
+                 stage_models: Sequence[F64 | None] | Callable[[int], F64 | None] | None = None,
+                 reach: NDArray[np.bool_] | None = None) -> None:
+        self.tools, self.part, self.tolerance, self.reach = tools, part, tolerance, reach
+        self.models = stage_models
+        self.machined = stock_grid(stock, part)
+        self.stages: list[StageCheck] = []
+        self.run: StretchRun | None = None
+        self.mismatch = 0.0
+
+    def _model(self, s: int) -> F64 | None:
+        m = self.models
+        if m is None:
+            return None
+        if callable(m):
+            return m(s)
+        return m[s] if s < len(m) else None
+
+    def add(self, prog: ParsedProgram) -> None:
+        """Run the next piece's moves; a tool change closes the stretch before it."""
+        self.mismatch = max(self.mismatch, prog.arc_radius_mismatch)
+        for a, b in tool_spans(prog):
+            number = int(prog.tool[a])
+            if self.run is not None and self.run.number != number:
+                self.stages.append(self.run.check())
+                self.run = None
+            if self.run is None:
+                if number not in self.tools:
+                    raise InvalidInputError("tools", f"the program uses T{number}, not in the "
+                                            "tool table")
+                self.run = StretchRun(self.machined, self.part, self.tools[number],
+                                      functools.partial(self._model, len(self.stages)))
+            self.run.add(prog, a, b)
+
+    def check(self) -> ProgramCheck:
+        """The figures of the program run so far (the last stretch closed)."""
+        if self.run is not None:
+            self.stages.append(self.run.check())
+            self.run = None
+        machined, part, reach = self.machined, self.part, self.reach
+        stages = self.stages
+        left = machined - part.z
+        region = left if reach is None else left[reach]
+        fmax = float(region.max()) if region.size else 0.0
+        return ProgramCheck(
+            gouge=float(max(0.0, -left.min())),
+            below_part_moves=sum(x.below_part_moves for x in stages),
+            final_over_part_max=fmax,
+            final_over_part_p95=float(np.percentile(region, 95)) if region.size else 0.0,
+            within_tolerance=fmax <= self.tolerance,
+            rapid_in_material=max((x.rapid_in_material for x in stages), default=0.0),
+            arc_radius_mismatch=self.mismatch, stages=tuple(stages), machined=machined)
 
 
 def simulate_program(prog: ParsedProgram, tools: Mapping[int, Tool], part: ZMap,
@@ -235,22 +382,7 @@ def simulate_program(prog: ParsedProgram, tools: Mapping[int, Tool], part: ZMap,
     -------
     ProgramCheck
     """
-    machined = stock_grid(stock, part)
-    stages: list[StageCheck] = []
-    for s, (a, b) in enumerate(tool_spans(prog)):
-        number = int(prog.tool[a])
-        if number not in tools:
-            raise InvalidInputError("tools", f"the program uses T{number}, not in the tool table")
-        model = stage_models[s] if stage_models is not None and s < len(stage_models) else None
-        stages.append(simulate_stretch(machined, part, prog, a, b, tools[number], model))
-    left = machined - part.z
-    region = left if reach is None else left[reach]
-    fmax = float(region.max()) if region.size else 0.0
-    return ProgramCheck(
-        gouge=float(max(0.0, -left.min())),
-        below_part_moves=sum(x.below_part_moves for x in stages),
-        final_over_part_max=fmax,
-        final_over_part_p95=float(np.percentile(region, 95)) if region.size else 0.0,
-        within_tolerance=fmax <= tolerance,
-        rapid_in_material=max((x.rapid_in_material for x in stages), default=0.0),
-        arc_radius_mismatch=prog.arc_radius_mismatch, stages=tuple(stages), machined=machined)
+    sim = ProgramSimulation(tools, part, stock, tolerance=tolerance, stage_models=stage_models,
+                            reach=reach)
+    sim.add(prog)
+    return sim.check()

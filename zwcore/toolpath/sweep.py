@@ -170,7 +170,8 @@ def _centres(frame: GridFrame, b: int) -> tuple[F64, F64, F64, F64]:
 
 def sweep_moves(frame: GridFrame, p0: F64, p1: F64, radius: F64 | float, ball: bool,
                 stock: F64, ref: F64 | None = None, apply: NDArray[np.bool_] | bool = True,
-                bounds: BlockBounds | None = None, trail: bool = False) -> tuple[F64, F64]:
+                bounds: BlockBounds | None = None, trail: bool = False,
+                before: tuple[F64, F64, float, bool] | None = None) -> tuple[F64, F64]:
     """Sweep a tool along straight moves, in order, over a stock grid.
 
     Parameters
@@ -199,6 +200,9 @@ def sweep_moves(frame: GridFrame, p0: F64, p1: F64, radius: F64 | float, ball: b
         (the same sphere computed from either move); ``over_stock`` and ``over_ref`` are
         exact where ``> 0`` except that such a node's value is counted with the move
         before only.
+    before : (p0, p1, radius, apply) of the move swept before these, optional
+        For ``trail``: the first move may continue it (moves swept in pieces trail as they
+        do swept at once).
 
     Returns
     -------
@@ -235,8 +239,13 @@ def sweep_moves(frame: GridFrame, p0: F64, p1: F64, radius: F64 | float, ball: b
     if bounds is not None:
         bb = bounds
         kernel, unit = sweep_kernel, bb.block * bb.coarse  # bands of whole coarse blocks
-        cuts = (trailing_cuts(p0, p1, r, app) if trail and ball
-                else np.full(n, -1.0))
+        cuts = np.full(n, -1.0)
+        if trail and ball and before is None:
+            cuts = trailing_cuts(p0, p1, r, app)
+        elif trail and ball and before is not None:
+            b0, b1, br, bapp = before
+            cuts = trailing_cuts(np.vstack([b0, p0]), np.vstack([b1, p1]), np.r_[br, r],
+                                 np.r_[bapp, app])[1:]
         tail = (int(bb.block), int(bb.coarse), bb.cx, bb.cy, bb.hx, bb.hy, bb.st, bb.ccx,
                 bb.ccy, bb.chx, bb.chy, bb.cst, bool(bb.remeasure), bool(bb.test), cuts)
     rows = -(-ny // unit)

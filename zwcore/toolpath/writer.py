@@ -10,6 +10,7 @@ appears when the feed changes.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable, Iterator
 
 import numpy as np
@@ -18,7 +19,7 @@ from numpy.typing import NDArray
 
 from zwcore.toolpath.program import ARC_CCW, ARC_CW, RAPID, ProgramSettings, StagePath
 
-__all__ = ["iter_program", "program_text"]
+__all__ = ["PROGRAM_HEAD", "PROGRAM_TAIL", "iter_program", "iter_stage", "program_text"]
 
 #: Blocks per yielded chunk of text.
 CHUNK_BLOCKS = 20_000
@@ -75,6 +76,49 @@ def _blocks_text(codes: NDArray[np.int8], xyzij: NDArray[np.int64], feed10: NDAr
     return at
 
 
+@njit(cache=True, nogil=True)
+def _motion_words(kind: NDArray[np.int8], end: NDArray[np.float64],
+                  center: NDArray[np.float64], plunge: NDArray[np.bool_], sx: float,
+                  sy: float, sz: float, scale: float, half: float, feed: float,
+                  plunge_feed: float, codes: NDArray[np.int8], xyzij: NDArray[np.int64],
+                  feed10: NDArray[np.int64]) -> int:
+    """The blocks a control sees, in one pass over a stage's moves: each end point rounded
+    to the output precision (``rint(v * scale) / scale``, as ``np.round`` computes it), a
+    move kept when it moves by more than ``half`` a unit in some axis or is an arc (a
+    zero-length arc is a full circle), ``I J`` from the rounded previous point (the
+    previous move's, kept or not), ``F`` where a feed block's feed differs from the
+    previous feed block's. Fills ``codes`` (G code), ``xyzij`` (X Y Z I J in units of
+    ``1 / scale``) and ``feed10`` (F in tenths, -1: none); returns the blocks kept."""
+    px, py, pz = sx, sy, sz
+    last, fed = 0.0, False
+    m = 0
+    for k in range(len(kind)):
+        ex = np.rint(end[k, 0] * scale) / scale
+        ey = np.rint(end[k, 1] * scale) / scale
+        ez = np.rint(end[k, 2] * scale) / scale
+        kd = kind[k]
+        if (abs(ex - px) > half or abs(ey - py) > half or abs(ez - pz) > half
+                or kd >= ARC_CW):
+            code = 0 if kd == RAPID else (3 if kd == ARC_CCW else (2 if kd == ARC_CW else 1))
+            codes[m] = code
+            xyzij[m, 0] = np.int64(np.rint(ex * scale))
+            xyzij[m, 1] = np.int64(np.rint(ey * scale))
+            xyzij[m, 2] = np.int64(np.rint(ez * scale))
+            i = np.rint((center[k, 0] - px) * scale) / scale
+            j = np.rint((center[k, 1] - py) * scale) / scale
+            xyzij[m, 3] = 0 if math.isnan(i) else np.int64(np.rint(i * scale))
+            xyzij[m, 4] = 0 if math.isnan(j) else np.int64(np.rint(j * scale))
+            feed10[m] = -1
+            if code != 0:
+                f = plunge_feed if plunge[k] else feed
+                if not fed or f != last:
+                    feed10[m] = np.int64(np.rint(np.rint(f * 10.0) / 10.0 * 10.0))
+                last, fed = f, True
+            m += 1
+        px, py, pz = ex, ey, ez
+    return m
+
+
 def _body(codes: NDArray[np.int8], xyzij: NDArray[np.int64], feed10: NDArray[np.int64],
           decimals: int) -> Iterator[str]:
     """The motion blocks as text, :data:`CHUNK_BLOCKS` at a time."""
@@ -90,8 +134,8 @@ def _body(codes: NDArray[np.int8], xyzij: NDArray[np.int64], feed10: NDArray[np.
 
 
 def _stage_blocks(path: StagePath, settings: ProgramSettings) -> Iterator[str]:
-    """The stage's text: setup blocks one per item, then its motion blocks in chunks (each
-    item ends without a line feed except the chunks, which end with one)."""
+    """The stage's text: setup blocks one per item, then its motion blocks in chunks (every
+    item ends with a line feed)."""
     dec = settings.decimals
     cd, tool = path.cutting, path.tool
     clear = _num(settings.clearance, dec)
@@ -103,33 +147,35 @@ def _stage_blocks(path: StagePath, settings: ProgramSettings) -> Iterator[str]:
     sx, sy = round(float(path.start[0]), dec), round(float(path.start[1]), dec)
     yield f"G00 X{_num(sx, dec)} Y{_num(sy, dec)}\n"
     mv = path.moves
-    end = np.round(mv.end, dec) + 0.0  # + 0.0 turns -0.0 into 0.0
-    prev = np.vstack([[sx, sy, round(settings.clearance, dec)], end[:-1]])
-    ij = np.round(mv.center - prev[:, :2], dec) + 0.0
-    moved = np.any(np.abs(end - prev) > 0.5 * 10.0 ** -dec, axis=1)
-    keep = moved | (mv.kind >= ARC_CW)
-    codes = np.where(mv.kind == RAPID, 0, np.where(mv.kind == ARC_CCW, 3, np.where(
-        mv.kind == ARC_CW, 2, 1))).astype(np.int8)[keep]
-    feeds = np.where(mv.plunge, cd.plunge_feed, cd.feed)[keep]
-    # F where the feed of a feed block differs from the previous feed block's
-    fed = np.flatnonzero(codes != 0)
-    change = np.ones(len(fed), bool)
-    change[1:] = feeds[fed[1:]] != feeds[fed[:-1]]
-    feed10 = np.full(len(codes), -1, np.int64)
-    feed10[fed[change]] = np.rint(np.round(feeds[fed[change]], 1) * 10.0).astype(np.int64)
-    scale = 10.0 ** dec
-    xyzij = np.rint(np.column_stack([end, np.nan_to_num(ij)])[keep] * scale).astype(np.int64)
+    n = len(mv)
+    codes, feed10 = np.empty(n, np.int8), np.empty(n, np.int64)
+    xyzij = np.empty((n, 5), np.int64)
+    kept = _motion_words(mv.kind, mv.end, mv.center, mv.plunge, sx, sy,
+                         round(settings.clearance, dec), 10.0 ** dec, 0.5 * 10.0 ** -dec,
+                         float(cd.feed), float(cd.plunge_feed), codes, xyzij, feed10)
+    codes, xyzij, feed10 = codes[:kept], xyzij[:kept], feed10[:kept]
     yield from _body(codes, xyzij, feed10, dec)
     yield f"G00 Z{clear}\n"
     yield "M5\n"
 
 
+#: The program's first and last blocks (around its stages' text).
+PROGRAM_HEAD = "%\n(zwplan tool paths)\nG17 G21 G90 G94\n"
+PROGRAM_TAIL = "M30\n%\n"
+
+
+def iter_stage(path: StagePath, settings: ProgramSettings) -> Iterator[str]:
+    """One stage's text as chunks (tool change to ``M5``), each ending with a line feed."""
+    return _stage_blocks(path, settings)
+
+
 def iter_program(paths: Iterable[StagePath], settings: ProgramSettings) -> Iterator[str]:
-    """The program as chunks of text (for streaming); their concatenation is the program."""
-    yield "%\n(zwplan tool paths)\nG17 G21 G90 G94\n"
+    """The program as chunks of text (for streaming); their concatenation is the program:
+    :data:`PROGRAM_HEAD`, each stage's :func:`iter_stage`, :data:`PROGRAM_TAIL`."""
+    yield PROGRAM_HEAD
     for path in paths:
         yield from _stage_blocks(path, settings)
-    yield "M30\n%\n"
+    yield PROGRAM_TAIL
 
 
 def program_text(paths: Iterable[StagePath], settings: ProgramSettings) -> str:
