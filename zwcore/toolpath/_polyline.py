@@ -18,6 +18,7 @@ from numpy.typing import NDArray
 from zwcore.grid.tools import Tool
 from zwcore.grid.zmap import ZMap
 from zwcore.toolpath import sweep as sweep_mod
+from zwcore.toolpath._measure_kernel import measure_moves
 from zwcore.toolpath._scan_links import _block_max
 from zwcore.toolpath.sweep import BlockBounds, GridFrame, block_size, sweep_moves
 
@@ -212,11 +213,14 @@ class PartGouge:
         return low
 
     def _fine(self, p0: F64, p1: F64) -> F64:
-        skip = None
-        if self.tool.radius >= sweep_mod.MIN_BLOCK_RADIUS * min(self.part.dx, self.part.dy):
-            # the exact sweep skips blocks of nodes the move clears
-            skip = self.bounds.skip_blocks(measure_block(self.tool.radius,
-                                                         min(self.part.dx, self.part.dy)))
+        spacing = min(self.part.dx, self.part.dy)
+        if self.tool.radius < sweep_mod.MIN_BLOCK_RADIUS * spacing:
+            # too narrow for skip blocks: the measure-only plain sweep (the plain kernel's
+            # values bit for bit, without the stock and the gathered indices)
+            return measure_moves(self.part.x0, self.part.y0, self.part.dx, self.part.dy,
+                                 p0, p1, self.tool.radius, self.ball, self.part.z)
+        # the exact sweep skips blocks of nodes the move clears
+        skip = self.bounds.skip_blocks(measure_block(self.tool.radius, spacing))
         _, gouge = sweep_moves(self.frame, p0, p1, self.tool.radius, self.ball,
                                self.part.z, ref=self.part.z, apply=False, bounds=skip)
         return gouge
