@@ -184,6 +184,8 @@ class PartGouge:
         none) and coarse looks, a move whose gouge against every ``block``-th node row and
         column already exceeds its threshold gets that lower bound (``> above``), not
         swept over every node: a caller that only needs to know it lies above."""
+        if not self.looks:  # every move swept over the part's nodes: no index shuffling
+            return self._fine(p0, p1) if len(p0) else np.full(0, -np.inf)
         out = np.full(len(p0), -np.inf)
         todo = np.arange(len(p0))
         for frame, coarse, rho in self.looks:
@@ -291,16 +293,32 @@ def _split(points: F64, u: F64, gouge: F64, breaks: BOOL, measure: PartGouge, to
         u1 = np.stack([mids[-1][2], ub], axis=1).ravel()
         k1 = np.stack([km, kb], axis=1).ravel()
         pa, pb, ua, ub, ka, kb = a[again], b[again], u0[again], u1[again], k0[again], k1[again]
-    keys = np.concatenate([np.arange(len(points), dtype=np.float64)] + [m[0] for m in mids])
-    order = np.argsort(keys, kind="stable")
-    pts = np.concatenate([points] + [m[1] for m in mids])[order]
-    uu = np.concatenate([u] + [m[2] for m in mids])[order]
-    at = keys[order]
-    out = np.empty(len(pts) - 1)
-    out[np.searchsorted(at, np.arange(len(points) - 1, dtype=np.float64))] = gouge
+    # where each point lands: a point of the polyline after the midpoints before it (those
+    # of the segments before its own), a midpoint after the points and midpoints before it
+    mk = np.concatenate([m[0] for m in mids])
+    mo = np.argsort(mk, kind="stable")
+    mk = mk[mo]
+    seg = mk.astype(np.int64)  # the polyline segment each midpoint lies on
+    before = np.zeros(len(points), np.int64)
+    before[1:] = np.cumsum(np.bincount(seg, minlength=len(points) - 1))
+    at_p = np.arange(len(points)) + before
+    at_m = np.arange(len(mk)) + seg + 1
+    m_total = len(points) + len(mk)
+    pts = np.empty((m_total, 3))
+    pts[at_p] = points
+    pts[at_m] = np.concatenate([m[1] for m in mids])[mo]
+    uu = np.empty(m_total)
+    uu[at_p] = u
+    uu[at_m] = np.concatenate([m[2] for m in mids])[mo]
+    out = np.empty(m_total - 1)
+    out[at_p[:-1]] = gouge
     # a halved segment's start is its first half's (or that half's first half's ...) start
     for k, g in leaves:
-        out[np.searchsorted(at, k)] = g
+        whole = k == np.floor(k)
+        pos = np.empty(len(k), np.int64)
+        pos[whole] = at_p[k[whole].astype(np.int64)]
+        pos[~whole] = at_m[np.searchsorted(mk, k[~whole])]
+        out[pos] = g
     return pts, uu, out
 
 
@@ -364,10 +382,15 @@ def follow_part(points: F64, u: F64, fixed: BOOL, breaks: BOOL, measure: PartGou
         np.add.at(back, idx[bad + 1], -1)
         keep |= np.cumsum(back)[:-1] > 0
         new = np.flatnonzero(keep)
-        known = np.isin(new[:-1], idx[:-1]) & np.isin(new[1:], idx[1:])
+        # a chord between two vertices kept before is unchanged (every vertex kept before
+        # is kept: none lies between them): its measure stays, found by its start's rank
+        # among the vertices kept before; the pieces of returned ones are swept
+        rank = np.full(len(points), -1, np.int64)
+        rank[idx] = np.arange(len(idx))
+        start, end = rank[new[:-1]], rank[new[1:]]
+        known = (start >= 0) & (end >= 0)
         g = np.empty(len(new) - 1)
-        # an unchanged chord keeps its measure; the pieces of returned ones are swept
-        g[known] = gouge[np.searchsorted(idx, new[:-1][known])]
+        g[known] = gouge[start[known]]
         fresh = np.flatnonzero(~known)
         a, b, link = points[new[fresh]], points[new[fresh + 1]], breaks[new[fresh]]
         g[fresh] = _measure_moves(measure, a, b, _above(a, b, refine, min_len, rounds > 0),
