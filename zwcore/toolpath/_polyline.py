@@ -322,15 +322,50 @@ def _split(points: F64, u: F64, gouge: F64, breaks: BOOL, measure: PartGouge, to
     return pts, uu, out
 
 
-def follow_part(points: F64, u: F64, fixed: BOOL, breaks: BOOL, measure: PartGouge, *,
+class LazyPoints:
+    """Tip positions ``(round(x0 + x, decimals), round(y0 + y, decimals), z)`` built only
+    where they are read: :func:`follow_part` reads every height but the positions of the
+    kept vertices only (about half of a raster's points on Mount Rushmore's Ø1 passes),
+    and rounding is per element, so the points taken are those of the whole array.
+
+    Parameters
+    ----------
+    x0, y0 : float
+        Offsets added before rounding, mm.
+    x, y, z : (n,) float64
+    decimals : int
+    """
+
+    def __init__(self, x0: float, y0: float, x: F64, y: F64, z: F64, decimals: int):
+        self.x0, self.y0, self.x, self.y, self.z = x0, y0, x, y, z
+        self.decimals = decimals
+
+    def __len__(self) -> int:
+        return len(self.z)
+
+    def take(self, idx: NDArray[np.int64]) -> F64:
+        """``(len(idx), 3)``: the points at ``idx``."""
+        out = np.empty((len(idx), 3))
+        np.round(self.x0 + self.x[idx], self.decimals, out=out[:, 0])
+        np.round(self.y0 + self.y[idx], self.decimals, out=out[:, 1])
+        out[:, 2] = self.z[idx]
+        return out
+
+
+def _take(points: F64 | LazyPoints, idx: NDArray[np.int64]) -> F64:
+    return points.take(idx) if isinstance(points, LazyPoints) else points[idx]
+
+
+def follow_part(points: F64 | LazyPoints, u: F64, fixed: BOOL, breaks: BOOL, measure: PartGouge, *,
                 chord: float, refine: float, min_len: float, decimals: int = 4,
                 rounds: int = 8, moves_at_breaks: bool = True) -> tuple[F64, F64, float]:
     """Thin a CL polyline, then lift it so that no segment's sweep reaches below the part.
 
     Parameters
     ----------
-    points : (n, 3) float64
-        Tip positions, xy at the output precision.
+    points : (n, 3) float64 or LazyPoints
+        Tip positions, xy at the output precision (:class:`LazyPoints`: built only for
+        the vertices that are kept).
     u : (n,) float64
         Parameter along the path (increasing between fixed vertices).
     fixed : (n,) bool
@@ -364,14 +399,16 @@ def follow_part(points: F64, u: F64, fixed: BOOL, breaks: BOOL, measure: PartGou
         Largest lift applied, mm.
     """
     if len(points) < 2:
-        return points.copy(), u.copy(), 0.0
+        return _take(points, np.arange(len(points))).copy(), u.copy(), 0.0
+    z = points.z if isinstance(points, LazyPoints) else points[:, 2]
     # a band of chord/2 each way: a chord under the CL polyline gouges by about as much and is
     # lifted by its exact gouge below, so the path ends within ``chord`` above the CL polyline
-    keep = thin(u, points[:, 2], fixed, 0.5 * chord, 0.5 * chord)
+    keep = thin(u, z, fixed, 0.5 * chord, 0.5 * chord)
     idx = np.flatnonzero(keep)
+    kept = _take(points, idx)
     # a chord that gouges by more than ``refine`` gets its dropped points back, or is
     # halved (a link never): its exact gouge is not needed
-    a, b, link = points[idx[:-1]], points[idx[1:]], breaks[idx[:-1]]
+    a, b, link = kept[:-1], kept[1:], breaks[idx[:-1]]
     gap = idx[1:] - idx[:-1] > 1
     above = np.where(gap, refine, _above(a, b, refine, min_len, rounds > 0))
     gouge = _measure_moves(measure, a, b, above, link, moves_at_breaks)
@@ -392,12 +429,13 @@ def follow_part(points: F64, u: F64, fixed: BOOL, breaks: BOOL, measure: PartGou
         g = np.empty(len(new) - 1)
         g[known] = gouge[start[known]]
         fresh = np.flatnonzero(~known)
-        a, b, link = points[new[fresh]], points[new[fresh + 1]], breaks[new[fresh]]
+        kept = _take(points, new)
+        a, b, link = kept[fresh], kept[fresh + 1], breaks[new[fresh]]
         g[fresh] = _measure_moves(measure, a, b, _above(a, b, refine, min_len, rounds > 0),
                                   link, moves_at_breaks)
         idx, gouge = new, g
     seg_breaks = breaks[idx[:-1]]
-    pts, uu, gouge = _split(points[idx], u[idx], gouge, seg_breaks, measure, refine,
+    pts, uu, gouge = _split(kept, u[idx], gouge, seg_breaks, measure, refine,
                             min_len, decimals, rounds)
     lift = np.where(gouge > 0.0, gouge, 0.0)
     vert = np.zeros(len(pts))
