@@ -39,10 +39,10 @@ import zwcore.toolpath.simulate as sim_mod  # noqa: E402
 from bench.bench_scanline_core import synthetic  # noqa: E402
 from zwcore import ZMap, plan_scanline  # noqa: E402
 from zwcore.toolpath import parse_program, scanline_toolpaths, simulate_program  # noqa: E402
-from zwcore.toolpath._polyline import PartBounds  # noqa: E402
+from zwcore.toolpath._polyline import PartBounds, measure_block  # noqa: E402
 from zwcore.toolpath.plans import _refine_tolerance, tool_numbers  # noqa: E402
 from zwcore.toolpath.scanline_paths import scanline_stage_path, sim_cl_heights  # noqa: E402
-from zwcore.toolpath.sweep import MIN_BLOCK_RADIUS, block_size  # noqa: E402
+from zwcore.toolpath.sweep import MIN_BLOCK_RADIUS  # noqa: E402
 
 DATA = next((p for p in (ROOT.parent / "shared" / "data" / "mount_rush_zmap_0.1mm.npy",
              Path("/work/shared/data/mount_rush_zmap_0.1mm.npy")) if p.exists()),
@@ -120,7 +120,7 @@ def rushmore() -> None:
     t = time.perf_counter()
     for tool in {plan.stages[i].tool for i in rough}:  # the part side's skip blocks too
         if tool.radius >= MIN_BLOCK_RADIUS * min(part.dx, part.dy):
-            bounds.skip_blocks(block_size(tool.radius, min(part.dx, part.dy)))
+            bounds.skip_blocks(measure_block(tool.radius, min(part.dx, part.dy)))
     t_first = time.perf_counter() - t + sum(path(i, False) for i in rough)
     cpu = [0.0, 0.0, 0.0]
     print(f"roughing stages on stage models, first pass (it builds the part's block bounds, "

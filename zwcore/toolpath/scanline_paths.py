@@ -25,7 +25,7 @@ from zwcore.grid.feeds import DEFAULT_RAPID_FEED
 from zwcore.grid.tools import Tool
 from zwcore.grid.zmap import ZMap
 from zwcore.scanline.results import ScanlineStage
-from zwcore.toolpath._polyline import PartBounds, PartGouge, follow_part
+from zwcore.toolpath._polyline import LazyPoints, PartBounds, PartGouge, follow_part
 from zwcore.toolpath._scallop import fine_points, finishing_closing, scallop_segments
 from zwcore.toolpath._scan_cl import CLHeights, _stage_cl, sim_cl_heights
 from zwcore.toolpath._scan_links import StockBound, merge_stretches, region_stretches
@@ -105,7 +105,8 @@ class _Polyline:
                ) -> tuple[F64, float, F64]:
         part, dec = self.part, self.decimals
         x, y = (u, v) if self.along_x else (v, u)
-        pts = np.column_stack([np.round(part.x0 + x, dec), np.round(part.y0 + y, dec), z])
+        # the points are built only where follow_part reads them (the kept vertices)
+        pts = LazyPoints(part.x0, part.y0, x, y, z, dec)
         out, su, lift = follow_part(pts, su, fixed, breaks, self.measure, chord=self.chord,
                                     refine=self.refine, min_len=self.min_len, decimals=dec,
                                     moves_at_breaks=moves_at_breaks)
