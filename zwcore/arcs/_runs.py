@@ -10,6 +10,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from zwcore.arcs._anchors import StraightRuns
+from zwcore.arcs._ends import redo_ends
+from zwcore.arcs._ends import turned as _turned
 from zwcore.arcs._geometry import rotate
 from zwcore.arcs._lines import refit_along_straight_runs, refit_flat_ends
 from zwcore.arcs._pieces import Piece, ToleranceBand
@@ -94,6 +96,7 @@ class _RunFitter:
         #: every run so far was fitted in closed form
         self.all_closed_form = True
         self._band: ToleranceBand | None = None
+        self._back: ToleranceBand | None = None
         #: the levels of the plain fit of each run ``(a, b, work)``: a refit goes on from
         #: one of them (:func:`_resume_level`)
         self._levels: dict[tuple[int, int, float], list[list[State]]] = {}
@@ -156,7 +159,22 @@ class _RunFitter:
                 got = refit_flat_ends(lambda anchors: self.beam(a, b, t_start, anchors, work),
                                       got, self.prep.samples, a, b, self.prep.tol,
                                       band=self._band, **pins)
+        # the last run of a wrapping curve ends at the smooth first point, not at a
+        # corner: the first run starts with its end tangent (not a free one)
+        pin_end = pins["pin_end"] and not (self.prep.wrap and b == self.prep.bounds[-1])
+        if (pin_end or pins["pin_start"]) and not got[1] and len(got[0]) >= 2:
+            got = (redo_ends(got[0], self._band, self._back_band, a, b, pins["pin_start"],
+                             pin_end, lambda pcs: self._rank(pcs, a, b, pins)), [])
         return got
+
+    def _back_band(self) -> ToleranceBand:
+        """The band of the reversed samples (for :func:`redo_ends`), built once."""
+        if self._back is None:
+            assert self._band is not None
+            self._back = ToleranceBand(
+                np.ascontiguousarray(self.prep.samples[::-1]), self.prep.tol,
+                self._band.work_tol / self.prep.tol, self.max_radius)
+        return self._back
 
     def _refit(self, a: int, b: int, t_start: FloatArray | None, work: float,
                pins: dict[str, bool]) -> RunFit:
@@ -300,18 +318,6 @@ def _reverse_runs(prep: Prepared, max_radius: float | None, bridge: bool,
         if not forced and len(pieces) < len(got[0]):
             results[r] = (_turned(pieces, prep.samples), [])
     return fit.all_closed_form
-
-
-def _turned(pieces: list[Piece], samples: FloatArray) -> list[Piece]:
-    """The chain ``pieces`` of the reversed ``samples`` ``(M, 2)`` run the other way:
-    the same pieces in the input's direction, indexing ``samples``."""
-    m = len(samples) - 1
-    out = []
-    for pc in reversed(pieces):
-        j = m - pc.k
-        out.append(Piece(pc.end.copy(), -pc.t_end, -pc.kappa, pc.length, m - pc.j, j,
-                         pc.p.copy(), -pc.t, float(np.hypot(*(samples[j] - pc.p)))))
-    return out
 
 
 def sweep_loop_start(
