@@ -25,7 +25,7 @@ from hypothesis import strategies as st
 from tests.test_plan8_threads import _fillet_part
 from tests.test_scanline_stock_sweep import _cases
 from zwcore.grid.tools import default_tools
-from zwcore.scanline import _reach, _regions, _stock_lines, _threads
+from zwcore.scanline import _reach, _regions, _stock_lines, _threads, _tool_choice
 from zwcore.scanline import _stock_kernels as _k
 from zwcore.scanline import _stock_sweep as _sw
 from zwcore.scanline._stock_state import BLOCK, block_max
@@ -143,3 +143,23 @@ def test_one_thread_chain_search_computes_only_what_it_uses(
     assert runs[0][0] == runs[1][0] and runs[0][1] == runs[1][1]
     assert runs[0][3] == runs[1][3]  # the same candidates went on
     assert len(runs[0][0]) >= 2  # a chain with rest balls: the pair search ran
+
+
+def test_roughing_rests_in_pairs_equal_one_by_one(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The roughing choice's simulated rests (``_tool_choice._rests``): on two threads, two
+    at a time, the values of :func:`ball_rest` one by one; on one thread computed only
+    as asked for."""
+    x = np.arange(40) * 0.5
+    xx, yy = np.meshgrid(x, x)
+    model = np.maximum(np.abs(xx - 10.0), np.abs(yy - 10.0)) * 0.8  # a sharp-cornered pit
+    lev = _tool_choice.Level(5, model, 0.5, 0.5, model.shape, (39, 39), 1.0, None, 0, 0)
+    radii = [3.0, 2.5, 2.0, 1.5, 1.0]
+    want = [_tool_choice.ball_rest(lev, r) for r in radii]
+    assert len(set(want)) > 1  # the radii leave different rests
+    asked = _counting(monkeypatch, _tool_choice, "ball_rest")
+    monkeypatch.setattr(_threads, "WORKERS", 2)
+    assert list(_tool_choice._rests(lev, radii)) == want
+    monkeypatch.setattr(_threads, "WORKERS", 1)
+    asked.clear()
+    got = _tool_choice._rests(lev, radii)
+    assert [next(got), next(got)] == want[:2] and len(asked) == 2
