@@ -12,7 +12,9 @@ One helper thread per process (the machine this serves has two cores; the pyrami
 :mod:`zwcore.mrr._pyramid` keeps its own for the same reason). A call made *from* the
 helper thread runs both callables on it in turn (no nested hand-off, no deadlock), and so
 does every call while :data:`WORKERS` is 1 (the bench's one-thread figures, the tests'
-reference).
+reference). Callers ask :func:`split` before splitting their work: where the halves would
+run in turn a split only adds its own cost (a band's halo, set-up done twice, a
+speculative second candidate), so there the work runs whole, as on one thread.
 """
 
 from __future__ import annotations
