@@ -30,7 +30,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from zwcore.scanline._threads import both
+from zwcore.scanline._threads import both, split
 from zwcore.sim import nodal_closing, nodal_drop_cutter, refine_rest
 
 __all__ = ["BallReach", "ball_reach", "concave_radii", "within_distance"]
@@ -116,7 +116,7 @@ def concave_radii(z: F64, dx: float, dy: float) -> F64:
     out = np.empty(z.shape)
     z = np.require(z, dtype=np.float64, requirements=["C", "W"])  # (a read-only grid: copied)
     ny = z.shape[0]
-    if z.size < THREAD_NODES:
+    if z.size < THREAD_NODES or not split():
         _concave_kernel(z, float(dx), float(dy), out, 0, ny)
     else:  # two bands of rows on two threads (_threads): the same values
         h = ny // 2

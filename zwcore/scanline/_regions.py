@@ -59,7 +59,7 @@ from zwcore.scanline._chain_time import (
 from zwcore.scanline._reach import ball_reach, concave_radii, within_distance
 from zwcore.scanline._reach_cut import CuttingRegion, material_grid
 from zwcore.scanline._reach_grid import _pool_any, _upsample_where
-from zwcore.scanline._threads import both, each
+from zwcore.scanline._threads import both, each, split
 from zwcore.sim import RegionBox
 
 __all__ = ["TOOL_CHANGE_MIN", "TOOL_CHANGE_MM", "Chain", "MainBall", "finishing_chain",
@@ -256,7 +256,9 @@ class _Reach:
         if the first's option leaves it a chance (as the one-by-one search would have
         gone on to it); its figures depend on the pair alone, so the items are the same
         as one by one. A pair of two balls of one radius (a custom library) is not run
-        side by side (they would share one :class:`CuttingRegion`)."""
+        side by side (they would share one :class:`CuttingRegion`), nor is any pair on one
+        thread (:func:`._threads.split`: the second would be computed in turn, maybe for
+        nothing)."""
         if self._last_prev != prev:
             self._last_prev, self._material = prev, {}
 
@@ -269,7 +271,8 @@ class _Reach:
             if low(a) >= least():
                 return
             b = order[n + 1] if n + 1 < len(order) else None
-            if b is None or low(b) >= least() or balls[a].radius == balls[b].radius:
+            if (b is None or low(b) >= least() or balls[a].radius == balls[b].radius
+                    or not split()):
                 yield a, self.cost(prev, balls[a])
                 n += 1
                 continue

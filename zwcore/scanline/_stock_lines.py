@@ -14,7 +14,7 @@ from numpy.typing import NDArray
 from zwcore.scanline import _stock_kernels as _k
 from zwcore.scanline import _stock_sweep as _sw
 from zwcore.scanline._stock_state import BLOCK, Positions
-from zwcore.scanline._threads import both, split_at_weight
+from zwcore.scanline._threads import both, split, split_at_weight
 
 __all__ = ["SWEEP_RUN_SHARE", "SWEEP_SHARE", "THREAD_WORK", "LineSweep", "drop_nodes",
            "per_position"]
@@ -86,8 +86,10 @@ class LineSweep:
 
     @property
     def threaded(self) -> bool:
-        """Whether the sweep is worth two threads (:data:`THREAD_WORK`)."""
-        return self.starts.size > 2 and float(self.line_work.sum()) >= THREAD_WORK
+        """Whether the sweep is worth two threads (:data:`THREAD_WORK`; never on one, where
+        the halves would run in turn and the split's halo only add work)."""
+        return (self.starts.size > 2 and float(self.line_work.sum()) >= THREAD_WORK
+                and split())
 
     def cut(self, stock: F64, cl: F64, touched: NDArray[np.bool_],
             skip: NDArray[np.bool_]) -> None:
@@ -163,7 +165,7 @@ def per_position(kernel: Callable[[int, int], F64], n: int, r: float, dx: float,
     depends on those alone), split between two threads at ``n / 2`` when its estimated
     node visits reach :data:`THREAD_WORK`: the same values."""
     work = n * math.pi * (r / dx + 1.0) * (r / dy + 1.0) * BLOCK_VISIT_SHARE
-    if n < 2 or work < THREAD_WORK:
+    if n < 2 or work < THREAD_WORK or not split():
         return kernel(0, n)
     h = n // 2
     first, second = both(lambda: kernel(0, h), lambda: kernel(h, n))

@@ -12,7 +12,9 @@ One helper thread per process (the machine this serves has two cores; the pyrami
 :mod:`zwcore.mrr._pyramid` keeps its own for the same reason). A call made *from* the
 helper thread runs both callables on it in turn (no nested hand-off, no deadlock), and so
 does every call while :data:`WORKERS` is 1 (the bench's one-thread figures, the tests'
-reference).
+reference). Callers ask :func:`split` before splitting their work: where the halves would
+run in turn a split only adds its own cost (a band's halo, set-up done twice, a
+speculative second candidate), so there the work runs whole, as on one thread.
 """
 
 from __future__ import annotations
@@ -27,15 +29,24 @@ from typing import TypeVar
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["WORKERS", "both", "each", "overlap_seconds", "split_at_weight"]
+__all__ = ["WORKERS", "both", "cores", "each", "overlap_seconds", "split", "split_at_weight"]
 
 T = TypeVar("T")
 U = TypeVar("U")
 V = TypeVar("V")
 
-#: Threads the plan uses: 2 where the machine has two cores or more, else 1. The bench
-#: and the tests set it to 1 for the one-thread reference.
-WORKERS = 2 if (os.cpu_count() or 1) >= 2 else 1
+
+def cores() -> int:
+    """Cores this process may run on (its affinity mask: a container or ``taskset`` may
+    allow fewer than the machine has, and a second thread on one core only adds work)."""
+    if hasattr(os, "sched_getaffinity"):
+        return len(os.sched_getaffinity(0))
+    return os.cpu_count() or 1  # pragma: no cover (no affinity mask on this platform)
+
+
+#: Threads the plan uses: 2 where the process may run on two cores or more, else 1. The
+#: bench and the tests set it to 1 for the one-thread reference.
+WORKERS = 2 if cores() >= 2 else 1
 
 _pool: ThreadPoolExecutor | None = None
 _pool_lock = threading.Lock()
@@ -64,11 +75,18 @@ def _forget_pool() -> None:
 os.register_at_fork(after_in_child=_forget_pool)
 
 
+def split() -> bool:
+    """Whether a caller here should split its work in two for :func:`both`: two workers,
+    and not on the helper thread (there :func:`both` runs the halves in turn, and a split
+    only adds its own cost: a band's halo, a second pass over shared set-up)."""
+    return WORKERS >= 2 and not getattr(_local, "helper", False)
+
+
 def both(first: Callable[[], T], second: Callable[[], U]) -> tuple[T, U]:
     """``(first(), second())``, ``first`` on the helper thread while ``second`` runs here
     (in turn when :data:`WORKERS` is 1 or when called from the helper thread). The
     first error of either is raised, after both have ended."""
-    if WORKERS < 2 or getattr(_local, "helper", False):
+    if not split():
         return first(), second()
     spent = [0.0, 0.0]
 

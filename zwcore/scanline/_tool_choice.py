@@ -23,8 +23,9 @@ replace it without touching the passes or the figures.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
+from functools import partial
 from typing import NamedTuple
 
 import numpy as np
@@ -37,6 +38,7 @@ from zwcore.scanline._models import Target
 from zwcore.scanline._reach import ball_reach
 from zwcore.scanline._regions import Chain
 from zwcore.scanline._rest import RestRegion, RestShared
+from zwcore.scanline._threads import both, split
 
 __all__ = ["REST_FLUTE_SHARE", "REST_MAX_CELLS", "Level", "Stage", "StageReach", "ball_rest",
            "choose", "finishing_stages", "levels"]
@@ -154,6 +156,24 @@ def ball_rest(lev: Level, radius: float) -> float:
     return float(ball_reach(model, lev.sx, lev.sy, radius, REST_RESOLUTION).rest.max())
 
 
+def _rests(lev: Level, radii: list[float]) -> Iterator[float]:
+    """:func:`ball_rest` of ``lev`` for ``radii`` in turn, computed as they are asked for;
+    two at a time on two threads (:mod:`zwcore.scanline._threads`: the second alongside
+    the first, maybe for nothing when the first is admitted). Each rest depends on the
+    level and the radius alone: the same values as one by one."""
+    n = 0
+    while n < len(radii):
+        if n + 1 < len(radii) and split():
+            first, second = both(partial(ball_rest, lev, radii[n]),
+                                 partial(ball_rest, lev, radii[n + 1]))
+            yield first
+            yield second
+            n += 2
+        else:
+            yield ball_rest(lev, radii[n])
+            n += 1
+
+
 def finishing_stages(levels: list[Level], chain: Chain, tolerance: float,
                      library: Sequence[Tool], part: ZMap) -> list[Stage]:
     """The finishing stages (main ball first), all on the part itself.
@@ -188,6 +208,12 @@ def choose(levels: list[Level], library: Sequence[Tool], notes: list[str],
     for lev in reversed(levels[:-1]):
         spacing = min(lev.sx, lev.sy)
         pick: tuple[Tool, float, str] | None = None
+        # the simulated rests the loop below may ask for, in its order (library order,
+        # radius descending)
+        stop = next((n for n, t in enumerate(library) if t.radius <= current.radius),
+                    len(library))
+        rests = _rests(lev, [t.radius for t in library[:stop] if spacing < t.diameter
+                             and t.radius <= REST_MAX_CELLS * spacing])
         for tool in library:
             if tool.radius <= current.radius:
                 break
@@ -195,7 +221,7 @@ def choose(levels: list[Level], library: Sequence[Tool], notes: list[str],
             if spacing >= tool.diameter:
                 continue  # the ball cannot follow this level's scan lines
             if tool.radius <= REST_MAX_CELLS * spacing:
-                rest = ball_rest(lev, tool.radius)
+                rest = next(rests)
                 if rest <= allowance:
                     pick = (tool, rest, f"simulated reach on the level's nodes: leaves at most "
                             f"{rest:.4g} mm, within {allowance:g} mm (a quarter of the next "

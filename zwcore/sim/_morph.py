@@ -82,9 +82,11 @@ def _dilate_rows(zp: NDArray[np.floating], s: NDArray[np.floating], ny: int, nx:
 #: on two threads (below, starting the thread costs more than the second core saves).
 THREAD_WORK = 1 << 24
 
-#: Threads a large dilation uses: 2 on a machine with two cores or more (1: one thread,
-#: the tests' and the bench's reference).
-THREADS = 2 if (os.cpu_count() or 1) >= 2 else 1
+#: Threads a large dilation uses: 2 where the process may run on two cores or more (its
+#: affinity mask, not the machine's count; 1: one thread, the tests' and the bench's
+#: reference).
+THREADS = 2 if (len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity")
+                else os.cpu_count() or 1) >= 2 else 1
 
 
 @njit([f"void({t}[:, ::1], {t}[:, :, ::1], i8[::1], i8[::1], b1[::1], i8, i8, i8, "
