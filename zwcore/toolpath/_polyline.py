@@ -18,7 +18,7 @@ from numpy.typing import NDArray
 from zwcore.grid.tools import Tool
 from zwcore.grid.zmap import ZMap
 from zwcore.toolpath import sweep as sweep_mod
-from zwcore.toolpath._measure_kernel import measure_moves
+from zwcore.toolpath._measure_kernel import measure_moves, measure_moves_bounded
 from zwcore.toolpath._scan_links import _block_max
 from zwcore.toolpath.sweep import BlockBounds, GridFrame, block_size, sweep_moves
 
@@ -32,6 +32,12 @@ LOOK_FACTOR = 4
 #: pay (1025² part, the measure's moves, CPU: Ø8 blocks of 4, the sweep's, 1.88 s; of 8,
 #: 1.39 s; of 12, 1.57 s; Ø20 the same within noise for 8 to 12 (its sweep's: 9)).
 MEASURE_BLOCK_MIN = 8
+#: The exact measure of tools with block bounds: chained chords bounded in groups, each
+#: chord's blocks read best first (:func:`~zwcore.toolpath._measure_kernel.
+#: measure_bounded`; 1025² Ø20 finishing and Ø8 rest chords, CPU: 1.25 -> 0.89 s and
+#: 0.92 -> 0.70 s); ``False``: the sweep kernel over every block it cannot skip (the same
+#: values wherever they are positive: the same paths; tests compare both).
+BEST_FIRST = True
 #: A lower bound must exceed a threshold by this much (mm) to stand for the exact gouge
 #: (the subset's nodes are placed by another product of the spacing: ulps apart).
 LOWER_MARGIN = 1e-6
@@ -185,7 +191,7 @@ class PartGouge:
         column already exceeds its threshold gets that lower bound (``> above``), not
         swept over every node: a caller that only needs to know it lies above."""
         if not self.looks:  # every move swept over the part's nodes: no index shuffling
-            return self._fine(p0, p1) if len(p0) else np.full(0, -np.inf)
+            return self._fine(p0, p1, above) if len(p0) else np.full(0, -np.inf)
         out = np.full(len(p0), -np.inf)
         todo = np.arange(len(p0))
         for frame, coarse, rho in self.looks:
@@ -201,7 +207,8 @@ class PartGouge:
             out[todo] = self._every(p0[todo], p1[todo])
             todo = todo[~(out[todo] - LOWER_MARGIN > above[todo])]
         if len(todo):
-            out[todo] = self._fine(p0[todo], p1[todo])
+            out[todo] = self._fine(p0[todo], p1[todo],
+                                   None if above is None else above[todo])
         return out
 
     def _every(self, p0: F64, p1: F64) -> F64:
@@ -214,7 +221,9 @@ class PartGouge:
                              apply=False)
         return low
 
-    def _fine(self, p0: F64, p1: F64) -> F64:
+    def _fine(self, p0: F64, p1: F64, above: F64 | None = None) -> F64:
+        """Gouge against every node of the part: exact where ``> 0``, except above
+        ``above`` (a lower bound over it, as :meth:`__call__` allows)."""
         spacing = min(self.part.dx, self.part.dy)
         if self.tool.radius < sweep_mod.MIN_BLOCK_RADIUS * spacing:
             # too narrow for skip blocks: the measure-only plain sweep (the plain kernel's
@@ -223,6 +232,9 @@ class PartGouge:
                                  p0, p1, self.tool.radius, self.ball, self.part.z)
         # the exact sweep skips blocks of nodes the move clears
         skip = self.bounds.skip_blocks(measure_block(self.tool.radius, spacing))
+        if BEST_FIRST:  # the blocks best first, no further than the largest value found
+            return measure_moves_bounded(self.frame, p0, p1, self.tool.radius, self.ball,
+                                         self.part.z, skip, above)
         _, gouge = sweep_moves(self.frame, p0, p1, self.tool.radius, self.ball,
                                self.part.z, ref=self.part.z, apply=False, bounds=skip)
         return gouge
