@@ -5,7 +5,8 @@ without skipping (bit for bit wherever a move gouges) and a brute-force node loo
 groups' sag bound; and :func:`~zwcore.toolpath._polyline.follow_part` with the new
 measure against the former one (the same path, bit for bit) and against a brute-force
 drop-cutter (no vertex below the part's nodes' drop-cutter height, no move through a
-node), on random surfaces and scan lines."""
+node), on random surfaces and scan lines; the plain kernel with the gathering it shares
+with the measure-only kernel against the former one."""
 
 from __future__ import annotations
 
@@ -15,6 +16,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from numba import njit
 
 from tests.test_paths9_measure import _brute, _lines, _moves
 from tests.test_toolpath import wavy_part
@@ -25,6 +27,8 @@ from zwcore.toolpath import _polyline as pl
 from zwcore.toolpath import sweep as sweep_mod
 from zwcore.toolpath._measure_kernel import _group_end, measure_moves_bounded
 from zwcore.toolpath._polyline import PartBounds, PartGouge, follow_part, measure_block
+from zwcore.toolpath._sweep_kernel import _move_box, _row_span
+from zwcore.toolpath._sweep_plain import _envelopes, plain_kernel
 from zwcore.toolpath.sweep import BlockBounds, GridFrame, sweep_moves
 
 
@@ -200,3 +204,76 @@ def test_a_move_alone_and_vertical_moves(radius):
     np.testing.assert_array_equal(got[pos], want[pos])
     assert np.all(got[~pos] <= 0)
     assert math.isinf(got[np.isinf(want)].max(initial=-math.inf)) or not np.isinf(want).any()
+
+
+@njit(cache=False, nogil=True, fastmath={"contract", "arcp", "reassoc"})
+def _plain_reference(x0, y0, dx, dy, p0, p1, r, ball, apply, stock, ref, over_stock,
+                     over_ref):  # pragma: no cover - compiled
+    """The plain kernel before its gathering was shared (session 9): node indices gathered
+    with the offsets, the stock compared and lowered through them."""
+    nx = stock.shape[1]
+    ny = stock.shape[0]
+    sflat = stock.reshape(-1)
+    rflat = ref.reshape(-1)
+    cap = 1024
+    wxs, wys, env, sws = np.empty(cap), np.empty(cap), np.empty(cap), np.empty(cap)
+    idx = np.empty(cap, np.int64)
+    for s in range(p0.shape[0]):
+        sx, sy, sz = p0[s, 0], p0[s, 1], p0[s, 2]
+        ax, ay, vz = p1[s, 0] - sx, p1[s, 1] - sy, p1[s, 2] - sz
+        rr = r[s]
+        k0, k1, i0, i1 = _move_box(x0, y0, dx, dy, nx, 0, ny, sx, sy, ax, ay, rr)
+        over_stock[s] = over_ref[s] = -math.inf
+        if k1 < k0 or i1 < i0:
+            continue
+        box = (k1 - k0 + 1) * (i1 - i0 + 1)
+        if box > cap:
+            cap = 2 * box
+            wxs, wys, env, sws = np.empty(cap), np.empty(cap), np.empty(cap), np.empty(cap)
+            idx = np.empty(cap, np.int64)
+        ylo, yhi = min(sy, sy + ay), max(sy, sy + ay)
+        m = 0
+        for i in range(i0, i1 + 1):
+            qy = y0 + i * dy
+            ka, kb = _row_span(qy, x0, dx, k0, k1, sx, sy, ax, ay, ylo, yhi, rr)
+            if kb < ka:
+                continue
+            wy = sy - qy
+            sw = math.sqrt(max(rr * rr * (1.0 - 1e-10) - wy * wy, 0.0))
+            for k in range(ka, kb + 1):
+                wxs[m] = sx - (x0 + k * dx)
+                wys[m] = wy
+                sws[m] = sw
+                idx[m] = i * nx + k
+                m += 1
+        _envelopes(m, wxs, wys, sws, sx, sy, sz, ax, ay, vz, rr, ball, env)
+        best_s, best_r = -math.inf, -math.inf
+        for j in range(m):
+            q, e = idx[j], env[j]
+            best_s = max(best_s, sflat[q] - e)
+            best_r = max(best_r, rflat[q] - e)
+            if apply[s]:
+                sflat[q] = min(sflat[q], e)
+        over_stock[s] = best_s
+        over_ref[s] = best_r
+
+
+@settings(max_examples=15, deadline=None)
+@given(st.integers(0, 10_000), st.floats(0.2, 1.5), st.booleans())
+def test_plain_kernel_with_the_shared_gathering_is_the_former_one(seed, radius, along):
+    """The plain kernel reading the stock a row's run at a time (the gathering shared with
+    the measure-only kernel): the same stock and figures bit for bit as the former one,
+    moves that cut and moves that only measure, in order."""
+    part = wavy_part(41, 0.1, seed, amplitude=0.5)
+    rng = np.random.default_rng(seed)
+    p0, p1 = _moves(part, rng, 150, along)
+    n = len(p0)
+    r = np.full(n, radius)
+    app = rng.random(n) < 0.7
+    args = (part.x0, part.y0, part.dx, part.dy, p0, p1, r, True, app)
+    got = [part.z + 0.3, np.full(n, np.nan), np.full(n, np.nan)]
+    want = [part.z + 0.3, np.full(n, np.nan), np.full(n, np.nan)]
+    plain_kernel(*args, got[0], part.z, got[1], got[2], 0, part.shape[0])
+    _plain_reference(*args, want[0], part.z, want[1], want[2])
+    for g, w in zip(got, want, strict=True):
+        np.testing.assert_array_equal(g, w)

@@ -3,15 +3,13 @@ sweep kernels return as ``over_ref`` for moves that cut nothing, without the sto
 also read and keep.
 
 **Tools too narrow for block bounds** (:func:`measure_plain`): what
-:func:`~zwcore.toolpath._sweep_plain.plain_kernel` returns, without the stock and the node
-indices it gathers.
-
-The nodes within reach of a move are gathered row by row as the plain kernel gathers them
-and their envelope comes from the same function
-(:func:`~zwcore.toolpath._sweep_plain._envelopes`, one call per move over all its
-nodes), so every node's envelope, and so the maximum, is the plain kernel's bit for bit
-(tests compare them); only the comparison reads the surface a row's contiguous run at a
-time instead of through gathered indices.
+:func:`~zwcore.toolpath._sweep_plain.plain_kernel` returns, without the stock. The nodes
+within reach of a move are gathered row by row by the plain kernel's own gathering
+(:func:`~zwcore.toolpath._sweep_plain.gather`, inlined into both) and their envelope comes
+from the same function (:func:`~zwcore.toolpath._sweep_plain._envelopes`, one call per
+move over all its nodes), so every node's envelope, and so the maximum, is the plain
+kernel's bit for bit (tests compare them); both read the surface a row's contiguous run
+at a time.
 
 **Tools with block bounds** (:func:`measure_bounded`): the sweep kernel's values wherever
 they are positive (the only ones a path reads: a lift, a split), for less. The part's
@@ -43,12 +41,11 @@ from zwcore.toolpath._sweep_kernel import (
     RIM,
     _move_box,
     _row_run,
-    _row_span,
     _runs,
     _spans,
     node_envelope,
 )
-from zwcore.toolpath._sweep_plain import _envelopes
+from zwcore.toolpath._sweep_plain import _envelopes, gather
 from zwcore.toolpath.sweep import BlockBounds, GridFrame
 
 F64 = NDArray[np.float64]
@@ -78,23 +75,8 @@ def measure_plain(x0: float, y0: float, dx: float, dy: float, p0: F64, p1: F64, 
         if box > cap:
             cap = 2 * box
             wxs, wys, env, sws = np.empty(cap), np.empty(cap), np.empty(cap), np.empty(cap)
-        ylo, yhi = min(sy, sy + ay), max(sy, sy + ay)
-        m = 0
-        nr = 0
-        for i in range(i0, i1 + 1):
-            qy = y0 + i * dy
-            ka, kb = _row_span(qy, x0, dx, k0, k1, sx, sy, ax, ay, ylo, yhi, r)
-            if kb < ka:  # never a range from a huge negative bound (it would wrap around)
-                continue
-            wy = sy - qy
-            sw = math.sqrt(max(r * r * (1.0 - 1e-10) - wy * wy, 0.0))
-            first[nr], ks[nr], rows[nr] = m, ka, i * nx
-            nr += 1
-            for k in range(ka, kb + 1):
-                wxs[m] = sx - (x0 + k * dx)
-                wys[m] = wy
-                sws[m] = sw
-                m += 1
+        m, nr = gather(x0, y0, dx, dy, nx, k0, k1, i0, i1, sx, sy, ax, ay, r, wxs, wys, sws,
+                       first, ks, rows)
         _envelopes(m, wxs, wys, sws, sx, sy, sz, ax, ay, vz, r, ball, env)
         best = -math.inf
         for t in range(nr):

@@ -17,6 +17,7 @@ from numpy.typing import NDArray
 from zwcore.toolpath._sweep_kernel import _move_box, _row_span, node_envelope
 
 F64 = NDArray[np.float64]
+I64 = NDArray[np.int64]
 
 
 @njit(cache=True, nogil=True, fastmath={"contract", "arcp", "reassoc", "nsz"},
@@ -95,20 +96,55 @@ def _envelopes(m: int, wxs: F64, wys: F64, sws: F64, sx: float, sy: float, sz: f
                       1.0 / math.sqrt(a * (a + vz * vz)), env)
 
 
+@njit(cache=True, nogil=True, fastmath={"contract", "arcp", "reassoc"}, inline="always")
+def gather(x0: float, y0: float, dx: float, dy: float, nx: int, k0: int, k1: int, i0: int,
+           i1: int, sx: float, sy: float, ax: float, ay: float, r: float, wxs: F64, wys: F64,
+           sws: F64, first: I64, ks: I64, rows: I64) -> tuple[int, int]:
+    """The nodes within ``r`` of a move's xy shadow, row by row over its box (rows
+    ``i0..i1``, columns ``k0..k1``): their offsets ``wxs, wys`` from the move's start and
+    each row's ``sws = sqrt(r² (1 - 1e-10) - w_y²)`` (clamped at 0), for :func:`_envelopes`;
+    per row that has any, ``first`` (where its nodes start in the gathered arrays), ``ks``
+    (its first column) and ``rows`` (``i * nx``). Returns the nodes ``m`` and the rows
+    ``nr`` gathered. Inlined into both kernels that gather (:func:`plain_kernel` and the
+    measure-only :func:`~zwcore.toolpath._measure_kernel.measure_plain`): the same
+    nodes, the same offsets."""
+    ylo, yhi = min(sy, sy + ay), max(sy, sy + ay)
+    m = 0
+    nr = 0
+    for i in range(i0, i1 + 1):
+        qy = y0 + i * dy
+        ka, kb = _row_span(qy, x0, dx, k0, k1, sx, sy, ax, ay, ylo, yhi, r)
+        if kb < ka:  # never a range from a huge negative bound (it would wrap around)
+            continue
+        wy = sy - qy
+        sw = math.sqrt(max(r * r * (1.0 - 1e-10) - wy * wy, 0.0))
+        first[nr], ks[nr], rows[nr] = m, ka, i * nx
+        nr += 1
+        for k in range(ka, kb + 1):
+            wxs[m] = sx - (x0 + k * dx)
+            wys[m] = wy
+            sws[m] = sw
+            m += 1
+    return m, nr
+
+
 @njit(cache=True, nogil=True, fastmath={"contract", "arcp", "reassoc"})
 def plain_kernel(x0: float, y0: float, dx: float, dy: float, p0: F64, p1: F64, r: F64,
                  ball: bool, apply: NDArray[np.bool_], stock: F64, ref: F64,
                  over_stock: F64, over_ref: F64, row_lo: int, row_hi: int) -> None:
     """Moves in order over the rows ``row_lo..row_hi - 1`` (a band: bands are independent).
 
-    Per move: gather the nodes within R of its xy shadow (row by row), evaluate the
-    envelope over all of them in one flat loop, then compare with and lower the stock."""
+    Per move: gather the nodes within R of its xy shadow (row by row, :func:`gather`),
+    evaluate the envelope over all of them in one flat loop, then compare with and lower
+    the stock, a row's contiguous run of nodes at a time."""
     nx = stock.shape[1]
     sflat = stock.reshape(-1)
     rflat = ref.reshape(-1)
     cap = 1024
     wxs, wys, env, sws = np.empty(cap), np.empty(cap), np.empty(cap), np.empty(cap)
-    idx = np.empty(cap, np.int64)
+    first = np.empty(stock.shape[0], np.int64)  # per row of the move's box: its run
+    ks = np.empty(stock.shape[0], np.int64)
+    rows = np.empty(stock.shape[0], np.int64)
     for s in range(p0.shape[0]):
         sx, sy, sz = p0[s, 0], p0[s, 1], p0[s, 2]
         ax, ay, vz = p1[s, 0] - sx, p1[s, 1] - sy, p1[s, 2] - sz
@@ -121,34 +157,25 @@ def plain_kernel(x0: float, y0: float, dx: float, dy: float, p0: F64, p1: F64, r
         if box > cap:
             cap = 2 * box
             wxs, wys, env, sws = np.empty(cap), np.empty(cap), np.empty(cap), np.empty(cap)
-            idx = np.empty(cap, np.int64)
-        ylo, yhi = min(sy, sy + ay), max(sy, sy + ay)
-        m = 0
-        for i in range(i0, i1 + 1):
-            qy = y0 + i * dy
-            ka, kb = _row_span(qy, x0, dx, k0, k1, sx, sy, ax, ay, ylo, yhi, rr)
-            if kb < ka:  # never a range from a huge negative bound (it would wrap around)
-                continue
-            wy = sy - qy
-            sw = math.sqrt(max(rr * rr * (1.0 - 1e-10) - wy * wy, 0.0))
-            for k in range(ka, kb + 1):
-                wxs[m] = sx - (x0 + k * dx)
-                wys[m] = wy
-                sws[m] = sw
-                idx[m] = i * nx + k
-                m += 1
+        m, nr = gather(x0, y0, dx, dy, nx, k0, k1, i0, i1, sx, sy, ax, ay, rr, wxs, wys, sws,
+                       first, ks, rows)
         _envelopes(m, wxs, wys, sws, sx, sy, sz, ax, ay, vz, rr, ball, env)
         best_s, best_r = -math.inf, -math.inf
-        if apply[s]:
-            for j in range(m):
-                q, e = idx[j], env[j]
-                best_s = max(best_s, sflat[q] - e)
-                best_r = max(best_r, rflat[q] - e)
-                sflat[q] = min(sflat[q], e)
-        else:
-            for j in range(m):
-                q, e = idx[j], env[j]
-                best_s = max(best_s, sflat[q] - e)
-                best_r = max(best_r, rflat[q] - e)
+        cut = apply[s]
+        for t in range(nr):
+            j0 = first[t]
+            j1 = first[t + 1] if t + 1 < nr else m
+            base = rows[t] + ks[t] - j0  # node ``base + j`` for gathered ``j``
+            if cut:
+                for j in range(j0, j1):
+                    q, e = base + j, env[j]
+                    best_s = max(best_s, sflat[q] - e)
+                    best_r = max(best_r, rflat[q] - e)
+                    sflat[q] = min(sflat[q], e)
+            else:
+                for j in range(j0, j1):
+                    q, e = base + j, env[j]
+                    best_s = max(best_s, sflat[q] - e)
+                    best_r = max(best_r, rflat[q] - e)
         over_stock[s] = best_s
         over_ref[s] = best_r
