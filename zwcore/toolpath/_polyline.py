@@ -187,9 +187,10 @@ class PartGouge:
     def __call__(self, p0: F64, p1: F64, above: F64 | None = None) -> F64:
         """Gouge of each move ``p0[i] -> p1[i]``, mm: exact where ``> 0`` (``-inf``:
         reaches no node), except that with ``above`` (per move, a threshold; ``inf``:
-        none) and coarse looks, a move whose gouge against every ``block``-th node row and
-        column already exceeds its threshold gets that lower bound (``> above``), not
-        swept over every node: a caller that only needs to know it lies above."""
+        none), a move may get a lower bound of its gouge above its threshold instead of the
+        exact value (a caller that only needs to know it lies above): with coarse looks,
+        its gouge against every ``block``-th node row and column; with block bounds
+        (:data:`BEST_FIRST`), the largest value of the first block read."""
         if not self.looks:  # every move swept over the part's nodes: no index shuffling
             return self._fine(p0, p1, above) if len(p0) else np.full(0, -np.inf)
         out = np.full(len(p0), -np.inf)
