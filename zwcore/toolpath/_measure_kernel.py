@@ -21,8 +21,9 @@ end lowered by the group's sag (at most :data:`GROUP_SAG` under it: a chord's en
 at most that much under the straight move's), and each chord bounds only the blocks the
 group keeps. Per chord the block of the largest bound is read first: what it finds
 (positive where the chord gouges) clears every block whose bound lies below, and the
-sweep kernel's own runs (:func:`~zwcore.toolpath._sweep_kernel._runs`, the same machine
-code for the nodes' values) read the rest.
+sweep kernel's runs without the stock (:func:`_kept_runs`, the nodes' values from the
+same :func:`~zwcore.toolpath._sweep_kernel._row_run`) read the rest; the row spans are
+worked out only over the candidate blocks' rows.
 """
 
 from __future__ import annotations
@@ -41,7 +42,6 @@ from zwcore.toolpath._sweep_kernel import (
     RIM,
     _move_box,
     _row_run,
-    _runs,
     _spans,
     node_envelope,
 )
@@ -191,6 +191,45 @@ def _block_nodes(x0: float, y0: float, dx: float, dy: float, b: int, i0: int, i1
     return best
 
 
+@njit(cache=True, nogil=True, fastmath={"contract", "arcp", "reassoc"})
+def _kept_runs(x0: float, y0: float, dx: float, dy: float, b: int, i0: int, i1: int, k0: int,
+               k1: int, rka: I64, rkb: I64, rsw: F64, sx: float, sy: float, sz: float,
+               ax: float, ay: float, vz: float, r: float, ball: bool, rflat: F64, nx: int,
+               keep: NDArray[np.bool_], env: F64) -> float:
+    """The largest ``ref`` minus envelope over the nodes of the blocks marked in ``keep``:
+    :func:`~zwcore.toolpath._sweep_kernel._runs` without the stock (each run of kept
+    blocks side by side in a row one contiguous stretch of nodes, its envelope from
+    :func:`~zwcore.toolpath._sweep_kernel._row_run`: the same values bit for bit)."""
+    best = -math.inf
+    vertical = ax * ax + ay * ay <= 1e-18
+    for bi in range(i0 // b, i1 // b + 1):
+        bk = k0 // b
+        while bk <= k1 // b:
+            if not keep[bi, bk]:
+                bk += 1
+                continue
+            bk_end = bk
+            while bk_end + 1 <= k1 // b and keep[bi, bk_end + 1]:
+                bk_end += 1
+            for i in range(max(i0, bi * b), min(i1, bi * b + b - 1) + 1):
+                ka, kb = max(bk * b, rka[i - i0]), min(bk_end * b + b - 1, rkb[i - i0])
+                if kb < ka:  # never a range from a huge negative bound (it would wrap)
+                    continue
+                n = kb - ka + 1
+                wy = sy - (y0 + i * dy)
+                if vertical:  # as the sweep kernel's runs have it
+                    for j in range(n):
+                        env[j] = node_envelope(sx - (sx - (x0 + (ka + j) * dx)), sy - wy, sx,
+                                               sy, sz, ax, ay, vz, r, ball)
+                else:
+                    _row_run(n, ka, sx, x0, dx, wy, rsw[i - i0], sz, ax, ay, vz, r, ball, env)
+                row = i * nx + ka
+                for j in range(n):
+                    best = max(best, rflat[row + j] - env[j])
+            bk = bk_end + 1
+    return best
+
+
 #: Most moves measured as one group (:func:`_group_end`).
 GROUP_MAX = 16
 #: Largest sag (mm) of a group's moves below the straight move from its first start to its
@@ -251,9 +290,9 @@ def measure_bounded(x0: float, y0: float, dx: float, dy: float, p0: F64, p1: F64
     tests only those. Per move, the block of the largest bound is read first; then the
     others whose bound is not below the largest value found (less ``MARGIN``: those below
     hold no larger one, so a positive result is the exact maximum), as the sweep kernel
-    reads them (:func:`~zwcore.toolpath._sweep_kernel._runs`: the same node values bit for
-    bit). A move whose first block already exceeds ``above[s]`` stops there (a lower bound
-    over the threshold: its caller needs no more)."""
+    reads them (:func:`_kept_runs`: the same node values bit for bit; the row spans of the
+    candidates' rows only). A move whose first block already exceeds ``above[s]`` stops
+    there (a lower bound over the threshold: its caller needs no more)."""
     ny, nx = ref.shape
     rflat = ref.reshape(-1)
     nb = st.shape[0] * st.shape[1]
@@ -266,7 +305,6 @@ def measure_bounded(x0: float, y0: float, dx: float, dy: float, p0: F64, p1: F64
     env = np.empty(b)
     wide = np.empty(nx)
     keep = np.zeros((st.shape[0], st.shape[1]), np.bool_)
-    lowcol = np.zeros((1, 1), np.bool_)  # never written: the runs only read
     rka, rkb = np.empty(ny, np.int64), np.empty(ny, np.int64)
     rsw = np.empty(ny)
     big = b * f
@@ -323,6 +361,11 @@ def measure_bounded(x0: float, y0: float, dx: float, dy: float, p0: F64, p1: F64
                     nt += 1
             if not nt:
                 continue
+            # the row spans of the candidates' rows only (the box's other rows are not read)
+            lo_b, hi_b = cbi[0], cbi[0]
+            for t in range(1, nt):
+                lo_b, hi_b = min(lo_b, cbi[t]), max(hi_b, cbi[t])
+            i0, i1 = max(i0, lo_b * b), min(i1, hi_b * b + b - 1)
             _spans(x0, y0, dx, dy, i0, i1, k0, k1, sx, sy, ax, ay, r, 0.0, 0.0, -math.inf,
                    rka, rkb, rsw)
             # the block of the largest bound first: where a move gouges it mostly gouges
@@ -345,9 +388,8 @@ def measure_bounded(x0: float, y0: float, dx: float, dy: float, p0: F64, p1: F64
                     keep[cbi[t], cbk[t]] = True
                     more = True
             if more:
-                _, rest = _runs(x0, y0, dx, dy, b, i0, i1, k0, k1, rka, rkb, rsw, sx, sy, sz,
-                                ax, ay, vz, r, ball, False, rflat, rflat, nx, keep, lowcol,
-                                wide)
+                rest = _kept_runs(x0, y0, dx, dy, b, i0, i1, k0, k1, rka, rkb, rsw, sx, sy,
+                                  sz, ax, ay, vz, r, ball, rflat, nx, keep, wide)
                 best = max(best, rest)
                 for t in range(nt):
                     keep[cbi[t], cbk[t]] = False
