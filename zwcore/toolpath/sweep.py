@@ -29,7 +29,12 @@ measured again as moves cut), ``e = max_q U(q) - P.(q - c)`` (``c`` the block's 
 and ``m = max U``; a block is skipped when
 
 - ``m`` lies under the move's lowest tip height (any tool), or its centre is further than
-  ``R`` plus the block's half extents from the move's line (no node reached), or
+  ``R`` plus the block's half diagonal from the move's xy *segment* (no node reached: a
+  node is reached only closer than ``R``, so blocks beyond the move's ends go too), or
+- (a ball: the rim bound) ``m`` lies under ``z_low + R - sqrt(R² - d²)``, ``d`` the
+  block's distance from the segment (at least its centre's less its half diagonal): every
+  point of the ball over a node at least ``d`` from the segment is that high (the ball's
+  sides, where the tangent plane below is not used), or
 - (a ball, a move that is not vertical) ``e - env(c) + |P_x - g_x| h_x + |P_y - g_y| h_y``
   is below ``-MARGIN``, where ``env(c)`` and ``g`` are the envelope and its gradient
   ``(c - tip_xy(t*)) / sqrt(R² - d*²)`` at the centre (``t*`` the minimiser). This bounds
