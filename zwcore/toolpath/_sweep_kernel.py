@@ -12,7 +12,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from numba import njit, uint64
 from numpy.typing import NDArray
 
 F64 = NDArray[np.float64]
@@ -27,6 +27,9 @@ TRAIL_MARGIN = 1e-9
 #: The tangent plane is not used where the ball meets the block centre this close to its
 #: rim (``sqrt(R² - d²) < RIM * R``: a steep, badly conditioned gradient).
 RIM = 1e-3
+#: Nodes a row run's envelope is computed in multiples of (the widest vector of doubles,
+#: AVX-512; a multiple of narrower ones).
+VECTOR = 8
 #: Times the square of a move's coordinates' scale (``|s_x| + |s_y| + |a_x| + |a_y| + 2R``),
 #: added under the rim bound's root: a node's computed ``d²`` rounds by some ``1e-15`` of
 #: that, and the bound gives up its root at most (0.1 µm at a 100 mm scale).
@@ -374,15 +377,21 @@ def _row_run(n: int, ka: int, sx: float, x0: float, dx: float, wy: float, sw: fl
 def _runs(x0: float, y0: float, dx: float, dy: float, b: int, i0: int, i1: int, k0: int,
           k1: int, rka: I64, rkb: I64, rsw: F64, sx: float, sy: float, sz: float, ax: float,
           ay: float, vz: float, rr: float, ball: bool, cut: bool, sflat: F64, rflat: F64,
-          nx: int, keep: NDArray[np.bool_], lowcol: NDArray[np.bool_], env: F64,
-          inv_a: float, inv_sa: float, kz: float, aa: float) -> tuple[float, float]:
+          nx: int, keep: NDArray[np.bool_], lowflat: NDArray[np.bool_], env: F64,
+          inv_a: float, inv_sa: float, kz: float, aa: float, ds: F64, dr: F64
+          ) -> tuple[float, float]:
     """One move over the nodes of the blocks marked in ``keep``, row by row: per row, each
     run of consecutive kept blocks is one contiguous stretch of nodes (within the row's
     span, :func:`_spans`), its envelope computed into ``env`` (no gathered copies), then
-    the stock compared and, with ``cut``, lowered (``lowcol[bi, k]`` set where it was).
-    Returns the maxima of stock minus envelope and ``ref`` minus envelope (``inv_a``,
-    ``inv_sa``, ``kz``, ``aa``: :func:`move_constants`)."""
-    best_s, best_r = -math.inf, -math.inf
+    the stock compared and, with ``cut``, lowered (``lowflat[bi * nx + k]`` set where it
+    was). Returns the maxima of stock minus envelope and ``ref`` minus envelope (``inv_a``,
+    ``inv_sa``, ``kz``, ``aa``: :func:`move_constants`).
+
+    The differences go to ``ds`` and ``dr`` (room for every node of the move's box, and
+    one more) and their maxima are taken once per move (:func:`_max_of`): a running
+    maximum per node kept the compare loop scalar; without it, and indexed unsigned (no
+    negative-index wrap-around), it vectorises."""
+    pos = 0
     vertical = ax * ax + ay * ay <= 1e-18
     reach2 = rr * rr * (1.0 - 1e-10)
     for bi in range(i0 // b, i1 // b + 1):
@@ -405,24 +414,50 @@ def _runs(x0: float, y0: float, dx: float, dy: float, b: int, i0: int, i1: int, 
                         env[j] = node_envelope(sx - (sx - (x0 + (ka + j) * dx)), sy - wy, sx,
                                                sy, sz, ax, ay, vz, rr, ball)
                 else:
-                    _row_run(n, ka, sx, x0, dx, wy, rsw[i - i0], sz, ax, ay, vz, rr, ball, env,
-                             inv_a, inv_sa, kz, aa, reach2)
+                    # a whole number of vector widths: no node of the run goes through the
+                    # loop's scalar remainder (runs are short: a third of their nodes did);
+                    # the nodes past the run are computed and not used
+                    _row_run((n + VECTOR - 1) // VECTOR * VECTOR, ka, sx, x0, dx, wy,
+                             rsw[i - i0], sz, ax, ay, vz, rr, ball, env, inv_a, inv_sa, kz,
+                             aa, reach2)
                 row = i * nx + ka
+                lrow = bi * nx + ka
                 if cut:
-                    lc = lowcol[bi]
                     for j in range(n):
-                        s, ev = sflat[row + j], env[j]
-                        best_s = max(best_s, s - ev)
-                        best_r = max(best_r, rflat[row + j] - ev)
-                        lc[ka + j] |= ev < s
-                        sflat[row + j] = ev if ev < s else s
+                        q = uint64(row + j)
+                        s, ev = sflat[q], env[j]
+                        low = ev < s
+                        lowflat[uint64(lrow + j)] |= low
+                        sflat[q] = ev if low else s
+                        ds[uint64(pos + j)] = s - ev
+                        dr[uint64(pos + j)] = rflat[q] - ev
                 else:
                     for j in range(n):
+                        q = uint64(row + j)
                         ev = env[j]
-                        best_s = max(best_s, sflat[row + j] - ev)
-                        best_r = max(best_r, rflat[row + j] - ev)
+                        ds[uint64(pos + j)] = sflat[q] - ev
+                        dr[uint64(pos + j)] = rflat[q] - ev
+                pos += n
             bk = bk_end + 1
-    return best_s, best_r
+    return _max_of(ds, pos), _max_of(dr, pos)
+
+
+@njit(cache=True, nogil=True)
+def _max_of(d: F64, n: int) -> float:
+    """``max(d[:n])`` (``-inf`` when ``n = 0``; ``d`` has room for ``n + 1``), over the
+    doubles' bits as integers: ``b ^ ((b >> 63) & 0x7FF...F)`` orders them as the doubles
+    (negatives reversed), and an integer maximum vectorises where a float one did not (a
+    ``-0.0`` and a ``0.0`` come out as ``0.0``; no NaN reaches it)."""
+    bits = d.view(np.int64)
+    mask = np.int64(0x7FFFFFFFFFFFFFFF)
+    best = np.int64(-0x7FFFFFFFFFFFFFFF - 1)  # below every double's key
+    for j in range(n):
+        k = bits[j] ^ ((bits[j] >> 63) & mask)
+        best = k if k > best else best
+    if n == 0:
+        return -math.inf
+    bits[n] = best ^ ((best >> 63) & mask)  # the double back, through memory
+    return d[n]
 
 
 @njit(cache=True, nogil=True, fastmath={"contract", "arcp", "reassoc"})
@@ -450,7 +485,9 @@ def sweep_kernel(x0: float, y0: float, dx: float, dy: float, p0: F64, p1: F64, r
     touched = np.empty((st.shape[0] * st.shape[1], 2), np.int64)
     keep = np.zeros((st.shape[0], st.shape[1]), np.bool_)
     lowcol = np.zeros((st.shape[0], nx), np.bool_)  # per block row, per column: lowered
-    env = np.empty(nx)
+    env = np.empty(nx + VECTOR)
+    lowflat = lowcol.reshape(-1)
+    ds, dr = np.empty(1024), np.empty(1024)  # per move, grown to its box (:func:`_runs`)
     lowered = np.zeros(st.shape[0] * st.shape[1], np.bool_)
     rka, rkb = np.empty(stock.shape[0], np.int64), np.empty(stock.shape[0], np.int64)
     rsw = np.empty(stock.shape[0])
@@ -499,9 +536,12 @@ def sweep_kernel(x0: float, y0: float, dx: float, dy: float, p0: F64, p1: F64, r
                         touched[nt, 0], touched[nt, 1] = bi, bk
                         keep[bi, bk] = True
                         nt += 1
+        if (k1 - k0 + 2) * (i1 - i0 + 1) > len(ds):  # room for every node of the box, + 1
+            ds = np.empty(2 * (k1 - k0 + 2) * (i1 - i0 + 1))
+            dr = np.empty(len(ds))
         best_s, best_r = _runs(x0, y0, dx, dy, b, i0, i1, k0, k1, rka, rkb, rsw, sx, sy, sz,
-                               ax, ay, vz, rr, ball, cut, sflat, rflat, nx, keep, lowcol,
-                               env, inv_a, inv_sa, kz, aa)
+                               ax, ay, vz, rr, ball, cut, sflat, rflat, nx, keep, lowflat,
+                               env, inv_a, inv_sa, kz, aa, ds, dr)
         for t in range(nt):
             bi, bk = touched[t, 0], touched[t, 1]
             keep[bi, bk] = False
