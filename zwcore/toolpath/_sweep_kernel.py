@@ -157,7 +157,7 @@ def move_constants(sx: float, sy: float, sz: float, ax: float, ay: float, vz: fl
             slack)
 
 
-@njit(cache=True, nogil=True, fastmath={"contract", "arcp", "reassoc"})
+@njit(cache=True, nogil=True, fastmath={"contract", "arcp", "reassoc"}, inline="always")
 def skip_block(bx: float, by: float, hx: float, hy: float, pxb: float, pyb: float,
                e: float, m: float, sx: float, sy: float, sz: float, ax: float, ay: float,
                vz: float, r: float, ball: bool, a: float, inv_a: float, kz: float,
@@ -546,7 +546,7 @@ def sweep_kernel(x0: float, y0: float, dx: float, dy: float, p0: F64, p1: F64, r
             bi, bk = touched[t, 0], touched[t, 1]
             keep[bi, bk] = False
             if cut:
-                lowered[t] = _any_reset(lowcol[bi], bk * b, min(bk * b + b, nx))
+                lowered[t] = _any_reset(lowflat, bi * nx + bk * b, bi * nx + min(bk * b + b, nx))
         if cut:
             for t in range(nt):  # only the blocks the move lowered
                 if lowered[t]:
