@@ -69,7 +69,7 @@ def node_envelope(qx: float, qy: float, x0: float, y0: float, z0: float, ax: flo
     return z0 + vz * (lo if vz >= 0.0 else hi)
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline="always")
 def measure_block(x0: float, y0: float, dx: float, dy: float, b: int, stock: F64, ref: F64,
                   cx: F64, cy: F64, st: F64, bi: int, bk: int) -> None:
     """``st[bi, bk] = (P_x, P_y, e, m)`` of block ``(bi, bk)`` over ``U = max(stock, ref)``:
@@ -343,7 +343,7 @@ def _flat_node(wx: float, wy: float, sz: float, ax: float, ay: float, vz: float,
     return e if (w2 > 0.0 and lo <= hi) else math.inf
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline="always")
 def _any_reset(flags: NDArray[np.bool_], a: int, c: int) -> bool:
     """Whether any of ``flags[a:c]`` is set; clears them."""
     out = False
