@@ -276,13 +276,14 @@ def _behind(bx: float, by: float, hx: float, hy: float, sx: float, sy: float, ux
 
 
 @njit(cache=True, nogil=True, fastmath={"contract", "arcp", "reassoc"})
-def _spans(x0: float, y0: float, dx: float, dy: float, i0: int, i1: int, k0: int, k1: int,
-           sx: float, sy: float, ax: float, ay: float, rr: float, ux: float, uy: float,
-           lim: float, rka: I64, rkb: I64, rsw: F64) -> None:
-    """Per row ``i0..i1`` of a move's box (at ``i - i0``): the columns ``rka..rkb`` of the
-    nodes within ``rr`` of the move's xy shadow and ahead of its trailing line (``(q - s).u
-    > lim``; ``lim = -inf``: none), and ``rsw`` (:func:`_row_node`); once per move, not
-    per block."""
+def _spans(x0: float, y0: float, dx: float, dy: float, i0: int, i1: int, base: int,
+           k0: int, k1: int, sx: float, sy: float, ax: float, ay: float, rr: float, ux: float,
+           uy: float, lim: float, rka: I64, rkb: I64, rsw: F64) -> None:
+    """Per row ``i0..i1`` of a move's box (at ``i - base``, ``base`` its first row): the
+    columns ``rka..rkb`` of the nodes within ``rr`` of the move's xy shadow and ahead of its
+    trailing line (``(q - s).u > lim``; ``lim = -inf``: none), and ``rsw``
+    (:func:`_row_node`); once per move, not per block, over the rows of the blocks it
+    kept."""
     ylo, yhi = min(sy, sy + ay), max(sy, sy + ay)
     for i in range(i0, i1 + 1):
         qy = y0 + i * dy
@@ -290,8 +291,8 @@ def _spans(x0: float, y0: float, dx: float, dy: float, i0: int, i1: int, k0: int
         if lim > -math.inf:
             ka, kb = _trail_span(qy, x0, dx, ka, kb, sx, sy, ux, uy, lim)
         wy = sy - qy
-        rka[i - i0], rkb[i - i0] = ka, kb
-        rsw[i - i0] = math.sqrt(max(rr * rr * (1.0 - 1e-10) - wy * wy, 0.0))
+        rka[i - base], rkb[i - base] = ka, kb
+        rsw[i - base] = math.sqrt(max(rr * rr * (1.0 - 1e-10) - wy * wy, 0.0))
 
 
 @njit(cache=True, nogil=True, fastmath={"contract", "arcp", "reassoc"}, inline="always")
@@ -509,8 +510,8 @@ def sweep_kernel(x0: float, y0: float, dx: float, dy: float, p0: F64, p1: F64, r
         if trail[s] >= 0.0:
             norm = math.sqrt(ax * ax + ay * ay)
             ux, uy, lim = ax / norm, ay / norm, -trail[s] - TRAIL_MARGIN
-        _spans(x0, y0, dx, dy, i0, i1, k0, k1, sx, sy, ax, ay, rr, ux, uy, lim, rka, rkb, rsw)
         nt = 0
+        bmin, bmax = st.shape[0], -1  # the block rows of the blocks kept
         cut = apply[s]
         best_s, best_r = -math.inf, -math.inf
         for ci in range(i0 // big, i1 // big + 1):
@@ -536,6 +537,11 @@ def sweep_kernel(x0: float, y0: float, dx: float, dy: float, p0: F64, p1: F64, r
                         touched[nt, 0], touched[nt, 1] = bi, bk
                         keep[bi, bk] = True
                         nt += 1
+                        bmin, bmax = min(bmin, bi), max(bmax, bi)
+        if nt == 0:  # no node to sweep
+            continue
+        _spans(x0, y0, dx, dy, max(i0, bmin * b), min(i1, bmax * b + b - 1), i0, k0, k1, sx,
+               sy, ax, ay, rr, ux, uy, lim, rka, rkb, rsw)
         if (k1 - k0 + 2) * (i1 - i0 + 1) > len(ds):  # room for every node of the box, + 1
             ds = np.empty(2 * (k1 - k0 + 2) * (i1 - i0 + 1))
             dr = np.empty(len(ds))
