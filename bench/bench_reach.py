@@ -18,14 +18,18 @@ alone, Ø2 > Ø1, Ø3 > Ø2 > Ø1, Ø6 > Ø2 > Ø1, Ø6 > Ø3 > Ø2 > Ø1), the 
 estimate per ball (passes, cut length, stretches, minutes), and with ``--programs`` also
 plans each chain, generates its tool paths and prints the emitted program's time estimate
 (roughing and finishing; minutes per chain, slow).
+With ``--known-chains`` it prints instead, for the known-answer parts (the 45° fillet,
+the pockets, the 3 mm trench, the dome; with ``--with-bench`` also the 1025² part) and
+their candidate chains, the ranking's estimate per ball against the emitted program's
+minutes per stage (roughing levels and finishing balls apart): where the estimate misses.
 Usage: ``python bench/bench_reach.py [--before ../zwplan-old] [--sizes 513 1025]
-[--forced] [--chains [--programs]]``.
+[--forced] [--chains [--programs]]`` or ``python bench/bench_reach.py --known-chains
+[--with-bench]``.
 """
 
 from __future__ import annotations
 
 import argparse
-import itertools
 import json
 import math
 import os
@@ -262,16 +266,103 @@ def _forced(z: object, chains: list[list[str]]) -> None:
 
 def _fixed(ids: list[str]):  # type: ignore[no-untyped-def]
     """A stand-in for ``_regions._plan`` that returns the chain ``ids`` (and the time
-    estimate of each of its balls)."""
+    estimate of each of its balls); a ball with no rest region after the one before it
+    is left out (the plan would drop its stage)."""
     def fixed(balls: list, reach, bound: bool = True):  # type: ignore[no-untyped-def]
         names = [b.id for b in balls]
         order = [names.index(i) for i in ids]
         times = [reach.main_time(balls, order[0])]
-        for a, b in itertools.pairwise(order):
-            reach.cost(balls[a].radius, balls[b])
-            times.append(reach.times[balls[a].radius, balls[b].id])
-        return order, times
+        kept = order[:1]
+        for b in order[1:]:
+            if reach.cost(balls[kept[-1]].radius, balls[b]) is not None:
+                times.append(reach.times[balls[kept[-1]].radius, balls[b].id])
+                kept.append(b)
+        return kept, times
     return fixed
+
+
+#: Candidate finishing chains of the known-answer parts (``--known-chains``): the ones
+#: the issue's table names, the ranking's own first.
+KNOWN_CHAINS: dict[str, list[list[str]]] = {
+    "45° fillet": [["BEM-D20", "BEM-D5"], ["BEM-D16", "BEM-D5"], ["BEM-D12", "BEM-D5"],
+                   ["BEM-D10", "BEM-D4"]],
+    "R 8 pocket": [["BEM-D16"], ["BEM-D20", "BEM-D16"], ["BEM-D8"]],
+    "rectangular pocket": [["BEM-D16", "BEM-D3", "BEM-D1"], ["BEM-D20", "BEM-D3", "BEM-D1"],
+                           ["BEM-D6", "BEM-D1"]],
+    "trench 3 mm": [["BEM-D4", "BEM-D3", "BEM-D1"], ["BEM-D20", "BEM-D3"],
+                    ["BEM-D16", "BEM-D3", "BEM-D1"]],
+    "dome": [["BEM-D20"], ["BEM-D16"], ["BEM-D12"]],
+    "1025²": [["BEM-D20", "BEM-D8", "BEM-D2", "BEM-D1"], ["BEM-D16", "BEM-D8", "BEM-D2", "BEM-D1"],
+              ["BEM-D10", "BEM-D3", "BEM-D2", "BEM-D1"], ["BEM-D6", "BEM-D2", "BEM-D1"]],
+}
+
+
+def _known_chains(bench: bool) -> None:
+    """Per known-answer part (and with ``bench`` the 1025² part of
+    ``bench_scanline_core.py``) and candidate chain (:data:`KNOWN_CHAINS`, the
+    ranking's own first): the ranking's estimate per ball (passes, depth met, minutes)
+    and the emitted program's minutes (``scanline_toolpaths``, no verification) per
+    stage, roughing levels (``Ø/L<level>``) and finishing balls (``Ø/fin``) apart, each
+    ball's passes summed. What the estimate leaves out shows as the stages it has no
+    figure for, or prices short."""
+    import numpy as np
+
+    from zwcore import ZMap
+    from zwcore.scanline import _regions
+    from zwcore.scanline.planner import plan_scanline
+    from zwcore.toolpath import scanline_toolpaths
+
+    known = _known_parts()
+    parts: dict[str, tuple[ZMap, float]] = {n: (z, 0.01) for n, z in known.items()  # type: ignore[misc]
+                                            if n in KNOWN_CHAINS}
+    x = np.arange(-30.0, 30.0 + 1e-9, 0.25)
+    xx, yy = np.meshgrid(x, x)
+    parts["dome"] = (ZMap(np.sqrt(50.0**2 - xx**2 - yy**2), dx=0.25, dy=0.25), 0.005)
+    if bench:
+        sys.path.insert(0, str(ROOT / "bench"))
+        from bench_scanline_core import synthetic
+        parts["1025²"] = (synthetic(1025), 0.01)
+    ranked_fn = _regions._plan
+    print("\n| part | chain | estimate per ball: passes, depth mm, min | estimated min "
+          "| program min | program per stage, min |")
+    print("| --- | --- | --- | --- | --- | --- |")
+    for name, (zmap, tol) in parts.items():
+        ranked: list[str] = []
+        for chain in [None, *KNOWN_CHAINS[name]]:
+            if chain is not None and chain == ranked:
+                continue
+            got: dict[str, object] = {}
+
+            def record(balls: list, reach, bound: bool = True,
+                       chain: list[str] | None = chain, got: dict = got):
+                order, times = (ranked_fn(balls, reach, bound) if chain is None
+                                else _fixed(chain)(balls, reach))
+                got["est"] = [(balls[j].id, t) for j, t in zip(order, times, strict=True)]
+                return order, times
+
+            try:
+                _regions._plan = record
+                plan = plan_scanline(zmap, tolerance=tol)
+            finally:
+                _regions._plan = ranked_fn
+            est = got["est"]
+            assert isinstance(est, list)
+            ids = [i for i, _ in est]
+            if chain is None:
+                ranked = ids
+            tp = scanline_toolpaths(zmap, plan, verify=False)
+            per: dict[str, float] = {}
+            for s, f in zip(plan.stages, tp.stage_figures(), strict=True):
+                key = f"{s.tool.id}/{'fin' if s.level == plan.depth else f'L{s.level}'}"
+                per[key] = per.get(key, 0.0) + f["time_min"]
+            total = (sum(t.minutes for _, t in est)
+                     + _regions.TOOL_CHANGE_MIN * (len(est) - 1))
+            label = ("ranked: " if chain is None else "") + " > ".join(
+                plan.reach.finishing_tools if plan.reach is not None else ids)
+            print(f"| {name} | {label} | "
+                  + "; ".join(f"{i} {t.passes}, {t.depth:.1f}, {t.minutes:.2f}" for i, t in est)
+                  + f" | {total:.2f} | {tp.time_min:.2f} | "
+                  + ", ".join(f"{k} {v:.2f}" for k, v in per.items()) + " |", flush=True)
 
 
 CHAINS = [["BEM-D1"], ["BEM-D2", "BEM-D1"], ["BEM-D3", "BEM-D2", "BEM-D1"],
@@ -415,9 +506,17 @@ def main() -> None:
                     help="Mount Rushmore's candidate chains: the time estimate per ball")
     ap.add_argument("--programs", action="store_true",
                     help="with --chains: each chain's emitted program time (slow)")
+    ap.add_argument("--known-chains", action="store_true",
+                    help="the known-answer parts' candidate chains: estimate per ball and "
+                         "emitted program minutes per stage (then exits)")
+    ap.add_argument("--with-bench", action="store_true",
+                    help="with --known-chains: also the 1025² part (slow)")
     args = ap.parse_args()
     if args.child:
         _child(args.sizes, args.repeat)
+        return
+    if args.known_chains:
+        _known_chains(args.with_bench)
         return
     if args.sizes:
         _sizes(args.before, args.sizes, args.repeat)

@@ -86,12 +86,18 @@ def _watch_server(pid: int) -> None:
     threading.Thread(target=watch, name="zw-watch-server", daemon=True).start()
 
 
+#: Modules whose functions run in the worker processes (``run(..., in_process=True)``).
+PROCESS_JOB_MODULES = ("service.routers.arcs",)
+
+
 def _process_context() -> multiprocessing.context.BaseContext:
     # forkserver, not fork: the server process has threads (forking them is unsafe);
     # its preloaded core makes each worker start in milliseconds, not seconds (with the
-    # arc fit's compiled kernels ready: zwcore.arcs.warmup)
+    # arc fit's compiled kernels ready: zwcore.arcs.warmup); the routers' job functions
+    # too, or each worker's first job imports the web stack (~0.4 s of a request)
     ctx = multiprocessing.get_context("forkserver")
-    ctx.set_forkserver_preload(["zwcore", "zwcore.arcs.warmup", "orjson"])
+    ctx.set_forkserver_preload(["zwcore", "zwcore.arcs.warmup", "orjson",
+                                *PROCESS_JOB_MODULES])
     return ctx
 
 

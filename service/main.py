@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import asyncio
+import concurrent.futures
 import logging
 import sys
 from collections.abc import AsyncIterator
@@ -34,6 +35,9 @@ from service.security import require_api_key
 from service.settings import Settings, get_settings
 from service.store import open_store
 from zwcore.scanline.warmup import warm_up as warm_up_scanline
+
+#: How long the service waits at start for its worker processes (a cold start is seconds).
+WORKER_START_SECONDS = 120.0
 
 DESCRIPTION = """Machining process planning: lifted wavelet stage models from a z-map,
 ball-end-mill tool sequences, contour heights for flat end mills, and tangent-continuous
@@ -78,6 +82,21 @@ def _list_models(app: FastAPI, models: tuple[type[BaseModel], ...]) -> None:
     app.openapi = openapi  # type: ignore[method-assign]
 
 
+async def _started(jobs: list[concurrent.futures.Future[int]]) -> list[int]:
+    """The pids of the started worker processes; a worker that fails to start within
+    :data:`WORKER_START_SECONDS` is logged and left to start on first use."""
+    if not jobs:
+        return []
+    done, _ = await asyncio.wait([asyncio.wrap_future(j) for j in jobs],
+                                 timeout=WORKER_START_SECONDS)
+    pids = [f.result() for f in done if f.exception() is None]
+    if len(pids) < len(jobs):
+        logging.getLogger("zwplan").warning("%d of %d worker processes not started in %s s",
+                                            len(jobs) - len(pids), len(jobs),
+                                            WORKER_START_SECONDS)
+    return pids
+
+
 def create_app(settings: Settings | None = None) -> FastAPI:
     settings = settings or get_settings()
 
@@ -93,8 +112,11 @@ def create_app(settings: Settings | None = None) -> FastAPI:
                                      timeout=settings.compute_timeout_seconds,
                                      memory_budget=settings.memory_budget_bytes,
                                      memory_wait=settings.memory_wait_seconds)
+        app.state.worker_pids = []
         if settings.prestart_workers:
-            app.state.pool.start_processes()
+            # serve only once the workers are up: a request arriving during their cold start
+            # would wait seconds for it (the load benchmark's first arc fits did)
+            app.state.worker_pids = await _started(app.state.pool.start_processes())
         trimmer = asyncio.ensure_future(trim_when_idle(app.state.pool))
         try:
             yield

@@ -73,6 +73,8 @@ def toolpaths_section(tp: Toolpaths, task_id: str) -> dict[str, Any]:
             "gouge": chk.gouge, "below_part_moves": chk.below_part_moves,
             "final_over_part_max": chk.final_over_part_max,
             "final_over_part_p95": chk.final_over_part_p95,
+            "finished_over_part_max": chk.finished_over_part_max,
+            "finished_area_fraction": chk.finished_area_fraction,
             "within_tolerance": chk.within_tolerance,
             "rapid_in_material": chk.rapid_in_material,
             "arc_radius_mismatch": chk.arc_radius_mismatch,

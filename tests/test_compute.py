@@ -5,6 +5,9 @@ from __future__ import annotations
 import asyncio
 import os
 import pickle
+import subprocess
+import sys
+from pathlib import Path
 
 import pytest
 
@@ -147,7 +150,26 @@ def test_workers_start_with_the_service_when_asked(tmp_path) -> None:  # type: i
     with make_client(tmp_path, process_workers=1, prestart_workers=True) as c:
         pool = c.app.state.pool  # type: ignore[attr-defined]
         assert pool._process_pool is not None and pool._process_pool.active
+        # the service served only once its worker had answered (another process)
+        (pid,) = c.app.state.worker_pids  # type: ignore[attr-defined]
+        assert pid != os.getpid()
         (job,) = pool.start_processes()  # one more no-op on the already started worker
         assert job.result(timeout=60) not in (os.getpid(), None)
     with make_client(tmp_path, process_workers=1) as c:  # tests' default: on first use
         assert c.app.state.pool._process_pool is None  # type: ignore[attr-defined]
+
+
+def test_worker_processes_preload_every_process_jobs_module() -> None:
+    """Every function the routers run in a worker process lives in a module the forkserver
+    imports before forking (else each worker's first job imports the web stack)."""
+    from service import cadfiles
+    from service.compute import PROCESS_JOB_MODULES
+    from service.routers import arcs
+
+    jobs = [arcs.arcs_result, cadfiles.gcode_result, cadfiles.dxf_result]
+    code = ("import importlib, sys\n"
+            f"for m in {list(PROCESS_JOB_MODULES)!r}: importlib.import_module(m)\n"
+            f"print(all(m in sys.modules for m in {[f.__module__ for f in jobs]!r}))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True, cwd=Path(__file__).resolve().parents[1])
+    assert out.stdout.strip() == "True"

@@ -23,9 +23,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from tests.test_scanline_stock_sweep import _brute_cut, _cases
+from tests.thread_modes import force_threads
 from zwcore.grid.tools import default_tools
 from zwcore.grid.zmap import ZMap
-from zwcore.scanline import _passes, _reach, _regions, _stock_lines, _threads
+from zwcore.scanline import _reach, _regions, _stock_lines, _threads
 from zwcore.scanline import _stock_kernels as _k
 from zwcore.scanline._stock_state import BLOCK, Positions, block_max
 from zwcore.scanline._stock_sweep import cut_lines, line_starts
@@ -79,11 +80,7 @@ def test_envelope_by_row_bands_equals_one_sweep(case: _Case, along_x: bool,
 @pytest.fixture
 def forced_threads(monkeypatch: pytest.MonkeyPatch) -> None:
     """Two threads for every split, however small the work."""
-    monkeypatch.setattr(_threads, "WORKERS", 2)
-    monkeypatch.setattr(_stock_lines, "THREAD_WORK", 0)
-    monkeypatch.setattr(_reach, "THREAD_NODES", 0)
-    monkeypatch.setattr(_passes, "THREAD_CELLS", 0)
-    monkeypatch.setattr(_morph, "THREAD_WORK", 0)
+    force_threads(monkeypatch, 2)
 
 
 @settings(max_examples=60, deadline=None)
@@ -99,10 +96,9 @@ def test_threaded_line_sweep_and_kernels_equal_one_thread(case: _Case, along_x: 
     cl0 = np.where(np.arange(c.size) % 3 == 0, -np.inf, c - 3.0)
     smax = block_max(stock)
     got = []
-    old = _threads.WORKERS, _stock_lines.THREAD_WORK
-    for workers, work in ((1, 1 << 62), (2, 0)):
-        _threads.WORKERS, _stock_lines.THREAD_WORK = workers, work
-        try:
+    for workers in (1, 2):
+        with pytest.MonkeyPatch.context() as mp:
+            force_threads(mp, workers, split=workers > 1)
             sweep = _stock_lines.LineSweep.of(x, y, along, r, dx, dy)
             s = stock.copy()
             t = np.zeros(smax.shape, dtype=bool)
@@ -119,8 +115,6 @@ def test_threaded_line_sweep_and_kernels_equal_one_thread(case: _Case, along_x: 
             nodes = _stock_lines.drop_nodes(z, block_max(z), Positions(x, y, along), cl0, r,
                                             dx, dy)
             got.append((s, t, drop, per, top, nodes))
-        finally:
-            _threads.WORKERS, _stock_lines.THREAD_WORK = old
     for a, b in zip(*got, strict=True):
         if a is None or b is None:
             assert a is None and b is None
@@ -273,15 +267,12 @@ def test_dilation_in_two_runs_of_strips_equals_one(seed: int, ny: int, nx: int, 
     s = -rng.uniform(0.0, 1.0, (2 * a + 1, 2 * b + 1))
     s = np.minimum(s, s[::-1])
     s = np.minimum(s, s[:, ::-1])
-    old = _morph.THREADS, _morph.THREAD_WORK, _morph._STRIP_BYTES
-    try:
-        _morph._STRIP_BYTES = 8 * max(nx, 1)  # the fewest rows a strip takes: 8
-        _morph.THREADS, _morph.THREAD_WORK = 1, 1 << 62
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(_morph, "_STRIP_BYTES", 8 * max(nx, 1))  # the fewest rows a strip takes: 8
+        force_threads(mp, 1, split=False)
         one = _morph.dilate(z, s)
-        _morph.THREADS, _morph.THREAD_WORK = 2, 0
+        force_threads(mp, 2)
         two = _morph.dilate(z, s)
-    finally:
-        _morph.THREADS, _morph.THREAD_WORK, _morph._STRIP_BYTES = old
     assert np.array_equal(one, two)
     zp = np.pad(z, ((a, a), (b, b)), constant_values=-np.inf)
     brute = np.full(z.shape, -np.inf)
@@ -300,14 +291,11 @@ def test_concave_radii_in_two_bands_equal_one(seed: int, ny: int, nx: int) -> No
     least of four directions)."""
     rng = np.random.default_rng(seed)
     z = rng.normal(0.0, 1.0, (ny, nx)).cumsum(axis=0)
-    old = _threads.WORKERS, _reach.THREAD_NODES
-    try:
-        _threads.WORKERS, _reach.THREAD_NODES = 1, 1 << 62
+    with pytest.MonkeyPatch.context() as mp:
+        force_threads(mp, 1, split=False)
         one = _reach.concave_radii(z, 0.2, 0.3)
-        _threads.WORKERS, _reach.THREAD_NODES = 2, 0
+        force_threads(mp, 2)
         two = _reach.concave_radii(z, 0.2, 0.3)
-    finally:
-        _threads.WORKERS, _reach.THREAD_NODES = old
     assert np.array_equal(one, two)
     if nx >= 3:
         right = (z[:, 2:] - z[:, 1:-1]) / 0.2

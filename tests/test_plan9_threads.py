@@ -24,6 +24,7 @@ from hypothesis import strategies as st
 
 from tests.test_plan8_threads import _fillet_part
 from tests.test_scanline_stock_sweep import _cases
+from tests.thread_modes import force_threads
 from zwcore.grid.tools import default_tools
 from zwcore.scanline import _reach, _regions, _stock_lines, _threads, _tool_choice
 from zwcore.scanline import _stock_kernels as _k
@@ -75,10 +76,8 @@ def test_one_thread_splits_nothing(case: _Case, along_x: bool) -> None:
     smax = block_max(stock)
     runs = []
     with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(_stock_lines, "THREAD_WORK", 0)
-        mp.setattr(_reach, "THREAD_NODES", 0)
         for workers in (1, 2):
-            mp.setattr(_threads, "WORKERS", workers)
+            force_threads(mp, workers)  # thresholds at 0 on one worker too
             cuts = _counting(mp, _sw, "cut_lines")
             drops = _counting(mp, _sw, "cl_lines")
             tops = _counting(mp, _k, "top")
@@ -102,8 +101,6 @@ def test_one_thread_splits_nothing(case: _Case, along_x: bool) -> None:
                 assert len(tops) == 1
                 assert concave == [(0, z.shape[0])]
             mp.undo()
-            mp.setattr(_stock_lines, "THREAD_WORK", 0)
-            mp.setattr(_reach, "THREAD_NODES", 0)
     for a, b in zip(*runs, strict=True):
         assert (a is None and b is None) or np.array_equal(a, b)
     assert np.array_equal(runs[0][3], _k.top(stock, smax, BLOCK, x, y, r, dx, dy))

@@ -57,7 +57,17 @@ def test_scanline_plan_with_toolpaths_program_simulates_gouge_free(client: TestC
     chk = simulate_program(prog, tools, ZMap(part, 0.0, 0.0, 0.5, 0.5), plan.stock_top,
                            tolerance=0.05)
     assert chk.gouge <= 1e-9 and chk.rapid_in_material == 0.0
-    assert tp.verification.gouge <= 1e-9
+    ver = tp.verification
+    assert ver.gouge <= 1e-9
+    # the response's figures are those of the program simulated here; the tolerance is held
+    # where the plan says it finishes: everywhere but the area its reach summary leaves
+    assert ver.final_over_part_max == pytest.approx(chk.final_over_part_max, abs=1e-9)
+    assert ver.finished_over_part_max <= ver.final_over_part_max
+    assert ver.within_tolerance == (ver.finished_over_part_max <= 0.05)
+    assert plan.reach is not None
+    area = part.size * 0.5 * 0.5
+    assert (1.0 - ver.finished_area_fraction) * area == pytest.approx(
+        plan.reach.unreachable_area, abs=1e-9)
     # per-stage points in JSON are the program's end points
     first = tp.stages[0]
     pts = np.frombuffer(base64.b64decode(first.points_b64), "<f4").reshape(-1, 3)

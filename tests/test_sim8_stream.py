@@ -119,7 +119,8 @@ def test_repeat_table_in_pieces_is_repeat_of_the_whole(seed, n, cuts):
 
 def _same_check(a: ProgramCheck, b: ProgramCheck) -> None:
     for name in ("gouge", "below_part_moves", "final_over_part_max", "final_over_part_p95",
-                 "within_tolerance", "rapid_in_material", "arc_radius_mismatch"):
+                 "finished_over_part_max", "finished_area_fraction", "within_tolerance",
+                 "rapid_in_material", "arc_radius_mismatch"):
         assert getattr(a, name) == getattr(b, name), name
     assert a.stages == b.stages  # every figure of every stretch, exactly
     np.testing.assert_array_equal(a.machined, b.machined)
@@ -169,7 +170,8 @@ def test_overlapped_verification_is_the_sequential_one_and_the_whole_programs(se
             or seq.stages[i + 1].cutting.tool_number != seq.stages[i].cutting.tool_number]
     whole = simulate_program(parse_program(seq.program), table, part, plan.stock_top,
                              tolerance=plan.tolerance,
-                             stage_models=[stage_at_nodes(plan.stages[i], part) for i in last])
+                             stage_models=[stage_at_nodes(plan.stages[i], part) for i in last],
+                             reach=plan.finished)
     _same_check(ovl.check, whole)
     assert ovl.check.gouge <= 1e-9 and ovl.check.rapid_in_material == 0.0
     phases = dict(ovl.timings)

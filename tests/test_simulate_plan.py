@@ -348,7 +348,10 @@ def test_replayed_passes_are_the_planners_simulation(zmap: ZMap) -> None:
     assert tp.check is not None
     numbers = {p.cutting.tool_number: p.tool for p in tp.stages}
     pr = replay_program(zmap, plan, tp.program, numbers)
-    np.testing.assert_array_equal(pr.machined, tp.check.machined)
+    # stretch by stretch the block bounds are rebuilt at other moves, so other nodes are
+    # swept by the run kernel instead of the single-node one: the same closed form, but
+    # fused multiply-adds (fastmath "contract") may round it an ulp apart (5.6e-17 mm seen)
+    np.testing.assert_allclose(pr.machined, tp.check.machined, rtol=0, atol=1e-12)
     assert sum(s.moves for s in pr.stretches) == pr.moves
     assert [i for s in pr.stretches for i in s.stages] == list(range(len(plan.stages)))
 

@@ -335,6 +335,15 @@ def test_scanline_program_on_the_r8_pocket_is_gouge_free_and_within_tolerance():
     assert finished.mean() > 0.5
     assert left[finished].max() <= plan.tolerance
     assert (left - planned).max() <= plan.tolerance
+    # the plan's own mask is its replayed passes' (an independent replay), and the
+    # verification holds the program to the tolerance there by default
+    assert np.array_equal(plan.finished, finished)
+    chk = tp.check
+    assert chk.finished_area_fraction == pytest.approx(finished.mean())
+    assert chk.finished_over_part_max == pytest.approx(left[finished].max(), abs=1e-12)
+    assert chk.within_tolerance
+    assert chk.final_over_part_max == pytest.approx(left.max(), abs=1e-12)
+    assert chk.final_over_part_max > plan.tolerance  # the rim chords: left, and reported
     text = tp.program
     assert text.count(" M6") == len({s.tool.id for s in plan.stages})
     # every stage's stock after it lies above its model only by what the plan leaves

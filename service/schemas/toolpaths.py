@@ -48,9 +48,17 @@ class VerificationOut(BaseModel):
 
     gouge: float = Field(description="max part minus machined over the nodes, mm; must be 0")
     below_part_moves: int = Field(description="moves reaching below the part (0)")
-    final_over_part_max: float = Field(description="machined minus part, max, mm")
+    final_over_part_max: float = Field(description="machined minus part, max over all the "
+                                       "nodes, mm (corners no ball reaches included)")
     final_over_part_p95: float
-    within_tolerance: bool
+    finished_over_part_max: float = Field(
+        description="machined minus part, max where the plan's own simulation says it "
+        "finishes (within the tolerance), mm")
+    finished_area_fraction: float = Field(
+        description="share of the part where the plan says it finishes")
+    within_tolerance: bool = Field(
+        description="finished_over_part_max <= tolerance: the program holds the tolerance "
+        "wherever the plan says it finishes")
     rapid_in_material: float = Field(description="deepest rapid into the stock, mm (0)")
     arc_radius_mismatch: float = Field(description="max |r_start - r_end| of the arcs, mm")
     stages: list[VerificationStageOut]

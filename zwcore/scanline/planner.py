@@ -186,7 +186,7 @@ def plan_scanline(zmap: ZMap, tools: Sequence[Tool] | None = None, *, tolerance:
         stock_top=st, stock_top_source="request" if requested is not None else "default",
         tolerance=tol, depth=mrr.depth, stages=tuple(stages),
         tool_sequence=_tool_sequence(stages), checks=checks, notes=tuple(notes),
-        timings=tuple(laps.timings), reach=reach)
+        timings=tuple(laps.timings), reach=reach, finished=final[0] - zmap.z <= tol)
 
 
 class _Laps:

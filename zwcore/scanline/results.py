@@ -367,6 +367,10 @@ class ScanlinePlan:
         Seconds spent per phase (for benchmarks; not part of the result).
     reach : ReachSummary or None
         The finishing balls' simulated reach.
+    finished : (ny, nx) bool or None
+        Where the plan's own simulated stock after its last pass lies within ``tolerance``
+        of the part: where the plan says it finishes (the tool paths' verification holds
+        the program to the tolerance there).
     """
 
     stock_top: float
@@ -380,6 +384,7 @@ class ScanlinePlan:
     timings: tuple[tuple[str, float], ...] = ()
     # --- tool choice by reach (issue 11, parts 2-3) ---
     reach: ReachSummary | None = None
+    finished: NDArray[np.bool_] | None = None
 
 
 def stage_at_nodes(stage: ScanlineStage, part: ZMap) -> NDArray[np.float64]:

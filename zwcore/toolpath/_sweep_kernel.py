@@ -12,7 +12,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from numba import njit, uint64
 from numpy.typing import NDArray
 
 F64 = NDArray[np.float64]
@@ -27,6 +27,13 @@ TRAIL_MARGIN = 1e-9
 #: The tangent plane is not used where the ball meets the block centre this close to its
 #: rim (``sqrt(R² - d²) < RIM * R``: a steep, badly conditioned gradient).
 RIM = 1e-3
+#: Nodes a row run's envelope is computed in multiples of (the widest vector of doubles,
+#: AVX-512; a multiple of narrower ones).
+VECTOR = 8
+#: Times the square of a move's coordinates' scale (``|s_x| + |s_y| + |a_x| + |a_y| + 2R``),
+#: added under the rim bound's root: a node's computed ``d²`` rounds by some ``1e-15`` of
+#: that, and the bound gives up its root at most (0.1 µm at a 100 mm scale).
+RIM_SLACK = 1e-12
 
 
 @njit(cache=True, nogil=True, fastmath={"contract", "arcp", "reassoc"})
@@ -62,7 +69,7 @@ def node_envelope(qx: float, qy: float, x0: float, y0: float, z0: float, ax: flo
     return z0 + vz * (lo if vz >= 0.0 else hi)
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline="always")
 def measure_block(x0: float, y0: float, dx: float, dy: float, b: int, stock: F64, ref: F64,
                   cx: F64, cy: F64, st: F64, bi: int, bk: int) -> None:
     """``st[bi, bk] = (P_x, P_y, e, m)`` of block ``(bi, bk)`` over ``U = max(stock, ref)``:
@@ -132,32 +139,76 @@ def measure_all(x0: float, y0: float, dx: float, dy: float, b: int, f: int, stoc
 
 
 @njit(cache=True, nogil=True, fastmath={"contract", "arcp", "reassoc"})
+def move_constants(sx: float, sy: float, sz: float, ax: float, ay: float, vz: float,
+                   r: float) -> tuple[float, float, float, float, float, float, float]:
+    """A move's constants, once per move: ``a = |v_xy|²``, ``inv_a = 1 / a``, ``inv_sa =
+    sqrt(inv_a)``, ``kz = 1 / sqrt(a (a + v_z²))``, ``aa = 1 / inv_a`` (what the node
+    formulas take for ``a``: the plain kernel's rounding; ``inv_a``, ``inv_sa``, ``kz``
+    and ``aa`` are 0 for a vertical move, ``a <= 1e-18``), the lowest tip height and the
+    rim bound's slack (:func:`skip_block`): ``RIM_SLACK`` times the square of the move's
+    coordinates' scale, which bounds the rounding of a node's computed ``d²``."""
+    a = ax * ax + ay * ay
+    zlow = min(sz, sz + vz)
+    slack = RIM_SLACK * (abs(sx) + abs(sy) + abs(ax) + abs(ay) + 2.0 * r) ** 2
+    if a <= 1e-18:
+        return a, 0.0, 0.0, 0.0, 0.0, zlow, slack
+    inv_a = 1.0 / a
+    return (a, inv_a, math.sqrt(inv_a), 1.0 / math.sqrt(a * (a + vz * vz)), 1.0 / inv_a, zlow,
+            slack)
+
+
+@njit(cache=True, nogil=True, fastmath={"contract", "arcp", "reassoc"}, inline="always")
 def skip_block(bx: float, by: float, hx: float, hy: float, pxb: float, pyb: float,
                e: float, m: float, sx: float, sy: float, sz: float, ax: float, ay: float,
-               vz: float, r: float, ball: bool) -> bool:
+               vz: float, r: float, ball: bool, a: float, inv_a: float, kz: float,
+               zlow: float, slack: float, hd: float) -> bool:
     """True when no node of the block (centre ``bx, by``, half extents ``hx, hy``, plane
     slope ``pxb, pyb``, ``e`` and ``m`` of ``U = max(stock, ref)``) can have
-    ``U - env > -MARGIN`` for the move from ``(sx, sy, sz)`` by ``(ax, ay, vz)``."""
-    if m < min(sz, sz + vz) - MARGIN:  # the tip never comes down to the block's top
+    ``U - env > -MARGIN`` for the move from ``(sx, sy, sz)`` by ``(ax, ay, vz)``
+    (``a``, ``inv_a``, ``kz``, ``zlow``, ``slack``: :func:`move_constants`; ``hd``: at
+    least the block's half diagonal, the same for all blocks of a level: no root per
+    block).
+
+    In order: the block's top under the lowest tip height (any tool); the block beyond
+    ``R`` from the move's xy segment (no node reached: a node is reached only closer than
+    ``R``); for a ball, the rim bound (a node at least ``d`` from the segment sees the
+    ball no lower than ``zlow + R - sqrt(R² - d²)``, with ``d`` the block's distance); and,
+    a move that is not vertical, the tangent plane at the block's centre (module docstring
+    of :mod:`~zwcore.toolpath.sweep`)."""
+    if m < zlow - MARGIN:  # the tip never comes down to the block's top
         return True
-    a = ax * ax + ay * ay
-    if not ball or a <= 1e-18:
+    # the block's distance from the segment, at least: its centre's, less its half diagonal
+    wx, wy = bx - sx, by - sy
+    tc = 0.0
+    if a > 1e-18:
+        tc = min(max((wx * ax + wy * ay) * inv_a, 0.0), 1.0)
+    ex, ey = wx - ax * tc, wy - ay * tc
+    dc2 = ex * ex + ey * ey
+    if dc2 > ((r + hd) * (1.0 + 1e-12)) ** 2:  # the footprint misses the block: no node
+        return True
+    if not ball:
         return False
-    wx, wy = sx - bx, sy - by
+    if m < zlow + r - MARGIN and dc2 > hd * hd:  # (else the rim bound cannot skip it)
+        # the rim bound; the slack under the root covers the rounding of a node's d² (its
+        # computed root may come out larger than the true one where the root is small)
+        dblk = min(math.sqrt(dc2) - hd, r)
+        if m < zlow + r - math.sqrt(max(r * r - dblk * dblk, 0.0) + slack) - MARGIN:
+            return True
+    if a <= 1e-18:
+        return False
+    wx, wy = -wx, -wy  # the move's start from the centre
     c = wx * wx + wy * wy
     bb = ax * wx + ay * wy
-    t0 = -bb / a
-    dmin2 = max(c - bb * bb / a, 0.0)
-    if dmin2 > (r + hx + hy) ** 2:  # the footprint misses the block: no node reached
-        return True
+    t0 = -bb * inv_a
+    dmin2 = max(c - bb * bb * inv_a, 0.0)
     w2 = r * r * (1.0 - 1e-10) - dmin2
     if w2 <= 0.0:
         return False
-    half = math.sqrt(w2 / a)
+    half = math.sqrt(w2 * inv_a)
     lo, hi = max(0.0, t0 - half), min(1.0, t0 + half)
     if lo > hi:
         return False
-    ts = t0 - vz * math.sqrt(w2) / math.sqrt(a * (a + vz * vz))
+    ts = t0 - vz * math.sqrt(w2) * kz
     ts = min(max(ts, lo), hi)
     d2 = a * (ts - t0) ** 2 + dmin2
     root = math.sqrt(max(r * r - d2, 0.0))
@@ -225,13 +276,14 @@ def _behind(bx: float, by: float, hx: float, hy: float, sx: float, sy: float, ux
 
 
 @njit(cache=True, nogil=True, fastmath={"contract", "arcp", "reassoc"})
-def _spans(x0: float, y0: float, dx: float, dy: float, i0: int, i1: int, k0: int, k1: int,
-           sx: float, sy: float, ax: float, ay: float, rr: float, ux: float, uy: float,
-           lim: float, rka: I64, rkb: I64, rsw: F64) -> None:
-    """Per row ``i0..i1`` of a move's box (at ``i - i0``): the columns ``rka..rkb`` of the
-    nodes within ``rr`` of the move's xy shadow and ahead of its trailing line (``(q - s).u
-    > lim``; ``lim = -inf``: none), and ``rsw`` (:func:`_row_node`); once per move, not
-    per block."""
+def _spans(x0: float, y0: float, dx: float, dy: float, i0: int, i1: int, base: int,
+           k0: int, k1: int, sx: float, sy: float, ax: float, ay: float, rr: float, ux: float,
+           uy: float, lim: float, rka: I64, rkb: I64, rsw: F64) -> None:
+    """Per row ``i0..i1`` of a move's box (at ``i - base``, ``base`` its first row): the
+    columns ``rka..rkb`` of the nodes within ``rr`` of the move's xy shadow and ahead of its
+    trailing line (``(q - s).u > lim``; ``lim = -inf``: none), and ``rsw``
+    (:func:`_row_node`); once per move, not per block, over the rows of the blocks it
+    kept."""
     ylo, yhi = min(sy, sy + ay), max(sy, sy + ay)
     for i in range(i0, i1 + 1):
         qy = y0 + i * dy
@@ -239,8 +291,8 @@ def _spans(x0: float, y0: float, dx: float, dy: float, i0: int, i1: int, k0: int
         if lim > -math.inf:
             ka, kb = _trail_span(qy, x0, dx, ka, kb, sx, sy, ux, uy, lim)
         wy = sy - qy
-        rka[i - i0], rkb[i - i0] = ka, kb
-        rsw[i - i0] = math.sqrt(max(rr * rr * (1.0 - 1e-10) - wy * wy, 0.0))
+        rka[i - base], rkb[i - base] = ka, kb
+        rsw[i - base] = math.sqrt(max(rr * rr * (1.0 - 1e-10) - wy * wy, 0.0))
 
 
 @njit(cache=True, nogil=True, fastmath={"contract", "arcp", "reassoc"}, inline="always")
@@ -292,7 +344,7 @@ def _flat_node(wx: float, wy: float, sz: float, ax: float, ay: float, vz: float,
     return e if (w2 > 0.0 and lo <= hi) else math.inf
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline="always")
 def _any_reset(flags: NDArray[np.bool_], a: int, c: int) -> bool:
     """Whether any of ``flags[a:c]`` is set; clears them."""
     out = False
@@ -304,18 +356,14 @@ def _any_reset(flags: NDArray[np.bool_], a: int, c: int) -> bool:
 
 @njit(cache=True, nogil=True, fastmath={"contract", "arcp", "reassoc"})
 def _row_run(n: int, ka: int, sx: float, x0: float, dx: float, wy: float, sw: float,
-             sz: float, ax: float, ay: float, vz: float, r: float, ball: bool, env: F64
-             ) -> None:
+             sz: float, ax: float, ay: float, vz: float, r: float, ball: bool, env: F64,
+             inv_a: float, inv_sa: float, kz: float, aa: float, reach2: float) -> None:
     """``env[j]`` over ``n`` contiguous nodes of a row (columns ``ka + j``, offsets
     ``sx - (x0 + (ka + j) dx), wy`` from the move's start: a node's offset does not depend
     on where its run starts) for a move that is not vertical: :func:`_row_node` along x
     (``sw`` its per-row root), else :func:`_flat_node`; one flat loop, so that it
-    vectorises."""
-    a = ax * ax + ay * ay
-    inv_a = 1.0 / a
-    inv_sa, kz = math.sqrt(inv_a), 1.0 / math.sqrt(a * (a + vz * vz))
-    aa = 1.0 / inv_a  # as the plain kernel has it (the same rounding)
-    reach2 = r * r * (1.0 - 1e-10)
+    vectorises. ``inv_a, inv_sa, kz, aa`` (:func:`move_constants`) and ``reach2 = R² (1 -
+    1e-10)`` come once per move."""
     if ay == 0.0:
         for j in range(n):
             env[j] = _row_node(sx - (x0 + (ka + j) * dx), wy, sw, sz, ax, vz, r, ball, inv_a,
@@ -330,15 +378,23 @@ def _row_run(n: int, ka: int, sx: float, x0: float, dx: float, wy: float, sw: fl
 def _runs(x0: float, y0: float, dx: float, dy: float, b: int, i0: int, i1: int, k0: int,
           k1: int, rka: I64, rkb: I64, rsw: F64, sx: float, sy: float, sz: float, ax: float,
           ay: float, vz: float, rr: float, ball: bool, cut: bool, sflat: F64, rflat: F64,
-          nx: int, keep: NDArray[np.bool_], lowcol: NDArray[np.bool_], env: F64
+          nx: int, keep: NDArray[np.bool_], lowflat: NDArray[np.bool_], env: F64,
+          inv_a: float, inv_sa: float, kz: float, aa: float, ds: F64, dr: F64
           ) -> tuple[float, float]:
     """One move over the nodes of the blocks marked in ``keep``, row by row: per row, each
     run of consecutive kept blocks is one contiguous stretch of nodes (within the row's
     span, :func:`_spans`), its envelope computed into ``env`` (no gathered copies), then
-    the stock compared and, with ``cut``, lowered (``lowcol[bi, k]`` set where it was).
-    Returns the maxima of stock minus envelope and ``ref`` minus envelope."""
-    best_s, best_r = -math.inf, -math.inf
+    the stock compared and, with ``cut``, lowered (``lowflat[bi * nx + k]`` set where it
+    was). Returns the maxima of stock minus envelope and ``ref`` minus envelope (``inv_a``,
+    ``inv_sa``, ``kz``, ``aa``: :func:`move_constants`).
+
+    The differences go to ``ds`` and ``dr`` (room for every node of the move's box, and
+    one more) and their maxima are taken once per move (:func:`_max_of`): a running
+    maximum per node kept the compare loop scalar; without it, and indexed unsigned (no
+    negative-index wrap-around), it vectorises."""
+    pos = 0
     vertical = ax * ax + ay * ay <= 1e-18
+    reach2 = rr * rr * (1.0 - 1e-10)
     for bi in range(i0 // b, i1 // b + 1):
         bk = k0 // b
         while bk <= k1 // b:
@@ -359,23 +415,50 @@ def _runs(x0: float, y0: float, dx: float, dy: float, b: int, i0: int, i1: int, 
                         env[j] = node_envelope(sx - (sx - (x0 + (ka + j) * dx)), sy - wy, sx,
                                                sy, sz, ax, ay, vz, rr, ball)
                 else:
-                    _row_run(n, ka, sx, x0, dx, wy, rsw[i - i0], sz, ax, ay, vz, rr, ball, env)
+                    # a whole number of vector widths: no node of the run goes through the
+                    # loop's scalar remainder (runs are short: a third of their nodes did);
+                    # the nodes past the run are computed and not used
+                    _row_run((n + VECTOR - 1) // VECTOR * VECTOR, ka, sx, x0, dx, wy,
+                             rsw[i - i0], sz, ax, ay, vz, rr, ball, env, inv_a, inv_sa, kz,
+                             aa, reach2)
                 row = i * nx + ka
+                lrow = bi * nx + ka
                 if cut:
-                    lc = lowcol[bi]
                     for j in range(n):
-                        s, ev = sflat[row + j], env[j]
-                        best_s = max(best_s, s - ev)
-                        best_r = max(best_r, rflat[row + j] - ev)
-                        lc[ka + j] |= ev < s
-                        sflat[row + j] = ev if ev < s else s
+                        q = uint64(row + j)
+                        s, ev = sflat[q], env[j]
+                        low = ev < s
+                        lowflat[uint64(lrow + j)] |= low
+                        sflat[q] = ev if low else s
+                        ds[uint64(pos + j)] = s - ev
+                        dr[uint64(pos + j)] = rflat[q] - ev
                 else:
                     for j in range(n):
+                        q = uint64(row + j)
                         ev = env[j]
-                        best_s = max(best_s, sflat[row + j] - ev)
-                        best_r = max(best_r, rflat[row + j] - ev)
+                        ds[uint64(pos + j)] = sflat[q] - ev
+                        dr[uint64(pos + j)] = rflat[q] - ev
+                pos += n
             bk = bk_end + 1
-    return best_s, best_r
+    return _max_of(ds, pos), _max_of(dr, pos)
+
+
+@njit(cache=True, nogil=True)
+def _max_of(d: F64, n: int) -> float:
+    """``max(d[:n])`` (``-inf`` when ``n = 0``; ``d`` has room for ``n + 1``), over the
+    doubles' bits as integers: ``b ^ ((b >> 63) & 0x7FF...F)`` orders them as the doubles
+    (negatives reversed), and an integer maximum vectorises where a float one did not (a
+    ``-0.0`` and a ``0.0`` come out as ``0.0``; no NaN reaches it)."""
+    bits = d.view(np.int64)
+    mask = np.int64(0x7FFFFFFFFFFFFFFF)
+    best = np.int64(-0x7FFFFFFFFFFFFFFF - 1)  # below every double's key
+    for j in range(n):
+        k = bits[j] ^ ((bits[j] >> 63) & mask)
+        best = k if k > best else best
+    if n == 0:
+        return -math.inf
+    bits[n] = best ^ ((best >> 63) & mask)  # the double back, through memory
+    return d[n]
 
 
 @njit(cache=True, nogil=True, fastmath={"contract", "arcp", "reassoc"})
@@ -403,12 +486,17 @@ def sweep_kernel(x0: float, y0: float, dx: float, dy: float, p0: F64, p1: F64, r
     touched = np.empty((st.shape[0] * st.shape[1], 2), np.int64)
     keep = np.zeros((st.shape[0], st.shape[1]), np.bool_)
     lowcol = np.zeros((st.shape[0], nx), np.bool_)  # per block row, per column: lowered
-    env = np.empty(nx)
+    env = np.empty(nx + VECTOR)
+    lowflat = lowcol.reshape(-1)
+    ds, dr = np.empty(1024), np.empty(1024)  # per move, grown to its box (:func:`_runs`)
     lowered = np.zeros(st.shape[0] * st.shape[1], np.bool_)
     rka, rkb = np.empty(stock.shape[0], np.int64), np.empty(stock.shape[0], np.int64)
     rsw = np.empty(stock.shape[0])
     dirty = np.zeros((cst.shape[0], cst.shape[1]), np.bool_)
     big = b * f
+    # the largest half diagonal of a block and of a coarse block (the last ones are cut)
+    hdf = math.sqrt(np.max(hx) ** 2 + np.max(hy) ** 2)
+    hdc = math.sqrt(np.max(chx) ** 2 + np.max(chy) ** 2)
     for s in range(p0.shape[0]):
         sx, sy, sz = p0[s, 0], p0[s, 1], p0[s, 2]
         ax, ay, vz = p1[s, 0] - sx, p1[s, 1] - sy, p1[s, 2] - sz
@@ -417,12 +505,13 @@ def sweep_kernel(x0: float, y0: float, dx: float, dy: float, p0: F64, p1: F64, r
         over_stock[s] = over_ref[s] = -math.inf
         if k1 < k0 or i1 < i0:
             continue
+        a, inv_a, inv_sa, kz, aa, zlow, slack = move_constants(sx, sy, sz, ax, ay, vz, rr)
         lim, ux, uy = -math.inf, 0.0, 0.0
         if trail[s] >= 0.0:
             norm = math.sqrt(ax * ax + ay * ay)
             ux, uy, lim = ax / norm, ay / norm, -trail[s] - TRAIL_MARGIN
-        _spans(x0, y0, dx, dy, i0, i1, k0, k1, sx, sy, ax, ay, rr, ux, uy, lim, rka, rkb, rsw)
         nt = 0
+        bmin, bmax = st.shape[0], -1  # the block rows of the blocks kept
         cut = apply[s]
         best_s, best_r = -math.inf, -math.inf
         for ci in range(i0 // big, i1 // big + 1):
@@ -432,7 +521,8 @@ def sweep_kernel(x0: float, y0: float, dx: float, dy: float, p0: F64, p1: F64, r
                     continue
                 if test and skip_block(ccx[ck], ccy[ci], chx[ck], chy[ci], cst[ci, ck, 0],
                                        cst[ci, ck, 1], cst[ci, ck, 2], cst[ci, ck, 3], sx, sy,
-                                       sz, ax, ay, vz, rr, ball):
+                                       sz, ax, ay, vz, rr, ball, a, inv_a, kz, zlow, slack,
+                                       hdc):
                     continue
                 for bi in range(max(i0 // b, ci * f), min(i1 // b, ci * f + f - 1) + 1):
                     for bk in range(max(k0 // b, ck * f), min(k1 // b, ck * f + f - 1) + 1):
@@ -442,19 +532,27 @@ def sweep_kernel(x0: float, y0: float, dx: float, dy: float, p0: F64, p1: F64, r
                         if test and skip_block(cx[bk], cy[bi], hx[bk], hy[bi],
                                                st[bi, bk, 0], st[bi, bk, 1], st[bi, bk, 2],
                                                st[bi, bk, 3], sx, sy, sz, ax, ay, vz, rr,
-                                               ball):
+                                               ball, a, inv_a, kz, zlow, slack, hdf):
                             continue
                         touched[nt, 0], touched[nt, 1] = bi, bk
                         keep[bi, bk] = True
                         nt += 1
+                        bmin, bmax = min(bmin, bi), max(bmax, bi)
+        if nt == 0:  # no node to sweep
+            continue
+        _spans(x0, y0, dx, dy, max(i0, bmin * b), min(i1, bmax * b + b - 1), i0, k0, k1, sx,
+               sy, ax, ay, rr, ux, uy, lim, rka, rkb, rsw)
+        if (k1 - k0 + 2) * (i1 - i0 + 1) > len(ds):  # room for every node of the box, + 1
+            ds = np.empty(2 * (k1 - k0 + 2) * (i1 - i0 + 1))
+            dr = np.empty(len(ds))
         best_s, best_r = _runs(x0, y0, dx, dy, b, i0, i1, k0, k1, rka, rkb, rsw, sx, sy, sz,
-                               ax, ay, vz, rr, ball, cut, sflat, rflat, nx, keep, lowcol,
-                               env)
+                               ax, ay, vz, rr, ball, cut, sflat, rflat, nx, keep, lowflat,
+                               env, inv_a, inv_sa, kz, aa, ds, dr)
         for t in range(nt):
             bi, bk = touched[t, 0], touched[t, 1]
             keep[bi, bk] = False
             if cut:
-                lowered[t] = _any_reset(lowcol[bi], bk * b, min(bk * b + b, nx))
+                lowered[t] = _any_reset(lowflat, bi * nx + bk * b, bi * nx + min(bk * b + b, nx))
         if cut:
             for t in range(nt):  # only the blocks the move lowered
                 if lowered[t]:

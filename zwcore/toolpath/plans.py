@@ -276,7 +276,9 @@ def scanline_toolpaths(part: ZMap, plan: ScanlinePlan, cl_heights: CLHeights = s
     max_bytes : int, optional
         Largest program (:class:`~zwcore.errors.LimitExceededError` beyond it).
     reach : (ny, nx) bool, optional
-        Where the finishing tolerance applies.
+        Where the verification holds the program to the finishing tolerance
+        (``within_tolerance``). Default: ``plan.finished``, where the plan's own simulated
+        stock is within it.
     regions : sequence of (my, mx) bool or None, optional
         Per stage, where it cuts on its model's nodes; ``None`` entry: everywhere.
         Default: each stage's own ``region`` (the plan's rest regions, issue 11).
@@ -295,6 +297,8 @@ def scanline_toolpaths(part: ZMap, plan: ScanlinePlan, cl_heights: CLHeights = s
         raise InvalidInputError("regions", f"one per stage ({len(plan.stages)}), got "
                                 f"{len(regions)}")
     overlap = _cores() >= 2 if overlap is None else overlap
+    if reach is None:
+        reach = plan.finished
     t, c = time.perf_counter(), time.process_time()
     numbers = [data[st.tool.id].tool_number for st in plan.stages]
 

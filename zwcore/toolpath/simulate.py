@@ -103,9 +103,14 @@ class ProgramCheck:
     below_part_moves : int
         Moves whose sweep reaches below the part at some node.
     final_over_part_max, final_over_part_p95 : float
-        Machined minus part over the nodes (or over ``reach`` when given), mm.
+        Machined minus part over all the nodes, mm.
+    finished_over_part_max : float
+        The same over ``reach`` (where the plan says it finishes; all nodes when not
+        given), mm.
+    finished_area_fraction : float
+        Share of the nodes in ``reach`` (1 when not given).
     within_tolerance : bool
-        ``final_over_part_max <= tolerance`` (over ``reach`` when given).
+        ``finished_over_part_max <= tolerance``.
     rapid_in_material : float
         Deepest any rapid went into the stock it met, mm (0: rapids run in air).
     arc_radius_mismatch : float
@@ -119,6 +124,8 @@ class ProgramCheck:
     below_part_moves: int
     final_over_part_max: float
     final_over_part_p95: float
+    finished_over_part_max: float
+    finished_area_fraction: float
     within_tolerance: bool
     rapid_in_material: float
     arc_radius_mismatch: float
@@ -349,8 +356,9 @@ class ProgramSimulation:
         return ProgramCheck(
             gouge=float(max(0.0, -left.min())),
             below_part_moves=sum(x.below_part_moves for x in stages),
-            final_over_part_max=fmax,
-            final_over_part_p95=float(np.percentile(region, 95)) if region.size else 0.0,
+            final_over_part_max=float(left.max()),
+            final_over_part_p95=float(np.percentile(left, 95)),
+            finished_over_part_max=fmax, finished_area_fraction=region.size / left.size,
             within_tolerance=fmax <= self.tolerance,
             rapid_in_material=max((x.rapid_in_material for x in stages), default=0.0),
             arc_radius_mismatch=self.mismatch, stages=tuple(stages), machined=machined)
@@ -376,7 +384,8 @@ def simulate_program(prog: ParsedProgram, tools: Mapping[int, Tool], part: ZMap,
     stage_models : sequence of (ny, nx) float64 or None, optional
         Per tool change, in order: the stage model at the part's nodes.
     reach : (ny, nx) bool, optional
-        Where the finishing tolerance applies (where the smallest tool reaches).
+        Where the finishing tolerance applies (where the plan says it finishes); all the
+        nodes when not given.
 
     Returns
     -------
