@@ -13,8 +13,8 @@ at a time.
 
 **Tools with block bounds** (:func:`measure_bounded`): the sweep kernel's values wherever
 they are positive (the only ones a path reads: a lift, a split), for less. The part's
-block bounds cost a scan-line chord most of its time (a Ø20 ball's short finishing chords:
-some 40 coarse and 180 block bounds a chord, against a few hundred nodes read), and the
+block bounds cost a scan-line chord much of its time (a Ø20 ball's short finishing chords:
+some 40 coarse and 180 block bounds a chord, bounded alone), and the
 chords come chained along grid lines: a group of them (:func:`_group_end`, at most
 :data:`GROUP_MAX`) is bounded once as the straight move from its first start to its last
 end lowered by the group's sag (at most :data:`GROUP_SAG` under it: a chord's envelope lies
@@ -34,15 +34,18 @@ from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
 import numpy as np
-from numba import njit
+from numba import njit, uint64
 from numpy.typing import NDArray
 
 from zwcore.toolpath._sweep_kernel import (
     MARGIN,
     RIM,
+    VECTOR,
+    _max_of,
     _move_box,
     _row_run,
     _spans,
+    move_constants,
     node_envelope,
 )
 from zwcore.toolpath._sweep_plain import _envelopes, gather
@@ -124,34 +127,50 @@ def measure_moves(x0: float, y0: float, dx: float, dy: float, p0: F64, p1: F64,
 @njit(cache=True, nogil=True, fastmath={"contract", "arcp", "reassoc"})
 def block_bound(bx: float, by: float, hx: float, hy: float, pxb: float, pyb: float,
                 e: float, m: float, sx: float, sy: float, sz: float, ax: float, ay: float,
-                vz: float, r: float, ball: bool) -> float:
+                vz: float, r: float, ball: bool, hd: float) -> float:
     """An upper bound of ``U - env`` over the nodes of a block for one move (``-inf``: it
     reaches none), from the same quantities and in the same operations as
     :func:`~zwcore.toolpath._sweep_kernel.skip_block`, which skips a block exactly where
-    this is below ``-MARGIN``: ``m`` less the move's lowest tip height (the envelope never
-    lies under the tip), and for a ball off the vertical the tangent-plane bound (the
-    envelope is convex on the move's footprint: :mod:`zwcore.toolpath.sweep`)."""
-    low = m - min(sz, sz + vz)  # the envelope never dips below the lowest tip height
+    the bound is below ``-MARGIN``: ``m`` less the move's lowest tip height (the envelope
+    never lies under the tip), for a ball the rim bound (a node at least ``d`` from the
+    move's segment sees the ball no lower than ``zlow + R - sqrt(R² - d²)``), and off the
+    vertical the tangent-plane bound (the envelope is convex on the move's footprint:
+    :mod:`zwcore.toolpath.sweep`); ``hd``: at least the block's half diagonal."""
+    a, inv_a, _, kz, _, zlow, slack = move_constants(sx, sy, sz, ax, ay, vz, r)
+    low = m - zlow  # the envelope never dips below the lowest tip height
     if low < -MARGIN:
         return low
-    a = ax * ax + ay * ay
-    if not ball or a <= 1e-18:
+    # the block's distance from the segment, at least: its centre's, less its half diagonal
+    wx, wy = bx - sx, by - sy
+    tc = 0.0
+    if a > 1e-18:
+        tc = min(max((wx * ax + wy * ay) * inv_a, 0.0), 1.0)
+    ex, ey = wx - ax * tc, wy - ay * tc
+    dc2 = ex * ex + ey * ey
+    if dc2 > ((r + hd) * (1.0 + 1e-12)) ** 2:  # the footprint misses the block: no node
+        return -math.inf
+    if not ball:
         return low
-    wx, wy = sx - bx, sy - by
+    if dc2 > hd * hd:  # the rim bound (the slack under the root: a node's d² rounding)
+        dblk = min(math.sqrt(dc2) - hd, r)
+        low = min(low, m - (zlow + r - math.sqrt(max(r * r - dblk * dblk, 0.0) + slack)))
+        if low < -MARGIN:
+            return low
+    if a <= 1e-18:
+        return low
+    wx, wy = -wx, -wy  # the move's start from the centre
     c = wx * wx + wy * wy
     bb = ax * wx + ay * wy
-    t0 = -bb / a
-    dmin2 = max(c - bb * bb / a, 0.0)
-    if dmin2 > (r + hx + hy) ** 2:  # the footprint misses the block: no node reached
-        return -math.inf
+    t0 = -bb * inv_a
+    dmin2 = max(c - bb * bb * inv_a, 0.0)
     w2 = r * r * (1.0 - 1e-10) - dmin2
     if w2 <= 0.0:
         return low
-    half = math.sqrt(w2 / a)
+    half = math.sqrt(w2 * inv_a)
     lo, hi = max(0.0, t0 - half), min(1.0, t0 + half)
     if lo > hi:
         return low
-    ts = t0 - vz * math.sqrt(w2) / math.sqrt(a * (a + vz * vz))
+    ts = t0 - vz * math.sqrt(w2) * kz
     ts = min(max(ts, lo), hi)
     d2 = a * (ts - t0) ** 2 + dmin2
     root = math.sqrt(max(r * r - d2, 0.0))
@@ -173,6 +192,8 @@ def _block_nodes(x0: float, y0: float, dx: float, dy: float, b: int, i0: int, i1
     it (:func:`~zwcore.toolpath._sweep_kernel._row_run`: the same values bit for bit)."""
     best = -math.inf
     vertical = ax * ax + ay * ay <= 1e-18
+    _, inv_a, inv_sa, kz, aa, _, _ = move_constants(sx, sy, sz, ax, ay, vz, r)
+    reach2 = r * r * (1.0 - 1e-10)
     for i in range(max(i0, bi * b), min(i1, bi * b + b - 1) + 1):
         ka, kb = max(bk * b, rka[i - i0]), min(bk * b + b - 1, rkb[i - i0])
         if kb < ka:  # never a range from a huge negative bound (it would wrap)
@@ -184,7 +205,10 @@ def _block_nodes(x0: float, y0: float, dx: float, dy: float, b: int, i0: int, i1
                 env[j] = node_envelope(sx - (sx - (x0 + (ka + j) * dx)), sy - wy, sx, sy, sz,
                                        ax, ay, vz, r, ball)
         else:
-            _row_run(n, ka, sx, x0, dx, wy, rsw[i - i0], sz, ax, ay, vz, r, ball, env)
+            # a whole number of vector widths, as the sweep kernel's runs (the same code
+            # path for every node: the nodes past the run are computed and not used)
+            _row_run((n + VECTOR - 1) // VECTOR * VECTOR, ka, sx, x0, dx, wy, rsw[i - i0], sz,
+                     ax, ay, vz, r, ball, env, inv_a, inv_sa, kz, aa, reach2)
         row = i * nx + ka
         for j in range(n):
             best = max(best, rflat[row + j] - env[j])
@@ -195,13 +219,17 @@ def _block_nodes(x0: float, y0: float, dx: float, dy: float, b: int, i0: int, i1
 def _kept_runs(x0: float, y0: float, dx: float, dy: float, b: int, i0: int, i1: int, k0: int,
                k1: int, rka: I64, rkb: I64, rsw: F64, sx: float, sy: float, sz: float,
                ax: float, ay: float, vz: float, r: float, ball: bool, rflat: F64, nx: int,
-               keep: NDArray[np.bool_], env: F64) -> float:
+               keep: NDArray[np.bool_], env: F64, dr: F64) -> float:
     """The largest ``ref`` minus envelope over the nodes of the blocks marked in ``keep``:
     :func:`~zwcore.toolpath._sweep_kernel._runs` without the stock (each run of kept
     blocks side by side in a row one contiguous stretch of nodes, its envelope from
-    :func:`~zwcore.toolpath._sweep_kernel._row_run`: the same values bit for bit)."""
-    best = -math.inf
+    :func:`~zwcore.toolpath._sweep_kernel._row_run`: the same values bit for bit; the
+    differences into ``dr``, room for every node of the box and one more, their maximum
+    by :func:`~zwcore.toolpath._sweep_kernel._max_of`)."""
+    pos = 0
     vertical = ax * ax + ay * ay <= 1e-18
+    _, inv_a, inv_sa, kz, aa, _, _ = move_constants(sx, sy, sz, ax, ay, vz, r)
+    reach2 = r * r * (1.0 - 1e-10)
     for bi in range(i0 // b, i1 // b + 1):
         bk = k0 // b
         while bk <= k1 // b:
@@ -222,16 +250,19 @@ def _kept_runs(x0: float, y0: float, dx: float, dy: float, b: int, i0: int, i1: 
                         env[j] = node_envelope(sx - (sx - (x0 + (ka + j) * dx)), sy - wy, sx,
                                                sy, sz, ax, ay, vz, r, ball)
                 else:
-                    _row_run(n, ka, sx, x0, dx, wy, rsw[i - i0], sz, ax, ay, vz, r, ball, env)
+                    _row_run((n + VECTOR - 1) // VECTOR * VECTOR, ka, sx, x0, dx, wy,
+                             rsw[i - i0], sz, ax, ay, vz, r, ball, env, inv_a, inv_sa, kz, aa,
+                             reach2)
                 row = i * nx + ka
-                for j in range(n):
-                    best = max(best, rflat[row + j] - env[j])
+                for j in range(n):  # the maximum once per move: this loop vectorises
+                    dr[uint64(pos + j)] = rflat[uint64(row + j)] - env[j]
+                pos += n
             bk = bk_end + 1
-    return best
+    return _max_of(dr, pos)
 
 
 #: Most moves measured as one group (:func:`_group_end`).
-GROUP_MAX = 16
+GROUP_MAX = 8
 #: Largest sag (mm) of a group's moves below the straight move from its first start to its
 #: last end: the group's block bound is raised by it, so a larger sag clears fewer blocks.
 GROUP_SAG = 0.05
@@ -302,12 +333,16 @@ def measure_bounded(x0: float, y0: float, dx: float, dy: float, p0: F64, p1: F64
     cand = np.empty(nb)
     cbi = np.empty(nb, np.int64)
     cbk = np.empty(nb, np.int64)
-    env = np.empty(b)
-    wide = np.empty(nx)
+    env = np.empty(b + VECTOR)  # (runs padded to whole vector widths)
+    wide = np.empty(nx + VECTOR)
     keep = np.zeros((st.shape[0], st.shape[1]), np.bool_)
     rka, rkb = np.empty(ny, np.int64), np.empty(ny, np.int64)
     rsw = np.empty(ny)
     big = b * f
+    # the largest half diagonal of a block and of a coarse block (the last ones are cut)
+    hdf = math.sqrt(np.max(hx) ** 2 + np.max(hy) ** 2)
+    hdc = math.sqrt(np.max(chx) ** 2 + np.max(chy) ** 2)
+    dr = np.empty(1024)  # per move, grown to its box (:func:`_kept_runs`)
     g = 0
     while g < p0.shape[0]:
         e, delta = _group_end(p0, p1, g, gmax, sag)
@@ -322,7 +357,7 @@ def measure_bounded(x0: float, y0: float, dx: float, dy: float, p0: F64, p1: F64
                     cb = delta + block_bound(ccx[ck], ccy[ci], chx[ck], chy[ci],
                                              cst[ci, ck, 0], cst[ci, ck, 1], cst[ci, ck, 2],
                                              cst[ci, ck, 3], gx, gy, gz, gax, gay, gvz, r,
-                                             ball)
+                                             ball, hdc)
                     if cb < -MARGIN:
                         continue
                     for bi in range(max(i0 // b, ci * f), min(i1 // b, ci * f + f - 1) + 1):
@@ -331,7 +366,7 @@ def measure_bounded(x0: float, y0: float, dx: float, dy: float, p0: F64, p1: F64
                             fb = min(cb, delta + block_bound(
                                 cx[bk], cy[bi], hx[bk], hy[bi], st[bi, bk, 0],
                                 st[bi, bk, 1], st[bi, bk, 2], st[bi, bk, 3], gx, gy, gz,
-                                gax, gay, gvz, r, ball))
+                                gax, gay, gvz, r, ball, hdf))
                             if fb < -MARGIN:
                                 continue
                             gb[ng], gbi[ng], gbk[ng] = fb, bi, bk
@@ -354,7 +389,8 @@ def measure_bounded(x0: float, y0: float, dx: float, dy: float, p0: F64, p1: F64
                         continue
                     fb = min(gb[t], block_bound(cx[bk], cy[bi], hx[bk], hy[bi],
                                                 st[bi, bk, 0], st[bi, bk, 1], st[bi, bk, 2],
-                                                st[bi, bk, 3], sx, sy, sz, ax, ay, vz, r, ball))
+                                                st[bi, bk, 3], sx, sy, sz, ax, ay, vz, r, ball,
+                                                hdf))
                     if fb < -MARGIN:
                         continue
                     cand[nt], cbi[nt], cbk[nt] = fb, bi, bk
@@ -366,7 +402,7 @@ def measure_bounded(x0: float, y0: float, dx: float, dy: float, p0: F64, p1: F64
             for t in range(1, nt):
                 lo_b, hi_b = min(lo_b, cbi[t]), max(hi_b, cbi[t])
             i0, i1 = max(i0, lo_b * b), min(i1, hi_b * b + b - 1)
-            _spans(x0, y0, dx, dy, i0, i1, k0, k1, sx, sy, ax, ay, r, 0.0, 0.0, -math.inf,
+            _spans(x0, y0, dx, dy, i0, i1, i0, k0, k1, sx, sy, ax, ay, r, 0.0, 0.0, -math.inf,
                    rka, rkb, rsw)
             # the block of the largest bound first: where a move gouges it mostly gouges
             # most, and what it finds there clears every block whose bound lies below
@@ -388,8 +424,10 @@ def measure_bounded(x0: float, y0: float, dx: float, dy: float, p0: F64, p1: F64
                     keep[cbi[t], cbk[t]] = True
                     more = True
             if more:
+                if (k1 - k0 + 2) * (i1 - i0 + 1) > len(dr):  # every node of the box, + 1
+                    dr = np.empty(2 * (k1 - k0 + 2) * (i1 - i0 + 1))
                 rest = _kept_runs(x0, y0, dx, dy, b, i0, i1, k0, k1, rka, rkb, rsw, sx, sy,
-                                  sz, ax, ay, vz, r, ball, rflat, nx, keep, wide)
+                                  sz, ax, ay, vz, r, ball, rflat, nx, keep, wide, dr)
                 best = max(best, rest)
                 for t in range(nt):
                     keep[cbi[t], cbk[t]] = False
