@@ -14,8 +14,8 @@ at a time.
 **Tools with block bounds** (:func:`measure_bounded`): the sweep kernel's values wherever
 they are positive (the only ones a path reads: a lift, a split), for less. The part's
 block bounds cost a scan-line chord much of its time (a Ø20 ball's short finishing chords:
-some 40 coarse and 180 block bounds a chord, bounded alone), and the
-chords come chained along grid lines: a group of them (:func:`_group_end`, at most
+some 40 coarse and 180 block bounds a chord, bounded alone), and the chords come
+chained along grid lines: a group of them (:func:`_group_end`, at most
 :data:`GROUP_MAX`) is bounded once as the straight move from its first start to its last
 end lowered by the group's sag (at most :data:`GROUP_SAG` under it: a chord's envelope lies
 at most that much under the straight move's), and each chord bounds only the blocks the
@@ -129,9 +129,10 @@ def block_bound(bx: float, by: float, hx: float, hy: float, pxb: float, pyb: flo
                 e: float, m: float, sx: float, sy: float, sz: float, ax: float, ay: float,
                 vz: float, r: float, ball: bool, hd: float) -> float:
     """An upper bound of ``U - env`` over the nodes of a block for one move (``-inf``: it
-    reaches none), from the same quantities and in the same operations as
-    :func:`~zwcore.toolpath._sweep_kernel.skip_block`, which skips a block exactly where
-    the bound is below ``-MARGIN``: ``m`` less the move's lowest tip height (the envelope
+    reaches none): the least of the bounds
+    :func:`~zwcore.toolpath._sweep_kernel.skip_block` tests against ``-MARGIN``, as
+    values (a caller compares them with other thresholds): ``m`` less the move's lowest
+    tip height (the envelope
     never lies under the tip), for a ball the rim bound (a node at least ``d`` from the
     move's segment sees the ball no lower than ``zlow + R - sqrt(R² - d²)``), and off the
     vertical the tangent-plane bound (the envelope is convex on the move's footprint:
