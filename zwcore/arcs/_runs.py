@@ -68,6 +68,12 @@ WORK_FREE = 0.98
 #: Runs (between corners) of fewer pieces than this are not fitted backwards: on the
 #: glyph table no run of two pieces came out shorter (77 tried).
 REVERSE_MIN_PIECES = 3
+#: A backward plain beam (no anchors) of more pieces than the forward chain plus this
+#: (``seam="free"``; the default seam: plus 0) is dropped before its refit along straight
+#: runs: that refit rarely takes a segment off, and a backward chain is only kept when
+#: shorter. At +1 no chain of the glyph table changed (at +0 even 0.01 got one more
+#: segment with "free"); the backward fits' refits were a third of their CPU.
+REVERSE_PLAIN_SLACK = 1
 
 
 def work_share(max_radius: float | None, free: bool = False) -> float:
@@ -318,12 +324,12 @@ def _reverse_runs(prep: Prepared, max_radius: float | None, bridge: bool,
 
     ``free``: ``seam="free"`` (every run ends at corners; the first scans at
     :data:`WORK_FREE`). Else the default seam: the runs of a wrapping closed curve that
-    meet at its smooth first point stay as fitted, the scans are at :data:`WORK`, a
-    backward plain beam longer than the forward chain is not refitted along straight
-    runs (:attr:`_RunFitter.plain_max`: half of the backward fits' CPU, no segment on
-    the glyph table), and a backward chain replaces the run only with no more flat arcs
-    and arcs over straight runs than it has (the straight-run rules the forward fit
-    applied). Returns whether every run fitted backwards was a closed form."""
+    meet at its smooth first point stay as fitted, the scans are at :data:`WORK`, and a
+    backward chain replaces the run only with no more flat arcs and arcs over straight
+    runs than it has (the straight-run rules the forward fit applied; on noisy 0.01
+    this keeps 13 segments, 88 flat arcs instead of 97). A backward plain beam much
+    longer than the forward chain is dropped (:data:`REVERSE_PLAIN_SLACK`).
+    Returns whether every run fitted backwards was a closed form."""
     m = prep.m_last
     back = Prepared(prep.origin, np.ascontiguousarray(prep.samples[::-1]), prep.tol,
                     prep.closed, [m - b for b in reversed(prep.bounds)],
@@ -335,14 +341,11 @@ def _reverse_runs(prep: Prepared, max_radius: float | None, bridge: bool,
         if len(got[0]) < REVERSE_MIN_PIECES or (prep.wrap and r in (0, last)):
             continue
         a, b = prep.bounds[r], prep.bounds[r + 1]
-        if free:
+        fit.plain_max = len(got[0]) + (REVERSE_PLAIN_SLACK if free else 0)
+        try:
             pieces, forced = fit.run(m - b, m - a, None)
-        else:
-            fit.plain_max = len(got[0])
-            try:
-                pieces, forced = fit.run(m - b, m - a, None)
-            except Behind:
-                continue
+        except Behind:
+            continue
         if forced or len(pieces) >= len(got[0]):
             continue
         turned = _turned(pieces, prep.samples)
