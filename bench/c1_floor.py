@@ -167,7 +167,7 @@ def _runs(pts: FloatArray, corners: FloatArray) -> list[FloatArray]:
 
 
 def _fewest(run: FloatArray, tol: float, c1: bool, p_from: int = 1,
-            p_max: int = 16) -> int | None:
+            p_max: int = 24) -> int | None:
     """Fewest pieces (``p_from..p_max``; the caller knows fewer fail) whose model offset
     stays within ``tol`` on ``run``."""
     d = np.diff(run, axis=0)
@@ -204,9 +204,11 @@ def _contours(labels: list[str], tol: float) -> None:
             # a straight run (within tol of its chord): one line either way. (Until session
             # 9 a run whose net turn was under 5 degrees counted as straight, so the
             # S-shaped 111 mm run of S0, 395 degrees of turning, counted one piece.)
+            # (a closed run, a loop or a contour with one corner, has no chord: until
+            # session 10 its zero chord made it "straight", one piece)
             chord = run[-1] - run[0]
             off = np.abs((run[:, 0] - run[0, 0]) * chord[1] - (run[:, 1] - run[0, 1]) * chord[0])
-            if float(off.max()) <= tol * float(np.hypot(*chord)):
+            if float(np.hypot(*chord)) > tol and float(off.max()) <= tol * float(np.hypot(*chord)):
                 n0 += 1
                 n1 += 1
                 continue

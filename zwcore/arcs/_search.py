@@ -37,16 +37,12 @@ from zwcore.arcs._pieces import Piece, ToleranceBand
 from zwcore.arcs._ranking import rank_level
 from zwcore.arcs._select import candidates, candidates_level, select_verified
 from zwcore.arcs._start import free_start, free_start_tangents, full_circle, one_piece_to_end
-from zwcore.arcs._states import Cands, State, level_arrays, unwind
+from zwcore.arcs._states import Behind, Cands, State, Stuck, level_arrays, unwind
 from zwcore.arcs._unstick import bridge, fallback
 
 FloatArray = NDArray[np.float64]
 
-__all__ = ["Fitter", "Piece", "Stuck"]
-
-
-class Stuck(Exception):
-    """No verified piece could be placed from the current junction."""
+__all__ = ["Behind", "Fitter", "Piece", "Stuck"]
 
 
 class Fitter:
@@ -142,7 +138,7 @@ class Fitter:
                 return done, forced_at
             nxt = self._expand(level, b)
             if nxt and self.cutoff is not None and self.cutoff(nxt):
-                raise Stuck
+                raise Behind
             if nxt:
                 level = nxt
                 continue

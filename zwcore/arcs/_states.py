@@ -13,7 +13,16 @@ from zwcore.arcs._pieces import Piece
 
 FloatArray = NDArray[np.float64]
 
-__all__ = ["Cands", "State", "approx_lengths", "level_arrays", "unwind"]
+__all__ = ["Behind", "Cands", "State", "Stuck", "approx_lengths", "level_arrays", "unwind"]
+
+
+class Stuck(Exception):
+    """No verified piece could be placed from the current junction."""
+
+
+class Behind(Stuck):
+    """A run's cutoff dropped it: its chains cannot be worth finishing (so not a reason
+    to retry at a tighter working tolerance, as :class:`Stuck` is)."""
 
 
 @dataclass

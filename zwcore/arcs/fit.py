@@ -30,6 +30,11 @@ Method (as built)
    last few junctions (:func:`zwcore.arcs._start.shorter_ends`). The best refit is kept
    when it has fewer arcs over straight runs and at most one more segment per arc it
    removed.
+3c. Runs fitted backwards (:func:`zwcore.arcs._runs.assemble`): a run between two
+   corners of a closed curve is also fitted on the reversed samples (where its
+   junctions fall depends on the direction the beam grows in); the backward chain
+   replaces the run when it is shorter with no more flat arcs or arcs over straight
+   runs.
 4. Bridges: a state from which nothing verified can be placed tries a biarc onto
    a nearby sample with the polyline's direction (the second arc is verified
    with the true distance of its first sample).
