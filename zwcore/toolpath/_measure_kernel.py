@@ -39,7 +39,6 @@ from numpy.typing import NDArray
 
 from zwcore.toolpath._sweep_kernel import (
     MARGIN,
-    RIM,
     VECTOR,
     _max_of,
     _move_box,
@@ -47,6 +46,8 @@ from zwcore.toolpath._sweep_kernel import (
     _spans,
     move_constants,
     node_envelope,
+    plane_bound,
+    segment_distance2,
 )
 from zwcore.toolpath._sweep_plain import _envelopes, gather
 from zwcore.toolpath.sweep import BlockBounds, GridFrame
@@ -142,12 +143,7 @@ def block_bound(bx: float, by: float, hx: float, hy: float, pxb: float, pyb: flo
     if low < -MARGIN:
         return low
     # the block's distance from the segment, at least: its centre's, less its half diagonal
-    wx, wy = bx - sx, by - sy
-    tc = 0.0
-    if a > 1e-18:
-        tc = min(max((wx * ax + wy * ay) * inv_a, 0.0), 1.0)
-    ex, ey = wx - ax * tc, wy - ay * tc
-    dc2 = ex * ex + ey * ey
+    dc2 = segment_distance2(bx, by, sx, sy, ax, ay, a, inv_a)
     if dc2 > ((r + hd) * (1.0 + 1e-12)) ** 2:  # the footprint misses the block: no node
         return -math.inf
     if not ball:
@@ -159,28 +155,8 @@ def block_bound(bx: float, by: float, hx: float, hy: float, pxb: float, pyb: flo
             return low
     if a <= 1e-18:
         return low
-    wx, wy = -wx, -wy  # the move's start from the centre
-    c = wx * wx + wy * wy
-    bb = ax * wx + ay * wy
-    t0 = -bb * inv_a
-    dmin2 = max(c - bb * bb * inv_a, 0.0)
-    w2 = r * r * (1.0 - 1e-10) - dmin2
-    if w2 <= 0.0:
-        return low
-    half = math.sqrt(w2 * inv_a)
-    lo, hi = max(0.0, t0 - half), min(1.0, t0 + half)
-    if lo > hi:
-        return low
-    ts = t0 - vz * math.sqrt(w2) * kz
-    ts = min(max(ts, lo), hi)
-    d2 = a * (ts - t0) ** 2 + dmin2
-    root = math.sqrt(max(r * r - d2, 0.0))
-    if root < RIM * r:
-        return low
-    env = sz + vz * ts + r - root
-    gx = (bx - (sx + ax * ts)) / root
-    gy = (by - (sy + ay * ts)) / root
-    return min(low, e - env + abs(pxb - gx) * hx + abs(pyb - gy) * hy)
+    return min(low, plane_bound(bx, by, hx, hy, pxb, pyb, e, sx, sy, sz, ax, ay, vz, r, a,
+                                inv_a, kz))
 
 
 @njit(cache=True, nogil=True, fastmath={"contract", "arcp", "reassoc"})

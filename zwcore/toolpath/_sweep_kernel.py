@@ -178,12 +178,7 @@ def skip_block(bx: float, by: float, hx: float, hy: float, pxb: float, pyb: floa
     if m < zlow - MARGIN:  # the tip never comes down to the block's top
         return True
     # the block's distance from the segment, at least: its centre's, less its half diagonal
-    wx, wy = bx - sx, by - sy
-    tc = 0.0
-    if a > 1e-18:
-        tc = min(max((wx * ax + wy * ay) * inv_a, 0.0), 1.0)
-    ex, ey = wx - ax * tc, wy - ay * tc
-    dc2 = ex * ex + ey * ey
+    dc2 = segment_distance2(bx, by, sx, sy, ax, ay, a, inv_a)
     if dc2 > ((r + hd) * (1.0 + 1e-12)) ** 2:  # the footprint misses the block: no node
         return True
     if not ball:
@@ -196,28 +191,54 @@ def skip_block(bx: float, by: float, hx: float, hy: float, pxb: float, pyb: floa
             return True
     if a <= 1e-18:
         return False
-    wx, wy = -wx, -wy  # the move's start from the centre
+    return plane_bound(bx, by, hx, hy, pxb, pyb, e, sx, sy, sz, ax, ay, vz, r, a, inv_a,
+                       kz) < -MARGIN
+
+
+@njit(cache=True, nogil=True, fastmath={"contract", "arcp", "reassoc"}, inline="always")
+def segment_distance2(bx: float, by: float, sx: float, sy: float, ax: float, ay: float,
+                      a: float, inv_a: float) -> float:
+    """Squared xy distance from ``(bx, by)`` to a move's segment from ``(sx, sy)`` by
+    ``(ax, ay)`` (``a``, ``inv_a``: :func:`move_constants`)."""
+    wx, wy = bx - sx, by - sy
+    tc = 0.0
+    if a > 1e-18:
+        tc = min(max((wx * ax + wy * ay) * inv_a, 0.0), 1.0)
+    ex, ey = wx - ax * tc, wy - ay * tc
+    return ex * ex + ey * ey
+
+
+@njit(cache=True, nogil=True, fastmath={"contract", "arcp", "reassoc"}, inline="always")
+def plane_bound(bx: float, by: float, hx: float, hy: float, pxb: float, pyb: float,
+                e: float, sx: float, sy: float, sz: float, ax: float, ay: float, vz: float,
+                r: float, a: float, inv_a: float, kz: float) -> float:
+    """The tangent-plane bound of ``U - env`` over a block for a ball's move that is not
+    vertical (``a > 1e-18``): ``e - env(c) + |P_x - g_x| h_x + |P_y - g_y| h_y``, with
+    ``env(c)`` and ``g`` the envelope and its gradient at the block's centre (module
+    docstring of :mod:`~zwcore.toolpath.sweep`); ``inf`` where the ball does not meet the
+    centre or meets it near its rim (the plane is not used)."""
+    wx, wy = sx - bx, sy - by  # the move's start from the centre
     c = wx * wx + wy * wy
     bb = ax * wx + ay * wy
     t0 = -bb * inv_a
     dmin2 = max(c - bb * bb * inv_a, 0.0)
     w2 = r * r * (1.0 - 1e-10) - dmin2
     if w2 <= 0.0:
-        return False
+        return math.inf
     half = math.sqrt(w2 * inv_a)
     lo, hi = max(0.0, t0 - half), min(1.0, t0 + half)
     if lo > hi:
-        return False
+        return math.inf
     ts = t0 - vz * math.sqrt(w2) * kz
     ts = min(max(ts, lo), hi)
     d2 = a * (ts - t0) ** 2 + dmin2
     root = math.sqrt(max(r * r - d2, 0.0))
     if root < RIM * r:
-        return False
+        return math.inf
     env = sz + vz * ts + r - root
     gx = (bx - (sx + ax * ts)) / root
     gy = (by - (sy + ay * ts)) / root
-    return e - env + abs(pxb - gx) * hx + abs(pyb - gy) * hy < -MARGIN
+    return e - env + abs(pxb - gx) * hx + abs(pyb - gy) * hy
 
 
 @njit(cache=True, nogil=True, fastmath={"contract", "arcp", "reassoc"})
