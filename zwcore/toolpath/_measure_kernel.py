@@ -42,11 +42,10 @@ from zwcore.toolpath._sweep_kernel import (
     VECTOR,
     _max_of,
     _move_box,
-    _row_run,
     _spans,
     move_constants,
-    node_envelope,
     plane_bound,
+    run_envelope,
     segment_distance2,
 )
 from zwcore.toolpath._sweep_plain import _envelopes, gather
@@ -177,15 +176,8 @@ def _block_nodes(x0: float, y0: float, dx: float, dy: float, b: int, i0: int, i1
             continue
         n = kb - ka + 1
         wy = sy - (y0 + i * dy)
-        if vertical:  # as the sweep kernel's runs have it
-            for j in range(n):
-                env[j] = node_envelope(sx - (sx - (x0 + (ka + j) * dx)), sy - wy, sx, sy, sz,
-                                       ax, ay, vz, r, ball)
-        else:
-            # a whole number of vector widths, as the sweep kernel's runs (the same code
-            # path for every node: the nodes past the run are computed and not used)
-            _row_run((n + VECTOR - 1) // VECTOR * VECTOR, ka, sx, x0, dx, wy, rsw[i - i0], sz,
-                     ax, ay, vz, r, ball, env, inv_a, inv_sa, kz, aa, reach2)
+        run_envelope(n, ka, vertical, sx, sy, x0, dx, wy, rsw[i - i0], sz, ax, ay, vz, r,
+                     ball, env, inv_a, inv_sa, kz, aa, reach2)  # as the sweep kernel's runs
         row = i * nx + ka
         for j in range(n):
             best = max(best, rflat[row + j] - env[j])
@@ -222,14 +214,8 @@ def _kept_runs(x0: float, y0: float, dx: float, dy: float, b: int, i0: int, i1: 
                     continue
                 n = kb - ka + 1
                 wy = sy - (y0 + i * dy)
-                if vertical:  # as the sweep kernel's runs have it
-                    for j in range(n):
-                        env[j] = node_envelope(sx - (sx - (x0 + (ka + j) * dx)), sy - wy, sx,
-                                               sy, sz, ax, ay, vz, r, ball)
-                else:
-                    _row_run((n + VECTOR - 1) // VECTOR * VECTOR, ka, sx, x0, dx, wy,
-                             rsw[i - i0], sz, ax, ay, vz, r, ball, env, inv_a, inv_sa, kz, aa,
-                             reach2)
+                run_envelope(n, ka, vertical, sx, sy, x0, dx, wy, rsw[i - i0], sz, ax, ay, vz,
+                             r, ball, env, inv_a, inv_sa, kz, aa, reach2)
                 row = i * nx + ka
                 for j in range(n):  # the maximum once per move: this loop vectorises
                     dr[uint64(pos + j)] = rflat[uint64(row + j)] - env[j]

@@ -394,6 +394,26 @@ def _row_run(n: int, ka: int, sx: float, x0: float, dx: float, wy: float, sw: fl
             env[j] = _flat_node(sx - (x0 + (ka + j) * dx), wy, sz, ax, ay, vz, r, ball, inv_a,
                                 inv_sa, kz, aa, reach2)
 
+@njit(cache=True, nogil=True, fastmath={"contract", "arcp", "reassoc"}, inline="always")
+def run_envelope(n: int, ka: int, vertical: bool, sx: float, sy: float, x0: float, dx: float,
+                 wy: float, sw: float, sz: float, ax: float, ay: float, vz: float, r: float,
+                 ball: bool, env: F64, inv_a: float, inv_sa: float, kz: float, aa: float,
+                 reach2: float) -> None:
+    """``env[j]`` over the ``n`` nodes of a row's run from column ``ka`` (``wy``: the row's
+    offset from the move's start, ``sw`` its per-row root): :func:`node_envelope` per node
+    for a vertical move, else :func:`_row_run` over a whole number of vector widths (no
+    node of the run goes through the loop's scalar remainder: runs are short, a third of
+    their nodes did; the nodes past the run are computed and not used). Every kernel that
+    reads runs calls this, so that a node gets the same value whichever reads it."""
+    if vertical:
+        for j in range(n):
+            env[j] = node_envelope(sx - (sx - (x0 + (ka + j) * dx)), sy - wy, sx, sy, sz, ax,
+                                   ay, vz, r, ball)
+    else:
+        _row_run((n + VECTOR - 1) // VECTOR * VECTOR, ka, sx, x0, dx, wy, sw, sz, ax, ay,
+                 vz, r, ball, env, inv_a, inv_sa, kz, aa, reach2)
+
+
 
 @njit(cache=True, nogil=True, fastmath={"contract", "arcp", "reassoc"})
 def _runs(x0: float, y0: float, dx: float, dy: float, b: int, i0: int, i1: int, k0: int,
@@ -431,17 +451,8 @@ def _runs(x0: float, y0: float, dx: float, dy: float, b: int, i0: int, i1: int, 
                     continue
                 n = kb - ka + 1
                 wy = sy - (y0 + i * dy)
-                if vertical:
-                    for j in range(n):
-                        env[j] = node_envelope(sx - (sx - (x0 + (ka + j) * dx)), sy - wy, sx,
-                                               sy, sz, ax, ay, vz, rr, ball)
-                else:
-                    # a whole number of vector widths: no node of the run goes through the
-                    # loop's scalar remainder (runs are short: a third of their nodes did);
-                    # the nodes past the run are computed and not used
-                    _row_run((n + VECTOR - 1) // VECTOR * VECTOR, ka, sx, x0, dx, wy,
-                             rsw[i - i0], sz, ax, ay, vz, rr, ball, env, inv_a, inv_sa, kz,
-                             aa, reach2)
+                run_envelope(n, ka, vertical, sx, sy, x0, dx, wy, rsw[i - i0], sz, ax, ay,
+                             vz, rr, ball, env, inv_a, inv_sa, kz, aa, reach2)
                 row = i * nx + ka
                 lrow = bi * nx + ka
                 if cut:
