@@ -15,10 +15,13 @@ and region (on the ball's lattice, :mod:`zwcore.scanline._regions`):
 - **cut length** of a pass, lines along ``x`` (and the same along ``y``; the scan
   direction with the shorter time counts): the plan's strips (:mod:`._passes`) space
   lines ``p / sqrt(1 + b²)`` apart across a slope ``b`` (the scallop rule), at least as
-  densely as the pass's nominal lines (every grid line for a lifted pass, every
-  ``floor(p / spacing)``-th for the last), and a line climbs ``sqrt(1 + a²)`` per unit
-  along a slope ``a``: ``sum over region nodes of cell area x sqrt(1 + a²) x lines per
-  mm across``;
+  densely as the pass's nominal lines (every grid line for a lifted pass and for a rest
+  ball's; a whole-part last pass's every ``k``-th, ``k`` up to ``floor(p / spacing)``
+  and of the shortest cut, a strip keeping every grid line over its whole length where
+  the scallop at ``k`` lines breaks the tolerance anywhere along it: the plan's stride),
+  and a line climbs ``sqrt(1 + a²)`` per unit along a slope ``a``: ``sum over region
+  nodes of cell area x sqrt(1 + a²) x lines per mm across``; a whole-part pass's nominal
+  lines run a radius and a grid step past both stock edges, linked beside the stock;
 - **stretches** entered and left: the lines' count per lattice row (lines per mm across
   times the row spacing) grown by the radius along the row (an extra line runs one
   radius past the cells that need it, and stretches that overlap merge), and every rise
@@ -48,9 +51,10 @@ from zwcore.grid.feeds import (
     machining_minutes,
 )
 from zwcore.grid.tools import Tool
+from zwcore.scanline._passes import MAX_STRIDE
 
-__all__ = ["ACROSS_MM", "ENTRY_GAP", "SCALLOP_FLUTE_SHARE", "BallTime", "Feeds", "ball_time",
-           "flat_pick_feed", "passes_for", "stock_met"]
+__all__ = ["ACROSS_MM", "ENTRY_GAP", "SCALLOP_FLUTE_SHARE", "BallTime", "Feeds", "PassFigures",
+           "ball_time", "flat_pick_feed", "pass_figures", "passes_for", "stock_met"]
 
 F64 = NDArray[np.float64]
 B8 = NDArray[np.bool_]
@@ -102,6 +106,8 @@ class BallTime:
         The same of each lifted pass before it (0 when there is none).
     along_x : bool
         The scan direction of the estimate (lines along x).
+    roughing : float
+        A main ball's: the roughing stages before it, minutes (not in ``minutes``).
     """
 
     minutes: float
@@ -113,6 +119,7 @@ class BallTime:
     last: tuple[float, float] = (0.0, 0.0)
     lifted: tuple[float, float] = (0.0, 0.0)
     along_x: bool = True
+    roughing: float = 0.0
 
 
 def passes_for(depth: float, flute: float) -> int:
@@ -148,8 +155,8 @@ def _window_max(x: F64, r: int, out: F64, pre: F64, suf: F64) -> None:
 
 @njit(cache=True, nogil=True)
 def _directions(z: F64, path: F64, region: B8, strips: B8, whole: bool, along_x: bool,
-                du: float, dv: float, picks: F64, nominals: F64, reach: int
-                ) -> tuple[F64, F64]:
+                du: float, dv: float, picks: F64, nominals: F64, reach: int,
+                overrun: float, grids: F64) -> tuple[F64, F64]:
     """Cut length and stretches of passes with lines along ``u`` (``x`` if ``along_x``),
     one per ``(picks[r], nominals[r])``, in one sweep over the strips that hold region
     cells (``strips``).
@@ -166,7 +173,11 @@ def _directions(z: F64, path: F64, region: B8, strips: B8, whole: bool, along_x:
     run along its contours (``du`` each), and each stretch a radius on at either end.
     Every rise of the lines' count along a strip starts a stretch (a whole-part pass:
     of the extra lines only; its nominal lines run whole, linked in air beside the
-    stock)."""
+    stock: each runs ``overrun`` mm past both stock edges, and its link to the next is
+    its spacing long, both at the feed). Where ``grids[r]`` is finer than the nominal
+    spacing, a strip whose cells need more lines than the nominal ones anywhere along it
+    takes every ``grids[r]`` line over its whole length (the plan's stride: a group of
+    strips is coarse only where its scallop holds over the whole group)."""
     ny, nx = z.shape
     nu, nv = (nx - 1, ny - 1) if along_x else (ny - 1, nx - 1)
     runs = picks.size
@@ -176,6 +187,7 @@ def _directions(z: F64, path: F64, region: B8, strips: B8, whole: bool, along_x:
     inside = np.zeros(m, dtype=np.bool_)
     extra, grown = np.zeros(m), np.zeros(m)
     pre, suf = np.zeros(m + 2 * reach), np.zeros(m + 2 * reach)
+    bases, lengths, rises = np.zeros(runs), np.zeros(runs), np.zeros(runs)
     for v in range(nv):
         if not strips[v]:
             continue
@@ -193,20 +205,46 @@ def _directions(z: F64, path: F64, region: B8, strips: B8, whole: bool, along_x:
             climb[u] = math.sqrt(1.0 + a * a)
             inside[u] = whole or (region[i, k] or region[i + 1, k] or region[i, k + 1]
                                   or region[i + 1, k + 1])
+        highest = 0.0  # (the most lines a cell of the strip needs, times the pick)
+        climbed = 0.0  # (the climb summed over the strip's cells in the region)
+        for u in range(nu):
+            highest = max(highest, steep[u])
+            if inside[u]:
+                climbed += climb[u]
         for r in range(runs):
             base = dv / nominals[r]
-            for u in range(nu):
-                extra[u] = max(steep[u] / picks[r] - base, 0.0)
-            _window_max(extra, reach, grown, pre, suf)
-            prev = 0.0
-            for u in range(nu):
-                now = 0.0
-                if inside[u]:
-                    length[r] += du * (base * climb[u] + grown[u])
-                    now = grown[u] if whole else grown[u] + base
-                if now > prev:
-                    stretches[r] += now - prev
-                prev = now
+            if grids[r] < nominals[r] and highest / picks[r] > base * (1.0 + 1e-9):
+                # the plan's stride: a strip keeps every grid line over its whole length
+                # where its scallop at the stride's width breaks the budget anywhere
+                base = dv / grids[r]
+            got_length = got_stretches = 0.0
+            same = -1  # an earlier run with the same lines in this strip
+            if r > 0 and picks[r] == picks[r - 1] and base == bases[r - 1]:
+                same = r - 1
+            elif r > 0 and picks[r] == picks[0] and base == bases[0]:
+                same = 0
+            if same >= 0:
+                got_length, got_stretches = lengths[same], rises[same]
+            elif whole and highest / picks[r] <= base:
+                got_length = du * base * climbed  # nominal lines alone: no extra, no entry
+            else:
+                for u in range(nu):
+                    extra[u] = max(steep[u] / picks[r] - base, 0.0)
+                _window_max(extra, reach, grown, pre, suf)
+                prev = 0.0
+                for u in range(nu):
+                    now = 0.0
+                    if inside[u]:
+                        got_length += du * (base * climb[u] + grown[u])
+                        now = grown[u] if whole else grown[u] + base
+                    if now > prev:
+                        got_stretches += now - prev
+                    prev = now
+            bases[r], lengths[r], rises[r] = base, got_length, got_stretches
+            if whole:  # the strip's share of the whole lines' overruns and links
+                length[r] += base * 2.0 * overrun + dv
+            length[r] += got_length
+            stretches[r] += got_stretches
     for r in range(runs):
         length[r] += stretches[r] * 2.0 * reach * du
     return length, stretches
@@ -299,10 +337,12 @@ def _strips(region: B8, along_x: bool) -> B8:
 
 
 def _direction(z: F64, path: F64, region: B8, whole: bool, along_x: bool, du: float,
-               dv: float, pick: float, nominal: float, reach: int) -> tuple[float, float]:
+               dv: float, pick: float, nominal: float, reach: int, overrun: float = 0.0,
+               grid: float | None = None) -> tuple[float, float]:
     """:func:`_directions` for one pass."""
     got = _directions(z, path, region, _strips(region, along_x), whole, along_x, du, dv,
-                      np.array([pick]), np.array([nominal]), reach)
+                      np.array([pick]), np.array([nominal]), reach, overrun,
+                      np.array([nominal if grid is None else grid]))
     return float(got[0][0]), float(got[1][0])
 
 
@@ -325,7 +365,8 @@ def ball_time(z: F64, closing: F64, dx: float, dy: float, spacing: tuple[float, 
         lines).
     tool : Tool
     region : (ny, nx) bool or None
-        Where the ball works; None: the whole part (its nominal lines run whole).
+        Where the ball works; None: the whole part (its nominal lines run whole, each a
+        radius and a grid step past both stock edges, as the tool paths run them).
     depth : float
         Most material the ball meets in its region, mm.
     tolerance : float
@@ -341,37 +382,73 @@ def ball_time(z: F64, closing: F64, dx: float, dy: float, spacing: tuple[float, 
     -------
     BallTime
     """
+    n = passes_for(depth, tool.flute_length)
+    return pass_figures(z, closing, dx, dy, spacing, tool, region, tolerance, n > 1,
+                        along_x).time(n, depth, feeds, entry)
+
+
+@dataclass(frozen=True)
+class PassFigures:
+    """A ball's pass figures over its region, per scan direction: the last pass's and a
+    lifted pass's ``(cut length, stretches)`` (the lifted: ``(0, 0)`` when not asked
+    for); :meth:`time` the estimate for a number of passes (the same as
+    :func:`ball_time`'s)."""
+
+    directions: tuple[tuple[bool, tuple[float, float], tuple[float, float]], ...]
+    area: float
+
+    def time(self, n: int, depth: float, feeds: Feeds, entry: float = 0.0) -> BallTime:
+        """The :class:`BallTime` of ``n`` passes (the direction with the shorter time; the
+        first of equal ones)."""
+        best: BallTime | None = None
+        plunge = ENTRY_GAP + entry
+        for along, last, lifted in self.directions:
+            length = stretches = minutes = 0.0
+            for count, (cut, entered) in ((1, last), (n - 1, lifted)) if n > 1 else ((1, last),):
+                minutes += count * machining_minutes(
+                    cut, entered * plunge, entered * (2.0 * plunge + ACROSS_MM),
+                    feed=feeds.feed, plunge_feed=feeds.plunge_feed, rapid_feed=feeds.rapid_feed)
+                length += count * cut
+                stretches += count * entered
+            if best is None or minutes < best.minutes:
+                best = BallTime(minutes, n, length, stretches, self.area, depth, last,
+                                lifted if n > 1 else (0.0, 0.0), along)
+        assert best is not None
+        return best
+
+
+def pass_figures(z: F64, closing: F64, dx: float, dy: float, spacing: tuple[float, float],
+                 tool: Tool, region: B8 | None, tolerance: float, lifted_too: bool,
+                 along_x: bool | None = None) -> PassFigures:
+    """:func:`ball_time`'s pass figures (one sweep per direction), a lifted pass's too if
+    ``lifted_too``."""
     whole = region is None
     mask = np.ones(z.shape, dtype=bool) if region is None else np.ascontiguousarray(region)
     zc = np.require(z, dtype=np.float64, requirements=["C"])
     path = np.require(closing, dtype=np.float64, requirements=["C"])
-    n = passes_for(depth, tool.flute_length)
     final = flat_pick_feed(tool.radius, tolerance)
     lifted = flat_pick_feed(tool.radius, SCALLOP_FLUTE_SHARE * tool.flute_length)
     area = float(mask.sum()) * dx * dy
-    best: BallTime | None = None
+    # a whole line runs a radius and a grid step past each stock edge (the tool paths')
+    overrun = tool.radius + max(spacing) if whole else 0.0
+    out = []
     for along in ((True, False) if along_x is None else (along_x,)):
         du, dv = (dx, dy) if along else (dy, dx)
         grid = spacing[1] if along else spacing[0]  # the input's spacing across the lines
         reach = math.ceil(tool.radius / du)
-        runs = [(final, grid * max(1, math.floor(final / grid)), 1)]
-        if n > 1:
-            runs.append((lifted, grid, n - 1))
-        length = stretches = minutes = 0.0
-        each = []
+        # The last pass's lines: a rest ball's on every grid line (the plan's); a
+        # whole-part pass's on every k-th, k of the fewest lines (the plan's stride, at
+        # most the flat pick-feed's), a strip keeping every grid line where the scallop
+        # at k breaks the tolerance anywhere along it (the kernel)
+        strides = range(1, min(max(1, math.floor(final / grid)), MAX_STRIDE) + 1) if whole else [1]
+        runs = [(final, grid * k) for k in strides]
+        if lifted_too:
+            runs.append((lifted, grid))
         cuts, ins = _directions(zc, path, mask, _strips(mask, along), whole, along, du,
                                 dv, np.array([r[0] for r in runs]),
-                                np.array([r[1] for r in runs]), reach)
-        for (_, _, count), cut, entered in zip(runs, cuts, ins, strict=True):
-            each.append((float(cut), float(entered)))
-            plunge = ENTRY_GAP + entry
-            minutes += count * machining_minutes(
-                cut, entered * plunge, entered * (2.0 * plunge + ACROSS_MM), feed=feeds.feed,
-                plunge_feed=feeds.plunge_feed, rapid_feed=feeds.rapid_feed)
-            length += count * cut
-            stretches += count * entered
-        if best is None or minutes < best.minutes:
-            best = BallTime(minutes, n, length, stretches, area, depth, each[0],
-                            each[1] if n > 1 else (0.0, 0.0), along)
-    assert best is not None
-    return best
+                                np.array([r[1] for r in runs]), reach, overrun,
+                                np.full(len(runs), grid))
+        last = min(range(len(strides)), key=lambda r: (float(cuts[r]), r))
+        lift = ((float(cuts[-1]), float(ins[-1])) if lifted_too else (0.0, 0.0))
+        out.append((along, (float(cuts[last]), float(ins[last])), lift))
+    return PassFigures(tuple(out), area)

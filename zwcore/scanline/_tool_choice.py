@@ -24,7 +24,7 @@ replace it without touching the passes or the figures.
 from __future__ import annotations
 
 from collections.abc import Iterator, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import partial
 from typing import NamedTuple
 
@@ -72,6 +72,9 @@ class Level:
     fit: Tool | None
     clipped: int
     raised: int
+    #: the balls' rests on the model's nodes inside the input, by radius
+    #: (:func:`ball_rest`; the finishing ranking prices roughing with the same ones)
+    rests: dict[float, F64] = field(default_factory=dict, compare=False, repr=False)
 
 
 @dataclass(frozen=True)
@@ -152,8 +155,17 @@ def ball_rest(lev: Level, radius: float) -> float:
     model bends more sharply than the ball and within ``2R`` of it, with a ball between
     nodes where node positions leave cusps), over the nodes inside the input.
     """
-    model = lev.model[: lev.extent[0], : lev.extent[1]]
-    return float(ball_reach(model, lev.sx, lev.sy, radius, REST_RESOLUTION).rest.max())
+    return float(rest_map(lev, radius).max())
+
+
+def rest_map(lev: Level, radius: float) -> F64:
+    """:func:`ball_rest`'s map (kept on the level)."""
+    got = lev.rests.get(radius)
+    if got is None:
+        model = lev.model[: lev.extent[0], : lev.extent[1]]
+        got = ball_reach(model, lev.sx, lev.sy, radius, REST_RESOLUTION).rest
+        lev.rests[radius] = got
+    return got
 
 
 def _rests(lev: Level, radii: list[float]) -> Iterator[float]:
@@ -163,7 +175,7 @@ def _rests(lev: Level, radii: list[float]) -> Iterator[float]:
     level and the radius alone: the same values as one by one."""
     n = 0
     while n < len(radii):
-        if n + 1 < len(radii) and split():
+        if n + 1 < len(radii) and split() and radii[n] not in lev.rests:
             first, second = both(partial(ball_rest, lev, radii[n]),
                                  partial(ball_rest, lev, radii[n + 1]))
             yield first

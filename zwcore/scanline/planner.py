@@ -59,7 +59,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Sequence
-from functools import partial
+from concurrent.futures import Future
 
 import numpy as np
 from numpy.typing import NDArray
@@ -166,10 +166,26 @@ def plan_scanline(zmap: ZMap, tools: Sequence[Tool] | None = None, *, tolerance:
     # the first round's targets and levels (under the ceiling) do not depend on the
     # finishing chain: the plan's second thread builds them meanwhile (_threads)
     cache: dict[int, float] = {}
+    # the ranking prices each main ball's roughing on these levels (under the default
+    # stock: the ones it would build itself), asked for after its rests, when the second
+    # thread has built them
+    built: Future[tuple[list[Target], list[Level]]] = Future()
+
+    def first_round() -> tuple[list[Target], list[Level]]:
+        try:
+            got = _targets_and_levels(zmap, mrr, first, ceiling, g, library,
+                                      float(curvature_smoothing), cache)
+        except BaseException as error:
+            built.set_exception(error)
+            raise
+        built.set_result(got)
+        return got
+
     early, chain = both(
-        partial(_targets_and_levels, zmap, mrr, first, ceiling, g, library,
-                float(curvature_smoothing), cache),
-        lambda: finishing_chain(part, zmap.dx, zmap.dy, list(library), tol))
+        first_round,
+        lambda: finishing_chain(part, zmap.dx, zmap.dy, list(library), tol,
+                                levels=None if requested is not None
+                                else lambda: built.result()[1]))
     laps("reach")
     st, chosen = _stages(zmap, mrr, first, ceiling, g, requested, library,
                          float(curvature_smoothing), notes, laps, chain, tol, early, cache)
