@@ -53,6 +53,7 @@ from numpy.typing import NDArray
 from scipy import ndimage
 
 from zwcore.grid.tools import Tool
+from zwcore.scanline._chain import TOOL_CHANGE_MM, Chain, MainBall
 from zwcore.scanline._chain_time import (
     SCALLOP_FLUTE_SHARE,
     BallTime,
@@ -70,7 +71,7 @@ from zwcore.scanline._reach_grid import _pool_any, _upsample_where
 from zwcore.scanline._threads import both, each, split
 from zwcore.sim import RegionBox
 
-if TYPE_CHECKING:  # (_tool_choice imports this module)
+if TYPE_CHECKING:  # (only for types: the tool choice runs after the ranking)
     from zwcore.scanline._tool_choice import Level
 
 __all__ = ["TOOL_CHANGE_MIN", "TOOL_CHANGE_MM", "Chain", "MainBall", "finishing_chain",
@@ -85,10 +86,6 @@ LATTICE_CELLS = 6.0
 #: Detail sharper than this share of a ball's lattice spacing (concave radius at the
 #: input nodes) may fall between its lattice nodes: it goes to the next ball.
 SHARP_SHARE = 0.25
-
-#: A tool change (stop, change, measure, approach) costs as much finishing time as
-#: cutting this length, mm (about 7 s at a 2,000 mm/min finishing feed).
-TOOL_CHANGE_MM = 250.0
 
 #: A tool change in the chain's time ranking, minutes (stop, change, measure the length,
 #: approach: about 15 s on a machining centre; the program's estimate counts moves only).
@@ -105,48 +102,6 @@ ROUGHING_RATIO = 2.0
 
 #: Most region boxes listed per stage (largest first).
 MAX_BOXES = 64
-
-
-@dataclass(frozen=True)
-class MainBall:
-    """The chain's main ball (it machines the whole part) and its estimated figures.
-
-    Attributes
-    ----------
-    tool : Tool
-    cut_length : float
-        Part area / flat pick-feed at ``tolerance``, mm.
-    rest_max : float
-        Most material left over the part after this ball, mm.
-    reason : str
-    """
-
-    tool: Tool
-    cut_length: float
-    rest_max: float
-    reason: str
-
-
-@dataclass(frozen=True, eq=False)
-class Chain:
-    """The finishing chain and the figures of its choice.
-
-    Attributes
-    ----------
-    balls : tuple of Tool
-        The chain's balls, main ball first.
-    main : MainBall
-    smallest_everywhere : float
-        Cut length if the smallest library ball finished the whole part, mm.
-    rho : (ny, nx) float64
-        The part's concave radii (:func:`zwcore.scanline._reach.concave_radii`), for the
-        rest rules and the reach figures (computed once per plan).
-    """
-
-    balls: tuple[Tool, ...]
-    main: MainBall
-    smallest_everywhere: float
-    rho: F64
 
 
 def lattice(radius: float, dx: float, dy: float) -> int:
@@ -450,7 +405,7 @@ class _Reach:
 
     def roughing_levels(self, balls: list[Tool]) -> list[Level]:
         """The plan's roughing levels (coarsest first), built as the plan's first round
-        builds them (:func:`zwcore.scanline.planner._targets_and_levels`: the lifted
+        builds them (:func:`zwcore.scanline._levels.targets_and_levels`: the lifted
         single-knot MRR, nested targets under the default stock); once per ranking (60
         ms CPU at 1025²), or the plan's own (``levels``: the plan builds them on its second
         thread meanwhile, and the default stock's are the same). Their
@@ -463,12 +418,12 @@ class _Reach:
         if self._levels is None:
             from zwcore.grid.zmap import ZMap
             from zwcore.mrr.wavelets import analyse
-            from zwcore.scanline.planner import _first_level_and_guard, _targets_and_levels
+            from zwcore.scanline._levels import first_level_and_guard, targets_and_levels
 
             zmap = ZMap(self.z, dx=self.dx, dy=self.dy)
             mrr = analyse(self.z, "single_knot")
-            first, ceiling, g = _first_level_and_guard(zmap, mrr, balls, None)
-            _, levs = _targets_and_levels(zmap, mrr, first, ceiling, g, balls, 0.0, {})
+            first, ceiling, g = first_level_and_guard(zmap, mrr, balls, None)
+            _, levs = targets_and_levels(zmap, mrr, first, ceiling, g, balls, 0.0, {})
             self._levels = levs[:-1]  # (the last is the finishing level)
         return self._levels
 

@@ -38,9 +38,10 @@ from scipy import ndimage
 
 from zwcore.grid.tools import Tool
 from zwcore.grid.zmap import ZMap
+from zwcore.scanline._chain import TOOL_CHANGE_MM
+from zwcore.scanline._chain_time import flat_pick_feed
 from zwcore.scanline._reach import concave_radii, within_distance
 from zwcore.scanline._reach_cut import cutting_positions
-from zwcore.scanline._regions import TOOL_CHANGE_MM, flat_pick_feed
 from zwcore.sim import drop_cutter, envelope, nodal_drop_cutter, simulation_work
 
 __all__ = ["RestRegion", "RestShared"]

@@ -34,9 +34,9 @@ from numpy.typing import NDArray
 from zwcore.grid.curvature import min_concave_radius
 from zwcore.grid.tools import Tool
 from zwcore.grid.zmap import ZMap
+from zwcore.scanline._chain import Chain
 from zwcore.scanline._models import Target
 from zwcore.scanline._reach import ball_reach
-from zwcore.scanline._regions import Chain
 from zwcore.scanline._rest import RestRegion, RestShared
 from zwcore.scanline._threads import both, split
 

@@ -69,6 +69,9 @@ from zwcore.grid.tools import Tool, default_tools, tool_library
 from zwcore.grid.zmap import ZMap, positive_number, stock_top_at_or_above
 from zwcore.mrr.wavelets import Multiresolution, analyse
 from zwcore.scanline._checks import figures
+from zwcore.scanline._levels import default_stock as _default_stock
+from zwcore.scanline._levels import first_level_and_guard as _first_level_and_guard
+from zwcore.scanline._levels import targets_and_levels as _targets_and_levels
 from zwcore.scanline._models import Target, nested_targets
 from zwcore.scanline._passes import scallop_height
 from zwcore.scanline._reach_figures import with_reach
@@ -101,20 +104,6 @@ F64 = NDArray[np.float64]
 def _validate(tolerance: float, stock_top: float | None, top: float) -> tuple[float, float | None]:
     tol = positive_number(tolerance, "tolerance")
     return tol, None if stock_top is None else stock_top_at_or_above(stock_top, top)
-
-
-def _guard(*values: float) -> float:
-    # A few ulps of the largest magnitude in play: covers the rounding of one
-    # subtraction and of evaluating the models at the input nodes.
-    return 64.0 * float(np.finfo(np.float64).eps) * max(1.0, *(abs(v) for v in values))
-
-
-def _default_stock(top: float, tool: Tool) -> float:
-    # A few ulps under top + L, so that the first pass's flute lift lands on
-    # the top itself rather than a rounding above it (which would call for an
-    # empty extra pass).
-    st = top + tool.flute_length
-    return st - 2.0 * _guard(st, top, tool.flute_length)
 
 
 def plan_scanline(zmap: ZMap, tools: Sequence[Tool] | None = None, *, tolerance: float = 0.01,
@@ -216,47 +205,6 @@ class _Laps:
         now = time.perf_counter()
         self.timings.append((name, now - self._last))
         self._last = now
-
-
-def _first_level_and_guard(zmap: ZMap, mrr: Multiresolution, library: Sequence[Tool],
-                           requested: float | None) -> tuple[int, float, float]:
-    """The coarsest useful level, the stock ceiling and the rounding guard ``g``.
-
-    Levels whose spacing is at least the widest ball's diameter are of no use.
-    """
-    part = zmap.z
-    top = float(part.max())
-    approx = mrr.approximations
-    depth = mrr.depth
-    widest = library[0].diameter
-    first = depth
-    for j in range(depth + 1):
-        s = mrr.scale(j)
-        if min(zmap.dx * s, zmap.dy * s) < widest:
-            first = j
-            break
-    longest = max(t.flute_length for t in library)
-    ceiling = requested if requested is not None else _default_stock(top, library[0])
-    if requested is None:
-        ceiling = max(ceiling, _default_stock(top, max(library, key=lambda t: t.flute_length)))
-    magnitude = max(abs(top), abs(float(part.min())), abs(ceiling), longest,
-                    *(max(abs(float(a.max())), abs(float(a.min()))) for a in approx[first:]))
-    g = _guard(magnitude)
-    # The nested margins need room under the stock: a stock at (or a hair
-    # above) the part's top leaves none, and then only the finishing level is
-    # planned (the flute lift alone reaches the part).
-    if ceiling - top < 8.0 * (depth - first + 2) * 4.0 * g:
-        first = depth
-    return first, ceiling, g
-
-
-def _targets_and_levels(zmap: ZMap, mrr: Multiresolution, first: int, stock: float,
-                        g: float, library: Sequence[Tool], smoothing: float,
-                        cache: dict[int, float]) -> tuple[list[Target], list[Level]]:
-    """The nested targets under ``stock`` and their levels (``cache``: the part's concave
-    radius, filled)."""
-    targets = nested_targets(list(mrr.approximations), zmap.z, first, stock, g)
-    return targets, levels(zmap, mrr.depth, targets, smoothing, library, cache)
 
 
 def _stages(zmap: ZMap, mrr: Multiresolution, first: int, ceiling: float, g: float,

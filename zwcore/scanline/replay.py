@@ -29,8 +29,8 @@ from numpy.typing import NDArray
 
 from zwcore.grid.tools import Tool
 from zwcore.grid.zmap import ZMap
+from zwcore.scanline._levels import rounding_guard
 from zwcore.scanline._stock import StockSim, left_over, run_pass
-from zwcore.scanline.planner import _guard as rounding_guard
 from zwcore.scanline.results import ScanlinePlan, stage_at_nodes
 
 __all__ = ["PassReplay", "PlanReplay", "replay_passes"]
