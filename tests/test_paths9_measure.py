@@ -27,6 +27,7 @@ from zwcore.toolpath._polyline import (
     _measure_moves,
     _split,
     follow_part,
+    lift_points,
     measure_block,
     thin,
 )
@@ -171,16 +172,9 @@ def _follow_reference(points, u, fixed, breaks, measure, *, chord, refine, min_l
         idx, gouge = new, g
     pts, uu, gouge = _split_reference(points[idx], u[idx], gouge, breaks[idx[:-1]], measure,
                                       refine, min_len, decimals, rounds)
-    lift = np.where(gouge > 0.0, gouge, 0.0)
-    vert = np.zeros(len(pts))
-    vert[:-1] = lift
-    vert[1:] = np.maximum(vert[1:], lift)
-    out = pts.copy()
-    want = pts[:, 2] + vert
-    scale = 10.0 ** decimals
-    out[:, 2] = np.ceil(want * scale - 1e-6) / scale
-    out[out[:, 2] < want, 2] += 1.0 / scale
-    return out, uu, float(vert.max())
+    # the lift and rounding are follow_part's own (unchanged); the oracle is the split above
+    out, vmax = lift_points(pts, gouge, decimals)
+    return out, uu, vmax
 
 
 def _lines(part: ZMap, rng: np.random.Generator, n_lines: int, step: float):

@@ -451,6 +451,14 @@ def follow_part(points: F64 | LazyPoints, u: F64, fixed: BOOL, breaks: BOOL, mea
     seg_breaks = breaks[idx[:-1]]
     pts, uu, gouge = _split(kept, u[idx], gouge, seg_breaks, measure, refine,
                             min_len, decimals, rounds)
+    out, vmax = lift_points(pts, gouge, decimals)
+    return out, uu, vmax
+
+
+def lift_points(pts: F64, gouge: F64, decimals: int) -> tuple[F64, float]:
+    """The points ``(n, 3)`` lifted by the gouge of the chords on either side (``gouge``
+    ``(n - 1,)``, per chord; only positive values lift) and rounded up to ``decimals``
+    (never below the lift), and the largest lift."""
     lift = np.where(gouge > 0.0, gouge, 0.0)
     vert = np.zeros(len(pts))
     vert[:-1] = lift
@@ -460,4 +468,4 @@ def follow_part(points: F64 | LazyPoints, u: F64, fixed: BOOL, breaks: BOOL, mea
     scale = 10.0 ** decimals
     out[:, 2] = np.ceil(want * scale - 1e-6) / scale
     out[out[:, 2] < want, 2] += 1.0 / scale  # the rounding may not go below the lift
-    return out, uu, float(vert.max())
+    return out, float(vert.max())
