@@ -46,13 +46,14 @@ import threading
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, replace
 from functools import partial
-from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
 from scipy import ndimage
 
 from zwcore.grid.tools import Tool
+from zwcore.grid.zmap import ZMap
+from zwcore.mrr.wavelets import analyse
 from zwcore.scanline._chain import TOOL_CHANGE_MM, Chain, MainBall
 from zwcore.scanline._chain_time import (
     SCALLOP_FLUTE_SHARE,
@@ -65,14 +66,13 @@ from zwcore.scanline._chain_time import (
     passes_for,
     stock_met,
 )
+from zwcore.scanline._levels import first_level_and_guard, targets_and_levels
 from zwcore.scanline._reach import ball_reach, concave_radii, within_distance
 from zwcore.scanline._reach_cut import CuttingRegion, material_grid
 from zwcore.scanline._reach_grid import _pool_any, _upsample_where
 from zwcore.scanline._threads import both, each, split
+from zwcore.scanline._tool_choice import REST_FLUTE_SHARE, REST_MAX_CELLS, Level, rest_map
 from zwcore.sim import RegionBox
-
-if TYPE_CHECKING:  # (only for types: the tool choice runs after the ranking)
-    from zwcore.scanline._tool_choice import Level
 
 __all__ = ["TOOL_CHANGE_MIN", "TOOL_CHANGE_MM", "Chain", "MainBall", "finishing_chain",
            "flat_pick_feed", "region_boxes"]
@@ -416,10 +416,6 @@ class _Reach:
         if self._levels is None and self._plan_levels is not None:
             self._levels = self._plan_levels()[:-1]  # (the last is the finishing level)
         if self._levels is None:
-            from zwcore.grid.zmap import ZMap
-            from zwcore.mrr.wavelets import analyse
-            from zwcore.scanline._levels import first_level_and_guard, targets_and_levels
-
             zmap = ZMap(self.z, dx=self.dx, dy=self.dy)
             mrr = analyse(self.z, "single_knot")
             first, ceiling, g = first_level_and_guard(zmap, mrr, balls, None)
@@ -431,8 +427,6 @@ class _Reach:
         """A ball's rest on a level's model (inside the input), as
         :func:`zwcore.scanline._tool_choice.ball_rest` takes it (the map, kept on the
         level: the tool choice reads the same)."""
-        from zwcore.scanline._tool_choice import rest_map
-
         return rest_map(lev, radius)
 
     def roughing(self, balls: list[Tool], j: int) -> list[tuple[Tool, Level]]:
@@ -443,8 +437,6 @@ class _Reach:
         model is at most a quarter of the smaller flute length, for a ball of at most
         ``REST_MAX_CELLS`` level cells; a larger one if it fits the level's smallest
         concave radius)."""
-        from zwcore.scanline._tool_choice import REST_FLUTE_SHARE, REST_MAX_CELLS
-
         current = balls[j]
         out: list[tuple[Tool, Level]] = []
         for lev in reversed(self.roughing_levels(balls)):
