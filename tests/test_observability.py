@@ -79,8 +79,16 @@ def test_access_log_is_json_with_ids_outcomes_and_timings(server: LiveServer) ->
                         headers={"X-Request-ID": "log-bad"})
     assert (first.status_code, second.status_code, got.status_code, bad.status_code) == (
         200, 200, 200, 422)
-    log = server.log_text()
-    by_id = {e["request_id"]: e for e in access_lines(log)}
+    # the access line is written once the response has gone out: the client can read the
+    # answer before the server's logging thread has flushed its line
+    wanted = {"log-miss", "log-hit", "log-task", "log-bad"}
+    deadline = time.monotonic() + 10.0
+    while True:
+        log = server.log_text()
+        by_id = {e["request_id"]: e for e in access_lines(log)}
+        if wanted <= by_id.keys() or time.monotonic() > deadline:
+            break
+        time.sleep(0.05)
     miss, hit, task, invalid = (by_id[k] for k in ("log-miss", "log-hit", "log-task", "log-bad"))
     assert miss["operation"] == "compute_mrr" and miss["task_id"] == tid
     assert miss["cache"] == "miss" and miss["status"] == 200

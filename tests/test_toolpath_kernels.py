@@ -151,6 +151,45 @@ def test_trailing_nodes_left_out_change_no_stock_and_no_figure_that_counts(
     assert abs(max(b_r.max(), 0.0) - max(a_r.max(), 0.0)) <= 1e-11
 
 
+def _plain_envelope(x, y, move, along_x):
+    """The plain sweep's per-node envelope of the gathered offsets ``x, y`` for one move
+    ``(sz, ax, ay, vz)`` of a Ø2.6 ball."""
+    from zwcore.toolpath._sweep_plain import flat_envelope, row_envelope
+
+    sz, ax, ay, vz = move
+    r = 1.3
+    a = ax * ax + ay * ay
+    consts = (r, True, 1.0 / a, math.sqrt(1.0 / a), 1.0 / math.sqrt(a * (a + vz * vz)))
+    out = np.empty(len(x))
+    if along_x:
+        sws = np.sqrt(np.maximum(r * r * (1.0 - 1e-10) - y * y, 0.0))
+        row_envelope(len(x), x, y, sws, sz, ax, vz, *consts, out)
+    else:
+        flat_envelope(len(x), x, y, sz, ax, ay, vz, *consts, out)
+    return out
+
+
+@pytest.mark.parametrize("along_x", [False, True])
+def test_plain_envelope_does_not_depend_on_a_nodes_place_in_the_gathered_arrays(along_x):
+    """A band of rows gathers fewer nodes before a given one than the whole grid does, so
+    the same node sits in another SIMD lane, or in the loop's scalar tail. With FMA
+    contraction allowed the vector body and the tail rounded differently (one ulp: the
+    threaded sweep differed from the single-thread one on CI); the envelope loops are now
+    compiled without it, and a node's envelope is the same wherever it sits."""
+    rng = np.random.default_rng(3)
+    for _ in range(60):
+        m = int(rng.integers(1, 120))
+        wxs, wys = rng.uniform(-2, 2, m), rng.uniform(-2, 2, m)
+        ax, ay, vz = rng.normal(0, 1, 3)
+        move = (float(rng.normal()), ax, 0.0 if along_x else ay, vz)
+        alone = _plain_envelope(wxs, wys, move, along_x)
+        assert np.isfinite(alone).any()
+        for pad in range(1, 20):
+            x = np.r_[rng.uniform(-2, 2, pad), wxs]
+            y = np.r_[rng.uniform(-2, 2, pad), wys]
+            np.testing.assert_array_equal(_plain_envelope(x, y, move, along_x)[pad:], alone)
+
+
 @pytest.mark.parametrize("apply", [True, False])
 def test_threaded_sweep_is_the_single_thread_sweep(monkeypatch, apply):
     part = wavy_part(81, 0.2, 3)

@@ -19,8 +19,15 @@ from zwcore.toolpath._sweep_kernel import _move_box, _row_span, node_envelope
 F64 = NDArray[np.float64]
 I64 = NDArray[np.int64]
 
+# The per-node envelope loops are compiled without FMA contraction or reassociation: a
+# node's place in the gathered arrays depends on the rows gathered (a thread's band, or the
+# whole grid), and with contraction the vector body and the loop's scalar tail round one
+# ulp apart, so a threaded sweep differed from the single-thread one. IEEE per lane costs
+# ~5 % of the plain sweep.
+_PER_NODE = {"nsz"}
 
-@njit(cache=True, nogil=True, fastmath={"contract", "arcp", "reassoc", "nsz"},
+
+@njit(cache=True, nogil=True, fastmath=_PER_NODE,
       inline="always")
 def _lowest(t0: float, dmin2: float, sw: float, sz: float, vz: float, r: float, ball: bool,
             inv_sa: float, kz: float, a: float) -> tuple[float, float, float]:
@@ -37,7 +44,7 @@ def _lowest(t0: float, dmin2: float, sw: float, sz: float, vz: float, r: float, 
     return e, lo, hi
 
 
-@njit(cache=True, nogil=True, fastmath={"contract", "arcp", "reassoc", "nsz"})
+@njit(cache=True, nogil=True, fastmath=_PER_NODE)
 def flat_envelope(m: int, wxs: F64, wys: F64, sz: float, ax: float, ay: float, vz: float,
                   r: float, ball: bool, inv_a: float, inv_sa: float, kz: float, env: F64
                   ) -> None:
@@ -58,7 +65,7 @@ def flat_envelope(m: int, wxs: F64, wys: F64, sz: float, ax: float, ay: float, v
         env[j] = e if (w2 > 0.0 and lo <= hi) else math.inf
 
 
-@njit(cache=True, nogil=True, fastmath={"contract", "arcp", "reassoc", "nsz"})
+@njit(cache=True, nogil=True, fastmath=_PER_NODE)
 def row_envelope(m: int, wxs: F64, wys: F64, sws: F64, sz: float, ax: float, vz: float,
                  r: float, ball: bool, inv_a: float, inv_sa: float, kz: float, env: F64
                  ) -> None:
