@@ -90,6 +90,60 @@ def test_cl_is_never_below_the_dense_reference_and_the_tool_never_gouges(
     assert 0.0 <= gap.min() and gap.max() <= 1e-4, "envelope not the tools' lowest surface"
 
 
+@pytest.mark.parametrize("kind", ["ball", "flat"])
+@pytest.mark.parametrize(("radius", "dx"), [(0.5, 0.1), (1.0, 0.25), (1.5, 0.1), (3.0, 0.5)])
+@pytest.mark.parametrize("along_y", [False, True])
+def test_a_tool_whose_rim_touches_a_walls_foot_sits_on_the_floor(kind: str, radius: float,
+                                                                  dx: float, along_y: bool
+                                                                  ) -> None:
+    """A floor at 0 and a 20 mm wall from one column on: the bilinear ramp between the
+    last floor node and the wall starts exactly at the rim of a tool whose axis is ``R``
+    from that node, so the tool sits on the floor (true CL 0). Each cell's bound once
+    counted the wall's top corner as if the tool touched it (CL 19.5 mm for a Ø1 ball at
+    0.1 mm); the corners outside the disc now weigh what the disc gives them."""
+    n = round(radius / dx)
+    foot = n + 6  # the last floor column
+    z = np.zeros((2 * n + 9, foot + n + 6))
+    z[:, foot + 1:] = 20.0
+    z = z.T.copy() if along_y else z
+    tool = Tool("t", kind, 2 * radius, 30.0)
+    cl = drop_cutter(ZMap(z, dx=dx, dy=dx), tool)
+    cl = cl.T if along_y else cl
+    row = n + 4
+    assert 0.0 <= cl[row, foot - n] <= 1e-4
+    assert np.all(cl[row, : foot - n] <= 1e-4)  # farther from the wall: the floor too
+    ref = reference_cl(z, dx, radius, kind, m=4)
+    assert (cl - (ref.T if along_y else ref)).min() >= 0.0  # nearer: held up, never below
+    assert cl[row, foot - n + 1] > 1.0
+
+
+@st.composite
+def cliffs(draw: st.DrawFn) -> tuple[np.ndarray, float]:
+    """A floor with a random step (up to 30 mm) across a random line, some noise."""
+    ny, nx = draw(st.integers(4, 12)), draw(st.integers(4, 12))
+    dx = draw(st.sampled_from([0.1, 0.25, 0.5]))
+    rng = np.random.default_rng(draw(st.integers(0, 2**32 - 1)))
+    y, x = np.mgrid[0:ny, 0:nx] * dx
+    angle = rng.uniform(0, 2 * np.pi)
+    side = x * np.cos(angle) + y * np.sin(angle) > rng.uniform(0, max(nx, ny) * dx)
+    z = draw(st.floats(0.5, 30.0)) * side + 0.05 * rng.standard_normal((ny, nx))
+    return z, dx
+
+
+@settings(max_examples=60, deadline=None)
+@given(cliffs(), st.sampled_from(["ball", "flat"]), st.floats(0.05, 2.0))
+def test_cl_beside_cliffs_is_never_below_the_dense_reference(
+        surf: tuple[np.ndarray, float], kind: str, radius: float) -> None:
+    """The raised outside corners are safe where it matters most: steep steps at every
+    distance from the rim."""
+    z, dx = surf
+    tool = Tool("t", kind, 2 * radius, 40.0)
+    cl = drop_cutter(ZMap(z, dx=dx, dy=dx), tool)
+    assert (cl - reference_cl(z, dx, radius, kind, m=6)).min() >= 0.0
+    pruned = drop_cutter(ZMap(z, dx=dx, dy=dx), tool, method="pruned") if kind == "ball" else cl
+    assert (pruned - reference_cl(z, dx, radius, kind, m=6)).min() >= 0.0
+
+
 @given(st.integers(0, 2**32 - 1), st.sampled_from(["ball", "flat"]), st.floats(0.1, 1.6),
        st.sampled_from([0.25, 0.5]), st.sampled_from(["cell", "bilinear"]))
 def test_cell_meaning_is_exact_against_a_square_by_square_reference(
