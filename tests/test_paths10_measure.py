@@ -27,7 +27,7 @@ from zwcore.toolpath import _polyline as pl
 from zwcore.toolpath import sweep as sweep_mod
 from zwcore.toolpath._measure_kernel import _group_end, measure_moves_bounded
 from zwcore.toolpath._polyline import PartBounds, PartGouge, follow_part, measure_block
-from zwcore.toolpath._sweep_kernel import _move_box, _row_span
+from zwcore.toolpath._sweep_kernel import TIE_REACH, _move_box, _row_span
 from zwcore.toolpath._sweep_plain import _envelopes, plain_kernel
 from zwcore.toolpath.sweep import BlockBounds, GridFrame, sweep_moves
 
@@ -239,7 +239,7 @@ def _plain_reference(x0, y0, dx, dy, p0, p1, r, ball, apply, stock, ref, over_st
             if kb < ka:
                 continue
             wy = sy - qy
-            sw = math.sqrt(max(rr * rr * (1.0 - 1e-10) - wy * wy, 0.0))
+            sw = math.sqrt(max(rr * rr * TIE_REACH - wy * wy, 0.0))
             for k in range(ka, kb + 1):
                 wxs[m] = sx - (x0 + k * dx)
                 wys[m] = wy

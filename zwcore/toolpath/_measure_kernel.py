@@ -39,6 +39,7 @@ from numpy.typing import NDArray
 
 from zwcore.toolpath._sweep_kernel import (
     MARGIN,
+    TIE_REACH,
     VECTOR,
     _max_of,
     _move_box,
@@ -169,7 +170,7 @@ def _block_nodes(x0: float, y0: float, dx: float, dy: float, b: int, i0: int, i1
     best = -math.inf
     vertical = ax * ax + ay * ay <= 1e-18
     _, inv_a, inv_sa, kz, aa, _, _ = move_constants(sx, sy, sz, ax, ay, vz, r)
-    reach2 = r * r * (1.0 - 1e-10)
+    reach2 = r * r * TIE_REACH
     for i in range(max(i0, bi * b), min(i1, bi * b + b - 1) + 1):
         ka, kb = max(bk * b, rka[i - i0]), min(bk * b + b - 1, rkb[i - i0])
         if kb < ka:  # never a range from a huge negative bound (it would wrap)
@@ -198,7 +199,7 @@ def _kept_runs(x0: float, y0: float, dx: float, dy: float, b: int, i0: int, i1: 
     pos = 0
     vertical = ax * ax + ay * ay <= 1e-18
     _, inv_a, inv_sa, kz, aa, _, _ = move_constants(sx, sy, sz, ax, ay, vz, r)
-    reach2 = r * r * (1.0 - 1e-10)
+    reach2 = r * r * TIE_REACH
     for bi in range(i0 // b, i1 // b + 1):
         bk = k0 // b
         while bk <= k1 // b:

@@ -18,6 +18,13 @@ from numpy.typing import NDArray
 F64 = NDArray[np.float64]
 I64 = NDArray[np.int64]
 
+#: A node is within a move's reach when its squared distance from the move is at most
+#: ``R² TIE_REACH``: a node exactly R away (a tie, common where positions and nodes share a
+#: spacing) is cut to the tool's equator, as the plan's simulated stock
+#: (:data:`zwcore.scanline._stock_kernels.RIM`) and :func:`zwcore.sim.envelope` count it;
+#: a retract from the same position meets it at that height, which is no material.
+TIE_REACH = 1.0 + 1e-12
+
 #: A block is skipped only when its bound is below minus this (mm): float rounding of the
 #: bound is orders of magnitude smaller.
 MARGIN = 1e-9
@@ -43,9 +50,8 @@ def node_envelope(qx: float, qy: float, x0: float, y0: float, z0: float, ax: flo
     wx, wy = x0 - qx, y0 - qy
     a = ax * ax + ay * ay
     c = wx * wx + wy * wy
-    # a node exactly R away only touches the tool's side (a tie): it counts as not reached,
-    # the same way for every move, so a retract never "meets" a node its cut left alone
-    reach2 = r * r * (1.0 - 1e-10)
+    # a node exactly R away (a tie) counts as reached, at the tool's equator (:data:`TIE_REACH`)
+    reach2 = r * r * TIE_REACH
     if a <= 1e-18:  # vertical (or no) move
         if c >= reach2:
             return math.inf
@@ -222,7 +228,7 @@ def plane_bound(bx: float, by: float, hx: float, hy: float, pxb: float, pyb: flo
     bb = ax * wx + ay * wy
     t0 = -bb * inv_a
     dmin2 = max(c - bb * bb * inv_a, 0.0)
-    w2 = r * r * (1.0 - 1e-10) - dmin2
+    w2 = r * r * TIE_REACH - dmin2
     if w2 <= 0.0:
         return math.inf
     half = math.sqrt(w2 * inv_a)
@@ -313,7 +319,7 @@ def _spans(x0: float, y0: float, dx: float, dy: float, i0: int, i1: int, base: i
             ka, kb = _trail_span(qy, x0, dx, ka, kb, sx, sy, ux, uy, lim)
         wy = sy - qy
         rka[i - base], rkb[i - base] = ka, kb
-        rsw[i - base] = math.sqrt(max(rr * rr * (1.0 - 1e-10) - wy * wy, 0.0))
+        rsw[i - base] = math.sqrt(max(rr * rr * TIE_REACH - wy * wy, 0.0))
 
 
 @njit(cache=True, nogil=True, fastmath={"contract", "arcp", "reassoc"}, inline="always")
@@ -339,7 +345,7 @@ def _row_node(wx: float, wy: float, sw: float, sz: float, ax: float, vz: float, 
               ball: bool, inv_a: float, inv_sa: float, kz: float, a: float, reach2: float
               ) -> float:
     """The envelope over one node of a move along x (``ay = 0``): a node's distance from
-    the move's line is ``|w_y|``, and ``sw = sqrt(R² (1 - 1e-10) - w_y²)`` (clamped at 0)
+    the move's line is ``|w_y|``, and ``sw = sqrt(R² TIE_REACH - w_y²)`` (clamped at 0)
     comes once per row, so one root per node is left. The operations of
     :func:`~zwcore.toolpath._sweep_plain.row_envelope`, in the same order."""
     t0 = -ax * wx * inv_a
@@ -383,8 +389,8 @@ def _row_run(n: int, ka: int, sx: float, x0: float, dx: float, wy: float, sw: fl
     ``sx - (x0 + (ka + j) dx), wy`` from the move's start: a node's offset does not depend
     on where its run starts) for a move that is not vertical: :func:`_row_node` along x
     (``sw`` its per-row root), else :func:`_flat_node`; one flat loop, so that it
-    vectorises. ``inv_a, inv_sa, kz, aa`` (:func:`move_constants`) and ``reach2 = R² (1 -
-    1e-10)`` come once per move."""
+    vectorises. ``inv_a, inv_sa, kz, aa`` (:func:`move_constants`) and ``reach2 = R² TIE_REACH``
+    come once per move."""
     if ay == 0.0:
         for j in range(n):
             env[j] = _row_node(sx - (x0 + (ka + j) * dx), wy, sw, sz, ax, vz, r, ball, inv_a,
@@ -435,7 +441,7 @@ def _runs(x0: float, y0: float, dx: float, dy: float, b: int, i0: int, i1: int, 
     negative-index wrap-around), it vectorises."""
     pos = 0
     vertical = ax * ax + ay * ay <= 1e-18
-    reach2 = rr * rr * (1.0 - 1e-10)
+    reach2 = rr * rr * TIE_REACH
     for bi in range(i0 // b, i1 // b + 1):
         bk = k0 // b
         while bk <= k1 // b:

@@ -14,7 +14,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from zwcore.toolpath._sweep_kernel import _move_box, _row_span, node_envelope
+from zwcore.toolpath._sweep_kernel import TIE_REACH, _move_box, _row_span, node_envelope
 
 F64 = NDArray[np.float64]
 I64 = NDArray[np.int64]
@@ -52,7 +52,7 @@ def flat_envelope(m: int, wxs: F64, wys: F64, sz: float, ax: float, ay: float, v
     of one (not vertical) move: the closed form of :func:`node_envelope` without branches
     (unreached nodes get ``inf``), one flat loop so that it vectorises."""
     a = 1.0 / inv_a
-    reach2 = r * r * (1.0 - 1e-10)
+    reach2 = r * r * TIE_REACH
     for j in range(m):
         wx, wy = wxs[j], wys[j]
         c = wx * wx + wy * wy
@@ -70,10 +70,10 @@ def row_envelope(m: int, wxs: F64, wys: F64, sws: F64, sz: float, ax: float, vz:
                  r: float, ball: bool, inv_a: float, inv_sa: float, kz: float, env: F64
                  ) -> None:
     """:func:`flat_envelope` of a move along x (``ay = 0``): a node's distance from the
-    move's line is ``|w_y|``, and ``sws[j] = sqrt(R² (1 - 1e-10) - w_y²)`` (clamped at 0)
+    move's line is ``|w_y|``, and ``sws[j] = sqrt(R² TIE_REACH - w_y²)`` (clamped at 0)
     comes once per row from the gathering, so one root per node is left."""
     a = 1.0 / inv_a
-    reach2 = r * r * (1.0 - 1e-10)
+    reach2 = r * r * TIE_REACH
     for j in range(m):
         wy = wys[j]
         t0 = -ax * wxs[j] * inv_a
@@ -109,7 +109,7 @@ def gather(x0: float, y0: float, dx: float, dy: float, nx: int, k0: int, k1: int
            sws: F64, first: I64, ks: I64, rows: I64) -> tuple[int, int]:
     """The nodes within ``r`` of a move's xy shadow, row by row over its box (rows
     ``i0..i1``, columns ``k0..k1``): their offsets ``wxs, wys`` from the move's start and
-    each row's ``sws = sqrt(r² (1 - 1e-10) - w_y²)`` (clamped at 0), for :func:`_envelopes`;
+    each row's ``sws = sqrt(r² TIE_REACH - w_y²)`` (clamped at 0), for :func:`_envelopes`;
     per row that has any, ``first`` (where its nodes start in the gathered arrays), ``ks``
     (its first column) and ``rows`` (``i * nx``). Returns the nodes ``m`` and the rows
     ``nr`` gathered. Inlined into both kernels that gather (:func:`plain_kernel` and the
@@ -124,7 +124,7 @@ def gather(x0: float, y0: float, dx: float, dy: float, nx: int, k0: int, k1: int
         if kb < ka:  # never a range from a huge negative bound (it would wrap around)
             continue
         wy = sy - qy
-        sw = math.sqrt(max(r * r * (1.0 - 1e-10) - wy * wy, 0.0))
+        sw = math.sqrt(max(r * r * TIE_REACH - wy * wy, 0.0))
         first[nr], ks[nr], rows[nr] = m, ka, i * nx
         nr += 1
         for k in range(ka, kb + 1):
