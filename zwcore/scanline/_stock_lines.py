@@ -177,13 +177,19 @@ def drop_target(model: F64, pos: Positions, tool: Tool, sx: float, sy: float) ->
     if pos.along == "y":  # lines along y: the transposed model's rows are its columns
         px, py, su, sv, grid = pos.y, pos.x, sy, sx, model.T
     nv = grid.shape[0]
-    # the rows :func:`_k.interpolate` reads (its lower row clamped to the last but one),
-    # and one more each way: a position on a node may round to either side of it
-    r0 = np.floor(py * (1.0 / sv)).astype(np.intp)
-    rows = np.unique(np.clip(np.concatenate([r0 - 1, r0, r0 + 1, r0 + 2]), 0, nv - 1))
+    # the rows :func:`_k.interpolate` gives a weight (its own arithmetic: the lower row
+    # clamped to the last but one); the others are never read with a weight, and are 0
+    isv = 1.0 / sv
+    fy = py * isv
+    r0 = np.clip(np.floor(fy).astype(np.intp), 0, max(nv - 2, 0))
+    ty = np.clip(fy - r0, 0.0, 1.0)
+    rows = np.unique(np.concatenate([r0[ty < 1.0], np.minimum(r0 + 1, nv - 1)[ty > 0.0]]))
     grid = np.ascontiguousarray(grid)
-    bil = drop_cutter(ZMap(grid, dx=su, dy=sv), tool, "bilinear", method="pruned", rows=rows)
-    return np.maximum(cl, _k.interpolate(bil, 1.0 / su, 1.0 / sv, px, py))
+    # one thread: the plan's passes already run on the plan's threads
+    bil = drop_cutter(ZMap(grid, dx=su, dy=sv), tool, "bilinear", method="pruned", rows=rows,
+                      threads=1)
+    bil[np.isnan(bil)] = 0.0
+    return np.maximum(cl, _k.interpolate(bil, 1.0 / su, isv, px, py))
 
 
 #: The per-position kernels' block skipping leaves about this share of the nodes within
