@@ -450,17 +450,18 @@ def target_drop(model: F64, sx: float, sy: float, tool: Tool, positions: int) ->
     vector operations per four offsets of the ball's footprint at every model node, done
     once per stage; dropping at the positions costs the footprint per position (block
     skipping helps little on a model under the ball), per pass. The whole model is
-    dropped when the ball's element is small enough for the dilation
-    (:data:`zwcore.sim.cutting.PRUNE_FOOTPRINT`: a Ø3 ball at 1025² and 0.1 mm takes some
-    0.05 s), costs at most :data:`MAX_PASS_WORK` node visits, or its nodes are at most
+    dropped when the ball's element is small (:data:`zwcore.sim.cutting.PRUNE_FOOTPRINT`),
+    when it costs at most :data:`MAX_PASS_WORK` node visits, or when its nodes are at most
     :data:`DROP_SHARE` times the positions (a small ball at the input's level: its
     positions cover the model). Otherwise (a Ø20 ball finishing a fine model with few
     positions: 4e10 node visits at 1024² and 0.1 mm) each pass takes the bilinear
     drop-cutter on the rows around its positions only
     (:func:`~zwcore.scanline._stock_lines.drop_target`): the CL the tool paths take.
     """
-    if simulation_work((1, 1), tool, sx, sy) <= PRUNE_FOOTPRINT:  # its element: cheap
-        return drop(model, sx, sy, tool)
+    if simulation_work((1, 1), tool, sx, sy) <= PRUNE_FOOTPRINT:
+        # a small element: the dilation is cheap (a Ø3 ball at 1025² and 0.1 mm, some
+        # 0.1 s), on one thread (the plan's passes run on the plan's threads)
+        return drop(model, sx, sy, tool, threads=1)
     work = model.size * math.pi * (tool.radius / sx + 1.0) * (tool.radius / sy + 1.0)
     if work <= 4 * MAX_PASS_WORK or (INCREMENTAL and model.size <= DROP_SHARE * positions
                                      and work <= MAX_DROP_WORK):
@@ -484,9 +485,9 @@ DROP_SHARE = 4
 INCREMENTAL = True
 
 
-def drop(model: F64, sx: float, sy: float, tool: Tool) -> F64:
+def drop(model: F64, sx: float, sy: float, tool: Tool, threads: int | None = None) -> F64:
     """:func:`zwcore.sim.drop_cutter` (bilinear) on a model of spacing ``sx, sy``."""
-    return drop_cutter(ZMap(model, dx=sx, dy=sy), tool, "bilinear")
+    return drop_cutter(ZMap(model, dx=sx, dy=sy), tool, "bilinear", threads=threads)
 
 
 def _on_nodes(pos: Positions, sx: float, sy: float) -> NDArray[np.bool_]:

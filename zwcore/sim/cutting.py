@@ -88,8 +88,9 @@ def drop_cutter(part: ZMap, tool: Tool, interpolation: Interpolation = "bilinear
         these (the same values as in the whole grid) and leaves the others NaN; the
         ``dilation`` method computes every row whatever ``rows`` says.
     threads : int, optional
-        Threads of the ``pruned`` method (default: up to four, the cores this process may
-        use); a caller that is itself one of several threads asks for 1.
+        Threads of the ``pruned`` method (default: up to four) and of the dilation
+        (default: two), as the cores this process may use allow; a caller that is itself
+        one of several threads asks for 1.
 
     Returns
     -------
@@ -108,7 +109,7 @@ def drop_cutter(part: ZMap, tool: Tool, interpolation: Interpolation = "bilinear
         A, B = footprint(tool, part.dx, part.dy)
         if method == "pruned" or (2 * A + 1) * (2 * B + 1) > PRUNE_FOOTPRINT:
             return drop_cutter_pruned(part, tool, rows, threads)
-    return dilate(part.z, drop_profile(tool, part.dx, part.dy, interpolation))
+    return dilate(part.z, drop_profile(tool, part.dx, part.dy, interpolation), threads)
 
 
 def envelope(cl: F64, tool: Tool, dx: float, dy: float,
