@@ -1,4 +1,4 @@
-"""The plan's "finished" holds on the machine beside steep walls (session 9).
+"""The plan's "finished" holds on the machine beside steep walls (found in session 9).
 
 On the scan-line bench part (bench/bench_scanline_core.py: bumps, a pocket with a steep
 rim, a 10 mm wall) at 513², the large balls' finishing passes are too large to drop on the
@@ -13,6 +13,7 @@ simulation.
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from zwcore import ZMap, plan_scanline
 from zwcore.toolpath import scanline_toolpaths
@@ -30,6 +31,9 @@ def bench_part(n: int) -> ZMap:
     return ZMap(z, dx=step, dy=step)
 
 
+@pytest.mark.xfail(strict=True, reason="the plan's large-ball passes drop on the nodes only: it "
+                   "says finished where the program leaves up to 4.68 mm (fix on branch "
+                   "finished-walls, held back: docs/toolpaths.md, known limits)")
 def test_program_finishes_where_the_plan_says_it_does_beside_steep_walls() -> None:
     part = bench_part(513)
     plan = plan_scanline(part)
