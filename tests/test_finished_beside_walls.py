@@ -33,7 +33,9 @@ def bench_part(n: int) -> ZMap:
 def test_program_finishes_where_the_plan_says_it_does_beside_steep_walls() -> None:
     part = bench_part(513)
     plan = plan_scanline(part)
-    tp = scanline_toolpaths(part, plan)
+    # one thread for the program's verification: this test is heavy, and a live server's
+    # latency test may run beside it on the other core
+    tp = scanline_toolpaths(part, plan, overlap=False)
     assert tp.check is not None and tp.check.gouge <= 1e-9
     left = tp.check.machined - part.z
     assert plan.finished.mean() > 0.85
