@@ -50,7 +50,7 @@ from zwcore.scanline import _stock_bounds as _b
 from zwcore.scanline import _stock_kernels as _k
 from zwcore.scanline._stock_grid import GridMode
 from zwcore.scanline._stock_lazy import exact_base, lazy_state
-from zwcore.scanline._stock_lines import LineSweep, drop_nodes, per_position
+from zwcore.scanline._stock_lines import LineSweep, drop_nodes, drop_target, per_position
 from zwcore.scanline._stock_state import (
     BLOCK,
     Last,
@@ -63,7 +63,8 @@ from zwcore.scanline._stock_state import (
 )
 from zwcore.scanline._stock_thin import Thinning
 from zwcore.scanline.results import ScanLines
-from zwcore.sim import drop_cutter
+from zwcore.sim import drop_cutter, simulation_work
+from zwcore.sim.cutting import PRUNE_FOOTPRINT
 
 __all__ = [
     "BLOCK",
@@ -380,8 +381,7 @@ def _first_state(sim: StockSim, model: F64, spacing: tuple[float, float], tool: 
     if lazy is not None and BOUNDS and pos.size >= BOUNDS_MIN:
         return lazy_state(sim, model, spacing, tool, thin.lines, thin, pos, target_cl, lazy)
     if target_cl is None:  # a large ball on a fine model: dropped on its nodes here only
-        cl = drop_nodes(model, block_max(model), pos, np.full(pos.size, -np.inf),
-                        tool.radius, sx, sy)
+        cl = drop_target(model, pos, tool, sx, sy)
     else:
         cl = interpolate(target_cl, sx, sy, pos)
     smax = block_max(sim.stock)
@@ -450,13 +450,18 @@ def target_drop(model: F64, sx: float, sy: float, tool: Tool, positions: int) ->
     vector operations per four offsets of the ball's footprint at every model node, done
     once per stage; dropping at the positions costs the footprint per position (block
     skipping helps little on a model under the ball), per pass. The whole model is
-    dropped when it costs at most :data:`MAX_PASS_WORK` node visits or its nodes are at
-    most :data:`DROP_SHARE` times the positions (a small ball at the input's level: its
+    dropped when the ball's element is small (:data:`zwcore.sim.cutting.PRUNE_FOOTPRINT`),
+    when it costs at most :data:`MAX_PASS_WORK` node visits, or when its nodes are at most
+    :data:`DROP_SHARE` times the positions (a small ball at the input's level: its
     positions cover the model). Otherwise (a Ø20 ball finishing a fine model with few
-    positions: 4e10 node visits at 1024² and 0.1 mm) each pass drops the ball on the
-    model's nodes at its positions only (exact for the nodes; between them a bilinear
-    model may hold the tool path up to about ``spacing² / (8R)`` higher than simulated).
+    positions: 4e10 node visits at 1024² and 0.1 mm) each pass takes the bilinear
+    drop-cutter on the rows around its positions only
+    (:func:`~zwcore.scanline._stock_lines.drop_target`): the CL the tool paths take.
     """
+    if simulation_work((1, 1), tool, sx, sy) <= PRUNE_FOOTPRINT:
+        # a small element: the dilation is cheap (a Ø3 ball at 1025² and 0.1 mm, some
+        # 0.1 s), on one thread (the plan's passes run on the plan's threads)
+        return drop(model, sx, sy, tool, threads=1)
     work = model.size * math.pi * (tool.radius / sx + 1.0) * (tool.radius / sy + 1.0)
     if work <= 4 * MAX_PASS_WORK or (INCREMENTAL and model.size <= DROP_SHARE * positions
                                      and work <= MAX_DROP_WORK):
@@ -480,9 +485,9 @@ DROP_SHARE = 4
 INCREMENTAL = True
 
 
-def drop(model: F64, sx: float, sy: float, tool: Tool) -> F64:
+def drop(model: F64, sx: float, sy: float, tool: Tool, threads: int | None = None) -> F64:
     """:func:`zwcore.sim.drop_cutter` (bilinear) on a model of spacing ``sx, sy``."""
-    return drop_cutter(ZMap(model, dx=sx, dy=sy), tool, "bilinear")
+    return drop_cutter(ZMap(model, dx=sx, dy=sy), tool, "bilinear", threads=threads)
 
 
 def _on_nodes(pos: Positions, sx: float, sy: float) -> NDArray[np.bool_]:

@@ -12,7 +12,7 @@ from zwcore.grid.tools import Tool
 from zwcore.grid.zmap import ZMap
 from zwcore.scanline import _stock_bounds as _b
 from zwcore.scanline import _stock_kernels as _k
-from zwcore.scanline._stock_lines import drop_nodes
+from zwcore.scanline._stock_lines import drop_target
 from zwcore.scanline._stock_state import BLOCK, Positions, State, Thin, block_max, grow_blocks
 from zwcore.scanline.results import ScanLines
 
@@ -94,8 +94,7 @@ def exact_base(sim: Sim, model: F64, spacing: tuple[float, float], tool: Tool,
     sx, sy = spacing
     sub = Positions(pos.x[idx], pos.y[idx], pos.along)
     if target_cl is None:
-        cl = drop_nodes(model, block_max(model), sub, np.full(idx.size, -np.inf),
-                        tool.radius, sx, sy)
+        cl = drop_target(model, sub, tool, sx, sy)
     else:
         cl = _k.interpolate(target_cl, 1.0 / sx, 1.0 / sy, sub.x, sub.y)
     off = np.flatnonzero(~_k.on_nodes(sub.x, sub.y, 1.0 / sx, 1.0 / sy))

@@ -228,8 +228,8 @@ def _tile_planes(s: F64, t: int, dx: float, dy: float, radius: float
             np.ascontiguousarray(tiles.max(axis=(3, 4))))
 
 
-def drop_cutter_pruned(part: ZMap, tool: Tool, rows: NDArray[np.integer] | None = None
-                       ) -> F64:
+def drop_cutter_pruned(part: ZMap, tool: Tool, rows: NDArray[np.integer] | None = None,
+                       threads: int | None = None) -> F64:
     """Bilinear drop-cutter CL of a (large) tool by branch and bound (module docstring).
 
     Parameters
@@ -248,6 +248,9 @@ def drop_cutter_pruned(part: ZMap, tool: Tool, rows: NDArray[np.integer] | None 
         ``bilinear`` functions (so never below the true drop-cutter height over the
         continuous surface); above it by at most a float64 rounding bound. With ``rows``,
         the other rows are NaN.
+    threads : int, optional
+        Threads for the rows (default :data:`THREADS`); a caller that runs on several
+        threads already asks for one.
     """
     s0 = np.asarray(drop_profile(tool, part.dx, part.dy, "bilinear"), np.float64)
     s0 = s0[None] if s0.ndim == 2 else s0
@@ -276,7 +279,8 @@ def drop_cutter_pruned(part: ZMap, tool: Tool, rows: NDArray[np.integer] | None 
     if len(which) and (which[0] < 0 or which[-1] >= ny):
         raise ValueError(f"rows must lie in 0..{ny - 1}")
     out = np.empty((ny, nx)) if rows is None else np.full((ny, nx), np.nan)
-    cut = np.linspace(0, len(which), max(1, min(THREADS, len(which))) + 1).astype(np.int64)
+    n_threads = THREADS if threads is None else max(1, int(threads))
+    cut = np.linspace(0, len(which), max(1, min(n_threads, len(which))) + 1).astype(np.int64)
 
     def band(j: int) -> None:
         _rows(zp, s, w1, w2, tile_g, tile_err, tile_max, sub_g, sub_err, sub_max,

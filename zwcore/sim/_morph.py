@@ -39,8 +39,8 @@ def _round_up_f32(x: F64) -> NDArray[np.float32]:
     return f
 
 
-def _dilate_rows(zp: NDArray[np.floating], s: NDArray[np.floating], ny: int, nx: int
-                 ) -> NDArray[np.floating]:
+def _dilate_rows(zp: NDArray[np.floating], s: NDArray[np.floating], ny: int, nx: int,
+                 threads: int | None = None) -> NDArray[np.floating]:
     """The symmetric dilation of a padded grid (``A`` rows, ``B`` columns of -inf each side)
     by each of ``V`` structuring functions ``s`` (V, 2A+1, 2B+1), least of the ``V`` results.
 
@@ -67,7 +67,8 @@ def _dilate_rows(zp: NDArray[np.floating], s: NDArray[np.floating], ny: int, nx:
     # strips are independent (their own output rows): two threads take two runs of them
     # on a large dilation (the kernel releases the GIL), the same values
     strip_count = -(-ny // rows)
-    if THREADS > 1 and strip_count >= 2 and ny * nx * max(ob.size, 1) >= THREAD_WORK:
+    two = (THREADS if threads is None else threads) > 1
+    if two and strip_count >= 2 and ny * nx * max(ob.size, 1) >= THREAD_WORK:
         mid = (strip_count // 2) * rows
         with ThreadPoolExecutor(1, thread_name_prefix="zw-dilate") as pool:
             fut = pool.submit(strips, mid, ny)
@@ -140,7 +141,7 @@ def _dilate_kernel(zp: NDArray[np.floating], quarter: NDArray[np.floating],
             n = m
 
 
-def _dilate_bounded(z: F64, s: F64) -> tuple[F64, float]:
+def _dilate_bounded(z: F64, s: F64, threads: int | None = None) -> tuple[F64, float]:
     """The dilation (least over a stack of functions) and its rounding bound ``delta``:
     exact <= out <= exact + 2 delta."""
     s = s[None] if s.ndim == 2 else s
@@ -173,12 +174,12 @@ def _dilate_bounded(z: F64, s: F64) -> tuple[F64, float]:
     else:
         zp[A:A + ny, B:B + nx] = rel
         sd = s
-    out = _dilate_rows(zp, sd, ny, nx).astype(np.float64)
+    out = _dilate_rows(zp, sd, ny, nx, threads).astype(np.float64)
     out += shift + delta
     return out, delta
 
 
-def dilate(z: F64, s: F64) -> F64:
+def dilate(z: F64, s: F64, threads: int | None = None) -> F64:
     """Grey dilation of ``z`` by the structuring function ``s``, never below the exact value.
 
     Parameters
@@ -197,7 +198,7 @@ def dilate(z: F64, s: F64) -> F64:
         ``max over (a, b) of z[i + a, k + b] + s[A + a, B + b]``, raised by rounding
         by at most about twice :data:`FLOAT32_MARGIN`; -inf where the element meets no node.
     """
-    return _dilate_bounded(z, s)[0]
+    return _dilate_bounded(z, s, threads)[0]
 
 
 def erode(z: F64, e: F64) -> F64:

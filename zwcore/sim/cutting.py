@@ -62,7 +62,8 @@ def _check(tool: Tool, dx: float, dy: float, interpolation: str) -> None:
 
 
 def drop_cutter(part: ZMap, tool: Tool, interpolation: Interpolation = "bilinear",
-                method: str = "dilation", rows: NDArray[np.integer] | None = None) -> F64:
+                method: str = "dilation", rows: NDArray[np.integer] | None = None,
+                threads: int | None = None) -> F64:
     """Drop-cutter CL surface: the lowest tip height at each node that clears the part.
 
     Parameters
@@ -86,6 +87,10 @@ def drop_cutter(part: ZMap, tool: Tool, interpolation: Interpolation = "bilinear
         Rows that are needed (e.g. a raster's lines): the ``pruned`` method computes only
         these (the same values as in the whole grid) and leaves the others NaN; the
         ``dilation`` method computes every row whatever ``rows`` says.
+    threads : int, optional
+        Threads of the ``pruned`` method (default: up to four) and of the dilation
+        (default: two), as the cores this process may use allow; a caller that is itself
+        one of several threads asks for 1.
 
     Returns
     -------
@@ -103,8 +108,8 @@ def drop_cutter(part: ZMap, tool: Tool, interpolation: Interpolation = "bilinear
     if method != "dilation" and interpolation == "bilinear":
         A, B = footprint(tool, part.dx, part.dy)
         if method == "pruned" or (2 * A + 1) * (2 * B + 1) > PRUNE_FOOTPRINT:
-            return drop_cutter_pruned(part, tool, rows)
-    return dilate(part.z, drop_profile(tool, part.dx, part.dy, interpolation))
+            return drop_cutter_pruned(part, tool, rows, threads)
+    return dilate(part.z, drop_profile(tool, part.dx, part.dy, interpolation), threads)
 
 
 def envelope(cl: F64, tool: Tool, dx: float, dy: float,
