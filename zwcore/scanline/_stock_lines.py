@@ -15,7 +15,7 @@ from zwcore.grid.tools import Tool
 from zwcore.grid.zmap import ZMap
 from zwcore.scanline import _stock_kernels as _k
 from zwcore.scanline import _stock_sweep as _sw
-from zwcore.scanline._stock_state import BLOCK, Positions
+from zwcore.scanline._stock_state import BLOCK, Positions, block_max
 from zwcore.scanline._threads import both, split, split_at_weight
 from zwcore.sim import drop_cutter
 
@@ -169,8 +169,8 @@ def drop_target(model: F64, pos: Positions, tool: Tool, sx: float, sy: float) ->
     surface's CL; a Ø3 between nodes on the 1025² part: 1.9 mm below the paths' CL), and
     the program then left up to 5 mm where the plan said it finished.
     """
-    cl = drop_nodes(model, _k.block_max(model, BLOCK), pos, np.full(pos.size, -np.inf),
-                    tool.radius, sx, sy)
+    cl = drop_nodes(model, block_max(model), pos, np.full(pos.size, -np.inf), tool.radius,
+                    sx, sy)
     if tool.kind != "ball" or pos.size == 0:
         return cl
     px, py, su, sv, grid = pos.x, pos.y, sx, sy, model
