@@ -353,7 +353,7 @@ def test_rest_regions_cover_where_the_passes_before_leave_material() -> None:
         left = final[0] - zmap.z
         cl = drop_cutter(zmap, s.tool, "bilinear")
         mine = envelope(cl, s.tool, dx, dy, "bilinear") - zmap.z
-        tol = plan.tolerance + 1e-6
+        tol = plan.scallop_tolerance + 1e-6
         gain = (left > tol) & (left - mine > tol)
         assert s.region is not None and gain.any()
         everywhere = _brute_envelope(cl, np.ones(cl.shape, dtype=bool), s.tool.radius, dx, dy)
@@ -421,7 +421,7 @@ def test_r8_pocket_program_end_to_end_with_rest_regions() -> None:
     assert chk.gouge <= 1e-9 and chk.below_part_moves == 0 and chk.rapid_in_material == 0.0
     final: list[np.ndarray] = []
     _resimulate(part, plan, final)
-    reached = final[0] - part.z <= plan.tolerance
+    reached = final[0] - part.z <= plan.scallop_tolerance
     assert reached.mean() > 0.7  # all but the pocket's steep rim ring (reported)
     assert plan.reach is not None
     assert float((~reached).sum()) * part.dx * part.dy <= plan.reach.unreachable_area + 1e-9

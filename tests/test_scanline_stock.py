@@ -189,7 +189,7 @@ def test_trench_plan_leaves_no_more_than_it_reports(width: float,
     final: list[np.ndarray] = []
     _resimulate(zmap, plan, final)
     left = final[0] - zmap.z
-    tol, rounding = plan.tolerance, _rounding(zmap, plan)
+    tol, rounding = plan.scallop_tolerance, _rounding(zmap, plan)
     assert plan.reach is not None
     above = left > tol + rounding
     assert float(above.sum()) * 0.0625 <= plan.reach.unreachable_area + 1e-9
@@ -198,10 +198,14 @@ def test_trench_plan_leaves_no_more_than_it_reports(width: float,
     if plan.reach.unreachable_area > 0.0:
         assert any(plan.reach.finishing_tools[-1] in n and "no tool reaches" in n
                    for n in plan.notes)
-    # the trench's centre line is finished (within the tolerance) by a rest ball
+    # the trench's centre line is finished (within the tolerance) by a ball that fits the
+    # trench: a rest ball, or the main finishing ball when it fits (3 mm: the Ø3 is ranked
+    # main since the plan holds 70 % of the tolerance)
     assert left[:, 64].max() <= tol + rounding
+    fits = [s for s in plan.stages if s.level == plan.depth and s.tool.diameter <= width]
+    assert any(s.region is None or s.region[:, 64].all() for s in fits)
     last = [s for s in plan.stages if s.region is not None]
-    assert last and any(s.region[:, 64].all() for s in last)
+    assert last
     # the rest balls stay near the trench: their regions hold no node farther than the
     # trench's half width plus their radius from its centre line
     x = np.abs(np.arange(129) * 0.25 - 16.0)

@@ -316,7 +316,7 @@ def _plan_finished(part: ZMap, plan) -> tuple[np.ndarray, np.ndarray]:
     the plan reports), and where that is within the tolerance: where the plan says it
     finishes. The program is checked against it (an independent sweep of the parsed NC)."""
     planned = replay_passes(part, plan).machined - part.z
-    finished = planned <= plan.tolerance
+    finished = planned <= plan.scallop_tolerance
     # the plan reports exactly the area it leaves above the tolerance
     assert (~finished).sum() * part.dx * part.dy == pytest.approx(plan.reach.unreachable_area)
     return planned, finished

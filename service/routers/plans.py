@@ -152,7 +152,8 @@ def scanline_result(zmap: ZMap, tools: list[Tool], tolerance: float, stock_top: 
     for entry, stage in zip(stages, plan.stages, strict=True):
         entry.update(_region_fields(stage, zmap, include_models))
     return {"stock_top": plan.stock_top, "stock_top_source": plan.stock_top_source,
-            "tolerance": tolerance, "tool_sequence": list(plan.tool_sequence),
+            "tolerance": tolerance, "scallop_tolerance": plan.scallop_tolerance,
+            "tool_sequence": list(plan.tool_sequence),
             "stages": stages,
             "checks": _pick(plan.checks, ScanlineChecksOut), "notes": list(plan.notes),
             **({"toolpaths": section} if section is not None else {}),

@@ -36,8 +36,10 @@ class ScanlinePlanRequest(ToolpathOptions):
     tools: list[ToolIn] | None = Field(
         None, description="ball end mills; default: the shipped library (GET /v1/tools)")
     tolerance: FiniteFloat = Field(
-        0.01, ge=1e-6, description="finishing scallop height, mm (at least 1e-6: a finer one "
-        "gave an infinite predicted scallop)")
+        0.01, ge=1e-6, description="finishing tolerance, mm: what the finished surface (the "
+        "program's, with tool paths) may stand above the part where the plan finishes; the "
+        "plan's scallops hold 70 % of it (scallop_tolerance in the response). At least "
+        "1e-6: a finer one gave an infinite predicted scallop")
     stock_top: FiniteFloat | None = Field(
         None, description="top of the stock, mm; default: part top + first tool's flute length")
     include_models: StrictBool = Field(False, description="return each stage's model grid")
@@ -191,6 +193,11 @@ class ScanlinePlanResult(BaseModel):
     stock_top: float
     stock_top_source: Literal["request", "default"]
     tolerance: float
+    scallop_tolerance: float = Field(
+        description="the share of the tolerance the plan's scallops, rest regions and "
+        "finished area hold (70 %), mm; the tool paths' chords take 25 % and 5 % is kept "
+        "for their CL between the plan's positions, so the program stays within the "
+        "tolerance where the plan finishes")
     tool_sequence: list[str]
     stages: list[ScanlineStageOut]
     checks: ScanlineChecksOut

@@ -87,7 +87,14 @@ from zwcore.scanline._tool_choice import (
     finishing_stages,
     levels,
 )
-from zwcore.scanline.results import ScanlineChecks, ScanlinePlan, ScanlineStage
+from zwcore.scanline.results import (
+    CHORD_SHARE,
+    PATH_ALLOWANCE,
+    SCALLOP_SHARE,
+    ScanlineChecks,
+    ScanlinePlan,
+    ScanlineStage,
+)
 
 __all__ = [
     "MAX_MODEL_NODES",
@@ -118,7 +125,9 @@ def plan_scanline(zmap: ZMap, tools: Sequence[Tool] | None = None, *, tolerance:
     tools : sequence of Tool, optional
         Ball end mills in the crib (default: the shipped library).
     tolerance : float
-        Finishing scallop height, mm, finite and > 0.
+        Finishing tolerance, mm, finite and > 0: what the finished surface may stand above
+        the part where the plan finishes, the tool paths' chords included; the plan's
+        scallops hold ``SCALLOP_SHARE`` of it (``ScanlinePlan.scallop_tolerance``).
     stock_top : float, optional
         Height of the flat stock; at least the part's highest point. Default:
         the highest point plus the first tool's flute length.
@@ -140,7 +149,9 @@ def plan_scanline(zmap: ZMap, tools: Sequence[Tool] | None = None, *, tolerance:
     laps = _Laps()
     part = zmap.z
     top = float(part.max())
-    tol, requested = _validate(tolerance, stock_top, top)
+    user_tol, requested = _validate(tolerance, stock_top, top)
+    # everything the plan decides holds its share; the rest is the tool paths' (results)
+    tol = SCALLOP_SHARE * user_tol
     library = default_tools("ball") if tools is None else tool_library(tools, "ball")
     if not math.isfinite(curvature_smoothing) or curvature_smoothing < 0.0:
         raise InvalidInputError("curvature_smoothing",
@@ -186,10 +197,14 @@ def plan_scanline(zmap: ZMap, tools: Sequence[Tool] | None = None, *, tolerance:
     stages, checks, reach = with_reach(zmap, stages, checks, chosen, chain, final[0], tol,
                                        notes)
     laps("figures_and_checks")
+    notes.append(f"scallops, rest regions and the finished area planned to {tol:.4g} mm: "
+                 f"{SCALLOP_SHARE:.0%} of the tolerance {user_tol:g} mm; the tool paths' "
+                 f"chords take {CHORD_SHARE:.0%} of it and {PATH_ALLOWANCE:.0%} is kept for "
+                 "their CL between the plan's positions")
 
     return ScanlinePlan(
         stock_top=st, stock_top_source="request" if requested is not None else "default",
-        tolerance=tol, depth=mrr.depth, stages=tuple(stages),
+        tolerance=user_tol, scallop_tolerance=tol, depth=mrr.depth, stages=tuple(stages),
         tool_sequence=_tool_sequence(stages), checks=checks, notes=tuple(notes),
         timings=tuple(laps.timings), reach=reach, finished=final[0] - zmap.z <= tol)
 

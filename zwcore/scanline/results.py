@@ -12,7 +12,21 @@ from zwcore.grid.sampling import bilinear_at_fine_nodes
 from zwcore.grid.tools import Tool
 from zwcore.grid.zmap import ZMap
 
-__all__ = ["ReachSummary", "ScanLines", "ScanlineChecks", "ScanlinePlan", "ScanlineStage"]
+__all__ = ["CHORD_SHARE", "PATH_ALLOWANCE", "SCALLOP_SHARE", "ReachSummary", "ScanLines",
+           "ScanlineChecks", "ScanlinePlan", "ScanlineStage"]
+
+# The finishing tolerance is what the *program* may leave where the plan finishes; the
+# plan's simulated stock is exact at its positions' CL, the program is not: its points are
+# thinned to a chordal tolerance (one-sided, up to that much above the dropped CL) and
+# its CL between the plan's positions comes from other samples (rows interpolated, lifts
+# out of gouges). So the tolerance is split, and the plan holds only its share (without
+# the split the program left up to 12 % over the tolerance where the plan finished).
+#: Share of ``tolerance`` the tool paths' chordal thinning takes.
+CHORD_SHARE = 0.25
+#: Share kept for the paths' CL between the plan's positions (measured up to 1.6 %).
+PATH_ALLOWANCE = 0.05
+#: Share the plan's scallops, rest regions and ``finished`` hold.
+SCALLOP_SHARE = 1.0 - CHORD_SHARE - PATH_ALLOWANCE
 
 F64 = NDArray[np.float64]
 
@@ -352,7 +366,12 @@ class ScanlinePlan:
     stock_top_source : {"request", "default"}
         ``default``: the part's highest point plus the first tool's flute length.
     tolerance : float
-        Finishing scallop height asked for, mm.
+        Finishing tolerance asked for, mm: what the surface (the program's, with tool
+        paths) may stand above the part where the plan finishes.
+    scallop_tolerance : float
+        The share of it the plan's scallops, rest regions and ``finished`` hold,
+        ``SCALLOP_SHARE * tolerance``; the rest is the tool paths' (chords, CL between
+        the plan's positions).
     depth : int
         Number of MRR levels below the input (the input is level ``depth``).
     stages : tuple of ScanlineStage
@@ -368,14 +387,15 @@ class ScanlinePlan:
     reach : ReachSummary or None
         The finishing balls' simulated reach.
     finished : (ny, nx) bool or None
-        Where the plan's own simulated stock after its last pass lies within ``tolerance``
-        of the part: where the plan says it finishes (the tool paths' verification holds
-        the program to the tolerance there).
+        Where the plan's own simulated stock after its last pass lies within
+        ``scallop_tolerance`` of the part: where the plan says it finishes (the tool
+        paths' verification holds the program to ``tolerance`` there).
     """
 
     stock_top: float
     stock_top_source: Literal["request", "default"]
     tolerance: float
+    scallop_tolerance: float
     depth: int
     stages: tuple[ScanlineStage, ...]
     tool_sequence: tuple[str, ...]

@@ -24,7 +24,7 @@ from zwcore.grid.feeds import DEFAULT_RAPID_FEED
 from zwcore.grid.sampling import cells_at_fine_nodes
 from zwcore.grid.tools import Tool
 from zwcore.grid.zmap import ZMap, finite_number
-from zwcore.scanline.results import ScanlinePlan, ScanlineStage, stage_at_nodes
+from zwcore.scanline.results import CHORD_SHARE, ScanlinePlan, ScanlineStage, stage_at_nodes
 from zwcore.toolpath._polyline import PartBounds
 from zwcore.toolpath.contour_paths import contour_stage_path
 from zwcore.toolpath.parse import ProgramReader
@@ -39,8 +39,9 @@ F64 = NDArray[np.float64]
 
 #: Default height of the clearance plane above the stock top, mm.
 CLEARANCE_ABOVE_STOCK = 5.0
-#: Scan-line chordal tolerance as a fraction of the plan's tolerance.
-CHORD_FRACTION = 0.25
+#: Scan-line chordal tolerance as a fraction of the plan's tolerance (the plan's scallops
+#: hold the tolerance less this and an allowance: :data:`zwcore.scanline.results.CHORD_SHARE`).
+CHORD_FRACTION = CHORD_SHARE
 #: Gouge a roughing pass's segment may have before it is split, fraction of the ball radius.
 ROUGHING_REFINE = 0.05
 
