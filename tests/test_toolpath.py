@@ -3,6 +3,7 @@ read back by the parser and simulated, or against brute-force oracles written he
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import re
 
@@ -168,6 +169,25 @@ def _random_stage(rng: np.random.Generator, n: int) -> StagePath:
                      np.array([0.0, 0.0, 30.0]), moves)
 
 
+def test_a_tools_extra_passes_change_no_tool():
+    """Consecutive stages with one tool number: one tool change, the spindle stopped only
+    before the next tool and at the end, and the parsed program keeps the tool and its
+    length offset on through the second stage."""
+    rng = np.random.default_rng(5)
+    a, b = _random_stage(rng, 6), _random_stage(rng, 6)
+    b = dataclasses.replace(b, index=1)
+    other = dataclasses.replace(_random_stage(rng, 4), index=2,
+                                cutting=CuttingData(tool_number=3))
+    text = program_text([a, b, other], ProgramSettings(clearance=30.0))
+    assert re.findall(r"^T\d+ M6$", text, re.M) == ["T7 M6", "T3 M6"]
+    assert re.findall(r"^M5$", text, re.M) == ["M5", "M5"]
+    assert text.index("(stage 1") < text.index("M5") < text.index("T3 M6")
+    assert text.rstrip().endswith("M5\nM30\n%")
+    prog = parse_program(text)
+    moving = prog.motion >= 0
+    assert set(prog.tool[moving].tolist()) == {7, 3} and np.all(prog.length_offset[moving])
+
+
 @settings(max_examples=20, deadline=None)
 @given(st.integers(0, 10_000), st.integers(2, 60))
 def test_parser_reads_back_what_the_writer_wrote(seed, n):
@@ -316,9 +336,16 @@ def _plan_finished(part: ZMap, plan) -> tuple[np.ndarray, np.ndarray]:
     the plan reports), and where that is within the tolerance: where the plan says it
     finishes. The program is checked against it (an independent sweep of the parsed NC)."""
     planned = replay_passes(part, plan).machined - part.z
-    finished = planned <= plan.scallop_tolerance
+    within = planned <= plan.scallop_tolerance
     # the plan reports exactly the area it leaves above the tolerance
-    assert (~finished).sum() * part.dx * part.dy == pytest.approx(plan.reach.unreachable_area)
+    assert (~within).sum() * part.dx * part.dy == pytest.approx(plan.reach.unreachable_area)
+    # and claims it finished where a finishing stage (the input's level) cut it: the
+    # roughing's stock replayed alone stands higher there
+    first = next(i for i, s in enumerate(plan.stages) if s.level == plan.depth)
+    roughed = replay_passes(part, dataclasses.replace(plan, stages=plan.stages[:first])
+                            ).machined - part.z
+    finished = within & (planned < roughed)
+    assert finished.mean() > 0.9 * within.mean()
     return planned, finished
 
 

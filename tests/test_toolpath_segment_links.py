@@ -26,13 +26,16 @@ def _moves_over_stock(part: ZMap, plan, tp) -> list[tuple[np.ndarray, np.ndarray
     stock = np.full(part.shape, plan.stock_top)
     frame = GridFrame(part.x0, part.y0, part.dx, part.dy, part.shape)
     out = []
+    tool = 0
     assert len(stages) == len(plan.stages)
     for text in stages:
         prog = parse_program(head + text)
         sel = np.isfinite(prog.start).all(1)
         p0, p1, motion = prog.start[sel], prog.end[sel], prog.motion[sel]
         assert not (motion >= 2).any()  # scan-line programs are lines only
-        over, _ = sweep_moves(frame, p0, p1, radius[int(prog.tool[-1])], True, stock,
+        # a stage with the tool of the stage before changes nothing: no T word of its own
+        tool = int(prog.tool[-1]) or tool
+        over, _ = sweep_moves(frame, p0, p1, radius[tool], True, stock,
                               apply=motion != 0)
         out.append((p0, p1, motion, over))
     return out

@@ -344,12 +344,15 @@ def passes(zmap: ZMap, chosen: list[Stage], stock_top: float, tolerance: float, 
     notes : list of str, optional
         Appended to where a stage cannot meet the flute rule by lifting.
     final_stock : list, optional
-        Receives the simulated stock after the last pass, ``(ny, nx)`` float64.
+        Receives the simulated stock after the last pass, ``(ny, nx)`` float64, then the
+        stock before the first finishing stage (the roughing's; the stock top when every
+        stage finishes).
     """
     plan = _Plan(zmap, stock_top, tolerance, g, notes, StockSim(zmap, stock_top))
     prev: F64 | None = None
     prev_level = 0
     seen: list[_Seen] = []
+    roughed: F64 | None = None
     for n, stage in enumerate(chosen):
         lev, tool, merged, rest = stage[:4]
         region = _region(stage, plan.sim.stock)
@@ -362,6 +365,8 @@ def passes(zmap: ZMap, chosen: list[Stage], stock_top: float, tolerance: float, 
         # every stage on the part's level finishes (rest balls only add to it): its
         # pick-feed holds the tolerance
         finishing = lev.index == chosen[-1][0].index
+        if finishing and roughed is None:
+            roughed = plan.sim.stock.copy()
         next_flute = None if finishing else chosen[n + 1][1].flute_length
         st = _Stage(lev, tool, tuple(merged), rest, region, on, prev is None,
                     next_flute, seen=seen)
@@ -371,5 +376,6 @@ def passes(zmap: ZMap, chosen: list[Stage], stock_top: float, tolerance: float, 
         plan.out[-1].left_next = plan.out[-1].left_part
     if final_stock is not None:
         final_stock.append(plan.sim.stock)
+        final_stock.append(plan.sim.stock.copy() if roughed is None else roughed)
     return plan.out
 

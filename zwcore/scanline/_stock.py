@@ -57,6 +57,7 @@ from zwcore.scanline._stock_state import (
     PassMemo,
     Positions,
     State,
+    TargetCL,
     block_max,
     grow_blocks,
     next_state,
@@ -183,6 +184,9 @@ class StockSim:
         self.part = part
         self.stock = np.full(part.shape, float(stock_top))
         self.zmax = block_max(part.z)
+        #: a few ulps of the heights (:meth:`base_cl`)
+        self.ulps = 8.0 * float(np.finfo(np.float64).eps) * (
+            float(np.abs(part.z).max(initial=0.0)) + abs(float(stock_top)) + 1.0)
         #: ``max(part - stock)`` so far, clipped at 0 (kept over the blocks each pass lowers)
         self.gouge = max(0.0, float(part.z.max()) - float(stock_top))
         self._grid_key: tuple[Positions, NDArray[np.intp], float, GridMode | None] | None = None
@@ -193,9 +197,16 @@ class StockSim:
         self.gouge = gouge
 
     def base_cl(self, model_cl: F64, pos: Positions, tool: Tool) -> F64:
-        """``max(model_cl, CL against the part's nodes)`` at the positions."""
-        return drop_nodes(self.part.z, self.zmax, pos, np.ascontiguousarray(model_cl),
-                          tool.radius, self.part.dx, self.part.dy)
+        """``max(model_cl, CL against the part's nodes)`` at the positions; where the
+        part's nodes decide, raised by a few ulps of the heights: the cut kernels add the
+        ball's profile in another order, and a CL that touches a node exactly could leave
+        the stock an ulp under it."""
+        model_cl = np.ascontiguousarray(model_cl)
+        cl = drop_nodes(self.part.z, self.zmax, pos, model_cl, tool.radius, self.part.dx,
+                        self.part.dy)
+        nodes = cl > model_cl
+        cl[nodes] += self.ulps
+        return cl
 
     def top(self, pos: Positions, idx: NDArray[np.intp], tool: Tool, smax: F64,
             grid_ok: bool) -> F64:
@@ -278,7 +289,7 @@ class SimulatedPass:
 
 def run_pass(sim: StockSim, model: F64, spacing: tuple[float, float], tool: Tool,
              lines: ScanLines, stride: int, region: NDArray[np.bool_] | None,
-             guard: float, *, lift: bool = True, target_cl: F64 | None = None,
+             guard: float, *, lift: bool = True, target_cl: TargetCL | None = None,
              memo: PassMemo | None = None, before: F64 | None = None,
              cusp: float | None = None) -> SimulatedPass:
     """Simulate one pass over ``sim``'s stock, lifting ``model`` (in place) where the flute
@@ -299,7 +310,7 @@ def run_pass(sim: StockSim, model: F64, spacing: tuple[float, float], tool: Tool
 
     Parameters
     ----------
-    target_cl : (my, mx) float64, optional
+    target_cl : TargetCL, optional
         :func:`zwcore.sim.drop_cutter` of ``model`` as given (else from ``memo``, or
         :func:`target_drop`).
     memo : PassMemo, optional
@@ -363,7 +374,7 @@ def run_pass(sim: StockSim, model: F64, spacing: tuple[float, float], tool: Tool
 
 def _first_state(sim: StockSim, model: F64, spacing: tuple[float, float], tool: Tool,
                  lines: ScanLines, stride: int, region: NDArray[np.bool_] | None,
-                 target_cl: F64 | None, memo: PassMemo | None,
+                 target_cl: TargetCL | None, memo: PassMemo | None,
                  lazy: float | None = None, cusp: float | None = None) -> State:
     """Every position of the pass: CL on the target, the part's nodes where it may cut
     (``lazy``: the flute rule's guard of a lifted pass,
@@ -383,7 +394,7 @@ def _first_state(sim: StockSim, model: F64, spacing: tuple[float, float], tool: 
     if target_cl is None:  # a large ball on a fine model: dropped on its nodes here only
         cl = drop_target(model, pos, tool, sx, sy)
     else:
-        cl = interpolate(target_cl, sx, sy, pos)
+        cl = interpolate(target_cl.at(pos.x, pos.y), sx, sy, pos)
     smax = block_max(sim.stock)
     may = _k.may_cut(grow_blocks(smax, tool.radius, part.dx, part.dy), BLOCK,
                      pos.x, pos.y, cl, 1.0 / part.dx, 1.0 / part.dy)
@@ -442,9 +453,12 @@ def _lift(model: F64, spacing: tuple[float, float], pos: Positions, node: NDArra
                              np.ascontiguousarray(need), node))
 
 
-def target_drop(model: F64, sx: float, sy: float, tool: Tool, positions: int) -> F64 | None:
+def target_drop(model: F64, sx: float, sy: float, tool: Tool, positions: int
+                ) -> TargetCL | None:
     """:func:`drop` of a stage's target, or ``None`` where dropping the ball at the pass's
-    ``positions`` alone costs less.
+    ``positions`` alone costs less. A small ball's per-cell bound
+    (:mod:`zwcore.sim._cells`) is left to :meth:`TargetCL.at`: computed on the nodes the
+    positions read, as they are read.
 
     The whole-model drop is a grey dilation (:func:`zwcore.sim.drop_cutter`): about three
     vector operations per four offsets of the ball's footprint at every model node, done
@@ -458,14 +472,16 @@ def target_drop(model: F64, sx: float, sy: float, tool: Tool, positions: int) ->
     drop-cutter on the rows around its positions only
     (:func:`~zwcore.scanline._stock_lines.drop_target`): the CL the tool paths take.
     """
+    none = np.zeros(model.shape, dtype=bool)  # (the per-cell bound comes with the reads)
     if simulation_work((1, 1), tool, sx, sy) <= PRUNE_FOOTPRINT:
         # a small element: the dilation is cheap (a Ø3 ball at 1025² and 0.1 mm, some
         # 0.1 s), on one thread (the plan's passes run on the plan's threads)
-        return drop(model, sx, sy, tool, threads=1)
+        return TargetCL.of(drop(model, sx, sy, tool, threads=1, where=none), model, sx, sy,
+                           tool, threads=1)
     work = model.size * math.pi * (tool.radius / sx + 1.0) * (tool.radius / sy + 1.0)
     if work <= 4 * MAX_PASS_WORK or (INCREMENTAL and model.size <= DROP_SHARE * positions
                                      and work <= MAX_DROP_WORK):
-        return drop(model, sx, sy, tool)
+        return TargetCL.of(drop(model, sx, sy, tool, where=none), model, sx, sy, tool)
     return None
 
 
@@ -485,9 +501,11 @@ DROP_SHARE = 4
 INCREMENTAL = True
 
 
-def drop(model: F64, sx: float, sy: float, tool: Tool, threads: int | None = None) -> F64:
+def drop(model: F64, sx: float, sy: float, tool: Tool, threads: int | None = None,
+         where: NDArray[np.bool_] | None = None) -> F64:
     """:func:`zwcore.sim.drop_cutter` (bilinear) on a model of spacing ``sx, sy``."""
-    return drop_cutter(ZMap(model, dx=sx, dy=sy), tool, "bilinear", threads=threads)
+    return drop_cutter(ZMap(model, dx=sx, dy=sy), tool, "bilinear", threads=threads,
+                       where=where)
 
 
 def _on_nodes(pos: Positions, sx: float, sy: float) -> NDArray[np.bool_]:

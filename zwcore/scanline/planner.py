@@ -206,7 +206,17 @@ def plan_scanline(zmap: ZMap, tools: Sequence[Tool] | None = None, *, tolerance:
         stock_top=st, stock_top_source="request" if requested is not None else "default",
         tolerance=user_tol, scallop_tolerance=tol, depth=mrr.depth, stages=tuple(stages),
         tool_sequence=_tool_sequence(stages), checks=checks, notes=tuple(notes),
-        timings=tuple(laps.timings), reach=reach, finished=final[0] - zmap.z <= tol)
+        timings=tuple(laps.timings), reach=reach, finished=_finished(zmap.z, final, tol))
+
+
+def _finished(part: F64, final: list[F64], tol: float) -> NDArray[np.bool_]:
+    """Where the simulated stock after the last pass lies within ``tol`` of the part *and*
+    a finishing stage cut it: a node the roughing alone brought within the tolerance is
+    not claimed (its paths may stand a twentieth of the ball's radius above their CL,
+    :data:`zwcore.toolpath.plans.ROUGHING_REFINE`, where finishing paths keep to their
+    chords)."""
+    stock, roughed = final[0], final[1]
+    return (stock - part <= tol) & (stock < roughed)
 
 
 class _Laps:

@@ -158,15 +158,18 @@ class _ProgramRun:
         self.cpu = dict.fromkeys(("program", "parse", "simulate"), 0.0)
         self.pool = ThreadPoolExecutor(1, thread_name_prefix="verify") if overlap else None
         self.pending: list[Future[None]] = []
+        #: the tool number of the stage submitted last (its successor's tool change)
+        self.previous: int | None = None
         self._run([PROGRAM_HEAD])
 
     def submit(self, path: StagePath) -> None:
         """Write (and verify) the next stage."""
         self._raise_failed()
+        previous, self.previous = self.previous, path.cutting.tool_number
         if self.pool is None:
-            self._stage(path)
+            self._stage(path, previous)
         else:
-            self.pending.append(self.pool.submit(self._stage, path))
+            self.pending.append(self.pool.submit(self._stage, path, previous))
 
     def close(self) -> tuple[str, ProgramCheck | None]:
         """Wait for the stages, write the end; the text and the check."""
@@ -203,8 +206,8 @@ class _ProgramRun:
         self.wall[phase] += time.perf_counter() - t
         self.cpu[phase] += time.process_time() - c
 
-    def _stage(self, path: StagePath) -> None:
-        self._run(iter_stage(path, self.settings))
+    def _stage(self, path: StagePath, previous: int | None) -> None:
+        self._run(iter_stage(path, self.settings, previous))
 
     def _run(self, pieces: Iterable[str], final: bool = False) -> None:
         t, c = time.perf_counter(), time.process_time()

@@ -3,9 +3,11 @@
 Conventions as :func:`zwcore.arcs.to_gcode`: ``G17 G21 G90``, 4 decimals, arcs as
 ``G02``/``G03`` with ``I J`` incremental from the *rounded* start point the control sees.
 Per stage: tool change (``T M6``), spindle (``S M3``), length offset (``G43 H``) with a
-rapid to the clearance height, the moves, a retract to the clearance, ``M5``; ``M30`` at
-the end. Every motion block repeats its G code (no modal motion across blocks), ``F``
-appears when the feed changes.
+rapid to the clearance height, the moves, a retract to the clearance; a stage with the
+same tool number as the one before it (a tool's extra passes) changes nothing and goes on
+from the clearance height; ``M5`` before each tool change and before ``M30`` at the end.
+Every motion block repeats its G code (no modal motion across blocks), ``F`` appears when
+the feed changes.
 """
 
 from __future__ import annotations
@@ -133,17 +135,22 @@ def _body(codes: NDArray[np.int8], xyzij: NDArray[np.int64], feed10: NDArray[np.
         yield out[:used].tobytes().decode("ascii")
 
 
-def _stage_blocks(path: StagePath, settings: ProgramSettings) -> Iterator[str]:
+def _stage_blocks(path: StagePath, settings: ProgramSettings, previous: int | None
+                  ) -> Iterator[str]:
     """The stage's text: setup blocks one per item, then its motion blocks in chunks (every
-    item ends with a line feed)."""
+    item ends with a line feed). ``previous``: the stage before's tool number (None: the
+    first stage)."""
     dec = settings.decimals
     cd, tool = path.cutting, path.tool
     clear = _num(settings.clearance, dec)
     yield (f"(stage {path.index}: {path.kind}, tool {tool.id}, {tool.kind} D{tool.diameter:g},"
            f" T{cd.tool_number})\n")
-    yield f"T{cd.tool_number} M6\n"
-    yield f"S{cd.spindle_rpm:.0f} M3\n"
-    yield f"G00 G43 H{cd.tool_number} Z{clear}\n"
+    if previous != cd.tool_number:
+        if previous is not None:
+            yield "M5\n"
+        yield f"T{cd.tool_number} M6\n"
+        yield f"S{cd.spindle_rpm:.0f} M3\n"
+        yield f"G00 G43 H{cd.tool_number} Z{clear}\n"
     sx, sy = round(float(path.start[0]), dec), round(float(path.start[1]), dec)
     yield f"G00 X{_num(sx, dec)} Y{_num(sy, dec)}\n"
     mv = path.moves
@@ -156,25 +163,28 @@ def _stage_blocks(path: StagePath, settings: ProgramSettings) -> Iterator[str]:
     codes, xyzij, feed10 = codes[:kept], xyzij[:kept], feed10[:kept]
     yield from _body(codes, xyzij, feed10, dec)
     yield f"G00 Z{clear}\n"
-    yield "M5\n"
 
 
 #: The program's first and last blocks (around its stages' text).
 PROGRAM_HEAD = "%\n(zwplan tool paths)\nG17 G21 G90 G94\n"
-PROGRAM_TAIL = "M30\n%\n"
+PROGRAM_TAIL = "M5\nM30\n%\n"
 
 
-def iter_stage(path: StagePath, settings: ProgramSettings) -> Iterator[str]:
-    """One stage's text as chunks (tool change to ``M5``), each ending with a line feed."""
-    return _stage_blocks(path, settings)
+def iter_stage(path: StagePath, settings: ProgramSettings, previous: int | None = None
+               ) -> Iterator[str]:
+    """One stage's text as chunks (its tool change unless ``previous``, the stage before's
+    tool number, is its own; to the retract), each ending with a line feed."""
+    return _stage_blocks(path, settings, previous)
 
 
 def iter_program(paths: Iterable[StagePath], settings: ProgramSettings) -> Iterator[str]:
     """The program as chunks of text (for streaming); their concatenation is the program:
     :data:`PROGRAM_HEAD`, each stage's :func:`iter_stage`, :data:`PROGRAM_TAIL`."""
     yield PROGRAM_HEAD
+    previous: int | None = None
     for path in paths:
-        yield from _stage_blocks(path, settings)
+        yield from _stage_blocks(path, settings, previous)
+        previous = path.cutting.tool_number
     yield PROGRAM_TAIL
 
 
