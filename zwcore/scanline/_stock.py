@@ -57,7 +57,6 @@ from zwcore.scanline._stock_state import (
     PassMemo,
     Positions,
     State,
-    TargetCL,
     block_max,
     grow_blocks,
     next_state,
@@ -289,7 +288,7 @@ class SimulatedPass:
 
 def run_pass(sim: StockSim, model: F64, spacing: tuple[float, float], tool: Tool,
              lines: ScanLines, stride: int, region: NDArray[np.bool_] | None,
-             guard: float, *, lift: bool = True, target_cl: TargetCL | None = None,
+             guard: float, *, lift: bool = True, target_cl: F64 | None = None,
              memo: PassMemo | None = None, before: F64 | None = None,
              cusp: float | None = None) -> SimulatedPass:
     """Simulate one pass over ``sim``'s stock, lifting ``model`` (in place) where the flute
@@ -310,7 +309,7 @@ def run_pass(sim: StockSim, model: F64, spacing: tuple[float, float], tool: Tool
 
     Parameters
     ----------
-    target_cl : TargetCL, optional
+    target_cl : (my, mx) float64, optional
         :func:`zwcore.sim.drop_cutter` of ``model`` as given (else from ``memo``, or
         :func:`target_drop`).
     memo : PassMemo, optional
@@ -374,7 +373,7 @@ def run_pass(sim: StockSim, model: F64, spacing: tuple[float, float], tool: Tool
 
 def _first_state(sim: StockSim, model: F64, spacing: tuple[float, float], tool: Tool,
                  lines: ScanLines, stride: int, region: NDArray[np.bool_] | None,
-                 target_cl: TargetCL | None, memo: PassMemo | None,
+                 target_cl: F64 | None, memo: PassMemo | None,
                  lazy: float | None = None, cusp: float | None = None) -> State:
     """Every position of the pass: CL on the target, the part's nodes where it may cut
     (``lazy``: the flute rule's guard of a lifted pass,
@@ -394,7 +393,7 @@ def _first_state(sim: StockSim, model: F64, spacing: tuple[float, float], tool: 
     if target_cl is None:  # a large ball on a fine model: dropped on its nodes here only
         cl = drop_target(model, pos, tool, sx, sy)
     else:
-        cl = interpolate(target_cl.at(pos.x, pos.y), sx, sy, pos)
+        cl = interpolate(target_cl, sx, sy, pos)
     smax = block_max(sim.stock)
     may = _k.may_cut(grow_blocks(smax, tool.radius, part.dx, part.dy), BLOCK,
                      pos.x, pos.y, cl, 1.0 / part.dx, 1.0 / part.dy)
@@ -453,12 +452,9 @@ def _lift(model: F64, spacing: tuple[float, float], pos: Positions, node: NDArra
                              np.ascontiguousarray(need), node))
 
 
-def target_drop(model: F64, sx: float, sy: float, tool: Tool, positions: int
-                ) -> TargetCL | None:
+def target_drop(model: F64, sx: float, sy: float, tool: Tool, positions: int) -> F64 | None:
     """:func:`drop` of a stage's target, or ``None`` where dropping the ball at the pass's
-    ``positions`` alone costs less. A small ball's per-cell bound
-    (:mod:`zwcore.sim._cells`) is left to :meth:`TargetCL.at`: computed on the nodes the
-    positions read, as they are read.
+    ``positions`` alone costs less.
 
     The whole-model drop is a grey dilation (:func:`zwcore.sim.drop_cutter`): about three
     vector operations per four offsets of the ball's footprint at every model node, done
@@ -472,16 +468,14 @@ def target_drop(model: F64, sx: float, sy: float, tool: Tool, positions: int
     drop-cutter on the rows around its positions only
     (:func:`~zwcore.scanline._stock_lines.drop_target`): the CL the tool paths take.
     """
-    none = np.zeros(model.shape, dtype=bool)  # (the per-cell bound comes with the reads)
     if simulation_work((1, 1), tool, sx, sy) <= PRUNE_FOOTPRINT:
         # a small element: the dilation is cheap (a Ø3 ball at 1025² and 0.1 mm, some
         # 0.1 s), on one thread (the plan's passes run on the plan's threads)
-        return TargetCL.of(drop(model, sx, sy, tool, threads=1, where=none), model, sx, sy,
-                           tool, threads=1)
+        return drop(model, sx, sy, tool, threads=1)
     work = model.size * math.pi * (tool.radius / sx + 1.0) * (tool.radius / sy + 1.0)
     if work <= 4 * MAX_PASS_WORK or (INCREMENTAL and model.size <= DROP_SHARE * positions
                                      and work <= MAX_DROP_WORK):
-        return TargetCL.of(drop(model, sx, sy, tool, where=none), model, sx, sy, tool)
+        return drop(model, sx, sy, tool)
     return None
 
 
@@ -501,11 +495,9 @@ DROP_SHARE = 4
 INCREMENTAL = True
 
 
-def drop(model: F64, sx: float, sy: float, tool: Tool, threads: int | None = None,
-         where: NDArray[np.bool_] | None = None) -> F64:
+def drop(model: F64, sx: float, sy: float, tool: Tool, threads: int | None = None) -> F64:
     """:func:`zwcore.sim.drop_cutter` (bilinear) on a model of spacing ``sx, sy``."""
-    return drop_cutter(ZMap(model, dx=sx, dy=sy), tool, "bilinear", threads=threads,
-                       where=where)
+    return drop_cutter(ZMap(model, dx=sx, dy=sy), tool, "bilinear", threads=threads)
 
 
 def _on_nodes(pos: Positions, sx: float, sy: float) -> NDArray[np.bool_]:

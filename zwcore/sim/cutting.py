@@ -21,7 +21,6 @@ from numpy.typing import NDArray
 from zwcore.errors import InvalidInputError, LimitExceededError
 from zwcore.grid.tools import TOOL_KINDS, Tool
 from zwcore.grid.zmap import INTERPOLATIONS, Interpolation, ZMap
-from zwcore.sim._cells import TIGHT_MAX_CELLS, cells_within, tighten
 from zwcore.sim._drop_bb import drop_cutter_pruned
 from zwcore.sim._morph import dilate, erode
 from zwcore.sim._profiles import drop_profile, envelope_profile, footprint
@@ -64,7 +63,7 @@ def _check(tool: Tool, dx: float, dy: float, interpolation: str) -> None:
 
 def drop_cutter(part: ZMap, tool: Tool, interpolation: Interpolation = "bilinear",
                 method: str = "dilation", rows: NDArray[np.integer] | None = None,
-                threads: int | None = None, where: NDArray[np.bool_] | None = None) -> F64:
+                threads: int | None = None) -> F64:
     """Drop-cutter CL surface: the lowest tip height at each node that clears the part.
 
     Parameters
@@ -92,10 +91,6 @@ def drop_cutter(part: ZMap, tool: Tool, interpolation: Interpolation = "bilinear
         Threads of the ``pruned`` method (default: up to four) and of the dilation
         (default: two), as the cores this process may use allow; a caller that is itself
         one of several threads asks for 1.
-    where : (ny, nx) bool, optional
-        The nodes whose CL is read (default all): a small ball's per-cell bound
-        (:mod:`zwcore.sim._cells`) is computed there only; the others keep the plane
-        bound (never below the true CL either, but looser).
 
     Returns
     -------
@@ -105,10 +100,7 @@ def drop_cutter(part: ZMap, tool: Tool, interpolation: Interpolation = "bilinear
         no surface); exact for ``cell``; for ``bilinear`` above it by at most the
         gap between ``h`` and its tangent planes over one cell (about
         ``cell_diagonal² / (8 R cos³θ)`` on a slope θ, more where the ball's rim
-        meets a wall) and the float32 rounding bound; for balls of at most
-        :data:`~zwcore.sim._cells.TIGHT_MAX_CELLS` cells, the least of that and the
-        per-cell bound of :mod:`zwcore.sim._cells` (the ball's curvature under each
-        cell: 10-30 times closer inside cells on the bench parts).
+        meets a wall) and the float32 rounding bound.
     """
     _check(tool, part.dx, part.dy, interpolation)
     if method not in ("dilation", "pruned", "auto"):
@@ -116,21 +108,8 @@ def drop_cutter(part: ZMap, tool: Tool, interpolation: Interpolation = "bilinear
     if method != "dilation" and interpolation == "bilinear":
         A, B = footprint(tool, part.dx, part.dy)
         if method == "pruned" or (2 * A + 1) * (2 * B + 1) > PRUNE_FOOTPRINT:
-            cl = drop_cutter_pruned(part, tool, rows, threads)
-            return _tightened(part, tool, cl, rows, threads, where)
-    cl = dilate(part.z, drop_profile(tool, part.dx, part.dy, interpolation), threads)
-    return _tightened(part, tool, cl, rows, threads, where, interpolation)
-
-
-def _tightened(part: ZMap, tool: Tool, cl: F64, rows: NDArray[np.integer] | None,
-               threads: int | None, where: NDArray[np.bool_] | None,
-               interpolation: Interpolation = "bilinear") -> F64:
-    """A small ball's bilinear CL lowered to the per-cell bound (:mod:`._cells`): the
-    planes' gap, about ``(dx² + dy²) / 8R``, is what matters for balls of few cells."""
-    if (interpolation != "bilinear" or tool.kind != "ball"
-            or cells_within(tool.radius, part.dx, part.dy) > TIGHT_MAX_CELLS):
-        return cl
-    return tighten(part.z, part.dx, part.dy, tool.radius, cl, rows, threads, where)
+            return drop_cutter_pruned(part, tool, rows, threads)
+    return dilate(part.z, drop_profile(tool, part.dx, part.dy, interpolation), threads)
 
 
 def envelope(cl: F64, tool: Tool, dx: float, dy: float,
