@@ -25,7 +25,15 @@ from zwcore.grid.tools import Tool, default_tools
 from zwcore.grid.zmap import ZMap
 from zwcore.scanline._reach import ball_reach
 from zwcore.scanline.planner import plan_scanline
-from zwcore.sim import drop_cutter, envelope, nodal_closing, nodal_drop_cutter, refine_rest
+from zwcore.scanline.results import plan_cells
+from zwcore.sim import (
+    cell_bound_wanted,
+    drop_cutter,
+    envelope,
+    nodal_closing,
+    nodal_drop_cutter,
+    refine_rest,
+)
 
 BALLS = default_tools("ball")
 
@@ -351,7 +359,9 @@ def test_rest_regions_cover_where_the_passes_before_leave_material() -> None:
         final: list[np.ndarray] = []
         _resimulate(zmap, before, final)
         left = final[0] - zmap.z
-        cl = drop_cutter(zmap, s.tool, "bilinear")
+        # the plan's own drop-cutter (the per-cell bound where its tolerance wants it)
+        cl = drop_cutter(zmap, s.tool, "bilinear", cell_bound=cell_bound_wanted(
+            s.tool, dx, dy, plan_cells(plan)))
         mine = envelope(cl, s.tool, dx, dy, "bilinear") - zmap.z
         tol = plan.scallop_tolerance + 1e-6
         gain = (left > tol) & (left - mine > tol)

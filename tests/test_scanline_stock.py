@@ -22,8 +22,8 @@ from zwcore.grid.tools import Tool
 from zwcore.grid.zmap import ZMap
 from zwcore.scanline import _stock
 from zwcore.scanline.planner import ScanlinePlan, plan_scanline
-from zwcore.scanline.results import ScanLines, ScanlineStage
-from zwcore.sim import drop_cutter
+from zwcore.scanline.results import ScanLines, ScanlineStage, plan_cells
+from zwcore.sim import cell_bound_wanted, drop_cutter
 
 DATA = pathlib.Path(__file__).resolve().parents[2] / "shared" / "data"
 
@@ -70,9 +70,14 @@ def _rounding(zmap: ZMap, plan: ScanlinePlan) -> float:
     return 16.0 * 2.0 ** -22 * (plan.stock_top - float(zmap.z.min()) + 1.0)
 
 
-def _cl_model(s: ScanlineStage, model: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+def _cl_model(s: ScanlineStage, model: np.ndarray, x: np.ndarray, y: np.ndarray,
+              tolerance: float | None = None) -> np.ndarray:
+    """The drop-cutter on the model at the positions (the per-cell bound where the plan's
+    choice ``tolerance``, :func:`plan_cells`, wants it, as its simulation takes it)."""
     sx, sy = s.spacing
-    return _bilinear(drop_cutter(ZMap(model, dx=sx, dy=sy), s.tool), sx, sy, x, y)
+    cl = drop_cutter(ZMap(model, dx=sx, dy=sy), s.tool,
+                     cell_bound=cell_bound_wanted(s.tool, sx, sy, tolerance))
+    return _bilinear(cl, sx, sy, x, y)
 
 
 def _resimulate(zmap: ZMap, plan: ScanlinePlan, final: list[np.ndarray] | None = None,
@@ -99,8 +104,8 @@ def _resimulate(zmap: ZMap, plan: ScanlinePlan, final: list[np.ndarray] | None =
             col = np.clip(np.rint(x / sx).astype(int), 0, s.region.shape[1] - 1)
             row = np.clip(np.rint(y / sy).astype(int), 0, s.region.shape[0] - 1)
             x, y = x[s.region[row, col]], y[s.region[row, col]]
-        cl_target = _cl_model(s, targets[(s.level, s.tool.id)], x, y)
-        cl_path = _cl_model(s, s.model, x, y)
+        cl_target = _cl_model(s, targets[(s.level, s.tool.id)], x, y, plan_cells(plan))
+        cl_path = _cl_model(s, s.model, x, y, plan_cells(plan))
         a, b = math.ceil(r / zmap.dy) + 1, math.ceil(r / zmap.dx) + 1
         oy, ox = np.mgrid[-a:a + 1, -b:b + 1]
         before = stock.copy()

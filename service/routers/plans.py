@@ -153,6 +153,7 @@ def scanline_result(zmap: ZMap, tools: list[Tool], tolerance: float, stock_top: 
         entry.update(_region_fields(stage, zmap, include_models))
     return {"stock_top": plan.stock_top, "stock_top_source": plan.stock_top_source,
             "tolerance": tolerance, "scallop_tolerance": plan.scallop_tolerance,
+            "cell_bound": plan.cell_bound,
             "tool_sequence": list(plan.tool_sequence),
             "stages": stages,
             "checks": _pick(plan.checks, ScanlineChecksOut), "notes": list(plan.notes),

@@ -198,6 +198,11 @@ class ScanlinePlanResult(BaseModel):
         "finished area hold (70 %), mm; the tool paths' chords take 25 % and 5 % is kept "
         "for their CL between the plan's positions, so the program stays within the "
         "tolerance where the plan finishes")
+    cell_bound: bool = Field(
+        description="whether small balls' drop-cutter CL (plan and tool paths) takes the "
+        "ball's curvature under each cell of the z-map: on grids coarse for some ball of "
+        "the library, where one plane per cell would stand more than scallop_tolerance "
+        "above the surface")
     tool_sequence: list[str]
     stages: list[ScanlineStageOut]
     checks: ScanlineChecksOut

@@ -327,7 +327,7 @@ def _bounds(plan: _Plan) -> None:
 
 def passes(zmap: ZMap, chosen: list[Stage], stock_top: float, tolerance: float, g: float,
            notes: list[str] | None = None, final_stock: list[F64] | None = None,
-           ) -> list[PassSpec]:
+           cells: float | None = None) -> list[PassSpec]:
     """All passes of the chosen stages (coarse to fine), simulated in turn.
 
     Parameters
@@ -343,12 +343,15 @@ def passes(zmap: ZMap, chosen: list[Stage], stock_top: float, tolerance: float, 
         Rounding guard (a few ulps of the heights in play).
     notes : list of str, optional
         Appended to where a stage cannot meet the flute rule by lifting.
+    cells : float, optional
+        The plan's :func:`zwcore.sim.cell_tolerance` (0: small balls take the per-cell
+        drop-cutter bound).
     final_stock : list, optional
         Receives the simulated stock after the last pass, ``(ny, nx)`` float64, then the
         stock before the first finishing stage (the roughing's; the stock top when every
         stage finishes).
     """
-    plan = _Plan(zmap, stock_top, tolerance, g, notes, StockSim(zmap, stock_top))
+    plan = _Plan(zmap, stock_top, tolerance, g, notes, StockSim(zmap, stock_top, cells))
     prev: F64 | None = None
     prev_level = 0
     seen: list[_Seen] = []

@@ -57,6 +57,7 @@ from zwcore.scanline._stock_state import (
     PassMemo,
     Positions,
     State,
+    TargetCL,
     block_max,
     grow_blocks,
     next_state,
@@ -179,8 +180,11 @@ class StockSim:
     stock_top : float
     """
 
-    def __init__(self, part: ZMap, stock_top: float) -> None:
+    def __init__(self, part: ZMap, stock_top: float, tolerance: float | None = None) -> None:
         self.part = part
+        #: the plan's choice of the per-cell drop-cutter bound
+        #: (:func:`zwcore.sim.cell_tolerance`; None: none)
+        self.tolerance = tolerance
         self.stock = np.full(part.shape, float(stock_top))
         self.zmax = block_max(part.z)
         #: a few ulps of the heights (:meth:`base_cl`)
@@ -288,7 +292,7 @@ class SimulatedPass:
 
 def run_pass(sim: StockSim, model: F64, spacing: tuple[float, float], tool: Tool,
              lines: ScanLines, stride: int, region: NDArray[np.bool_] | None,
-             guard: float, *, lift: bool = True, target_cl: F64 | None = None,
+             guard: float, *, lift: bool = True, target_cl: TargetCL | None = None,
              memo: PassMemo | None = None, before: F64 | None = None,
              cusp: float | None = None) -> SimulatedPass:
     """Simulate one pass over ``sim``'s stock, lifting ``model`` (in place) where the flute
@@ -309,7 +313,7 @@ def run_pass(sim: StockSim, model: F64, spacing: tuple[float, float], tool: Tool
 
     Parameters
     ----------
-    target_cl : (my, mx) float64, optional
+    target_cl : TargetCL, optional
         :func:`zwcore.sim.drop_cutter` of ``model`` as given (else from ``memo``, or
         :func:`target_drop`).
     memo : PassMemo, optional
@@ -373,7 +377,7 @@ def run_pass(sim: StockSim, model: F64, spacing: tuple[float, float], tool: Tool
 
 def _first_state(sim: StockSim, model: F64, spacing: tuple[float, float], tool: Tool,
                  lines: ScanLines, stride: int, region: NDArray[np.bool_] | None,
-                 target_cl: F64 | None, memo: PassMemo | None,
+                 target_cl: TargetCL | None, memo: PassMemo | None,
                  lazy: float | None = None, cusp: float | None = None) -> State:
     """Every position of the pass: CL on the target, the part's nodes where it may cut
     (``lazy``: the flute rule's guard of a lifted pass,
@@ -384,16 +388,17 @@ def _first_state(sim: StockSim, model: F64, spacing: tuple[float, float], tool: 
     pos = positions(thin.lines, part, stride * thin.k, region, spacing)
     if target_cl is None and memo is not None:
         if not memo.dropped:  # the stage's target: the first pass's model
-            memo.drop, memo.dropped = target_drop(model, sx, sy, tool, pos.size), True
+            memo.drop, memo.dropped = target_drop(model, sx, sy, tool, pos.size,
+                                                  sim.tolerance), True
         target_cl = memo.drop
     elif target_cl is None:
-        target_cl = target_drop(model, sx, sy, tool, pos.size)
+        target_cl = target_drop(model, sx, sy, tool, pos.size, sim.tolerance)
     if lazy is not None and BOUNDS and pos.size >= BOUNDS_MIN:
         return lazy_state(sim, model, spacing, tool, thin.lines, thin, pos, target_cl, lazy)
     if target_cl is None:  # a large ball on a fine model: dropped on its nodes here only
         cl = drop_target(model, pos, tool, sx, sy)
     else:
-        cl = interpolate(target_cl, sx, sy, pos)
+        cl = interpolate(target_cl.at(pos.x, pos.y), sx, sy, pos)
     smax = block_max(sim.stock)
     may = _k.may_cut(grow_blocks(smax, tool.radius, part.dx, part.dy), BLOCK,
                      pos.x, pos.y, cl, 1.0 / part.dx, 1.0 / part.dy)
@@ -452,9 +457,12 @@ def _lift(model: F64, spacing: tuple[float, float], pos: Positions, node: NDArra
                              np.ascontiguousarray(need), node))
 
 
-def target_drop(model: F64, sx: float, sy: float, tool: Tool, positions: int) -> F64 | None:
+def target_drop(model: F64, sx: float, sy: float, tool: Tool, positions: int,
+                tolerance: float | None = None) -> TargetCL | None:
     """:func:`drop` of a stage's target, or ``None`` where dropping the ball at the pass's
-    ``positions`` alone costs less.
+    ``positions`` alone costs less. Where the plan's scallop ``tolerance`` wants a small
+    ball's per-cell bound (:func:`zwcore.sim.cell_bound_wanted`), :meth:`TargetCL.at`
+    computes it on the nodes positions read, as they are read.
 
     The whole-model drop is a grey dilation (:func:`zwcore.sim.drop_cutter`): about three
     vector operations per four offsets of the ball's footprint at every model node, done
@@ -471,11 +479,13 @@ def target_drop(model: F64, sx: float, sy: float, tool: Tool, positions: int) ->
     if simulation_work((1, 1), tool, sx, sy) <= PRUNE_FOOTPRINT:
         # a small element: the dilation is cheap (a Ø3 ball at 1025² and 0.1 mm, some
         # 0.1 s), on one thread (the plan's passes run on the plan's threads)
-        return drop(model, sx, sy, tool, threads=1)
+        return TargetCL.of(drop(model, sx, sy, tool, threads=1), model, sx, sy, tool,
+                           threads=1, tolerance=tolerance)
     work = model.size * math.pi * (tool.radius / sx + 1.0) * (tool.radius / sy + 1.0)
     if work <= 4 * MAX_PASS_WORK or (INCREMENTAL and model.size <= DROP_SHARE * positions
                                      and work <= MAX_DROP_WORK):
-        return drop(model, sx, sy, tool)
+        return TargetCL.of(drop(model, sx, sy, tool), model, sx, sy, tool,
+                           tolerance=tolerance)
     return None
 
 

@@ -13,7 +13,15 @@ from zwcore.grid.zmap import ZMap
 from zwcore.scanline import _stock_bounds as _b
 from zwcore.scanline import _stock_kernels as _k
 from zwcore.scanline._stock_lines import drop_target
-from zwcore.scanline._stock_state import BLOCK, Positions, State, Thin, block_max, grow_blocks
+from zwcore.scanline._stock_state import (
+    BLOCK,
+    Positions,
+    State,
+    TargetCL,
+    Thin,
+    block_max,
+    grow_blocks,
+)
 from zwcore.scanline.results import ScanLines
 
 __all__ = ["Sim", "exact_base", "lazy_state"]
@@ -35,7 +43,7 @@ class Sim(Protocol):
 
 
 def lazy_state(sim: Sim, model: F64, spacing: tuple[float, float], tool: Tool,
-               lines: ScanLines, thin: Thin, pos: Positions, target_cl: F64 | None,
+               lines: ScanLines, thin: Thin, pos: Positions, target_cl: TargetCL | None,
                guard: float) -> State:
     """The first state of a lifted pass (``_stock._first_state``), its unlifted CL found
     only where the flute rule may leave it.
@@ -61,7 +69,7 @@ def lazy_state(sim: Sim, model: F64, spacing: tuple[float, float], tool: Tool,
         high = _b.block_at(grow_blocks(block_max(model), r, sx, sy), BLOCK, pos.x, pos.y,
                            1.0 / sx, 1.0 / sy)
     else:
-        low = _k.interpolate(target_cl, 1.0 / sx, 1.0 / sy, pos.x, pos.y)
+        low = _k.interpolate(target_cl.at(pos.x, pos.y), 1.0 / sx, 1.0 / sy, pos.x, pos.y)
         high = low.copy()
     part_high = _b.block_at(grow_blocks(sim.zmax, r, part.dx, part.dy), BLOCK, pos.x,
                             pos.y, 1.0 / part.dx, 1.0 / part.dy)
@@ -84,7 +92,7 @@ def lazy_state(sim: Sim, model: F64, spacing: tuple[float, float], tool: Tool,
 
 
 def exact_base(sim: Sim, model: F64, spacing: tuple[float, float], tool: Tool,
-                pos: Positions, idx: NDArray[np.intp], target_cl: F64 | None, base: F64,
+                pos: Positions, idx: NDArray[np.intp], target_cl: TargetCL | None, base: F64,
                 exact: NDArray[np.bool_]) -> None:
     """The unlifted CL at the positions ``idx`` (into ``base``, in place): on the
     target (dropped whole, or on the model's nodes at the positions) and against the
@@ -96,7 +104,7 @@ def exact_base(sim: Sim, model: F64, spacing: tuple[float, float], tool: Tool,
     if target_cl is None:
         cl = drop_target(model, sub, tool, sx, sy)
     else:
-        cl = _k.interpolate(target_cl, 1.0 / sx, 1.0 / sy, sub.x, sub.y)
+        cl = _k.interpolate(target_cl.at(sub.x, sub.y), 1.0 / sx, 1.0 / sy, sub.x, sub.y)
     off = np.flatnonzero(~_k.on_nodes(sub.x, sub.y, 1.0 / sx, 1.0 / sy))
     if off.size:
         cl[off] = sim.base_cl(cl[off], Positions(sub.x[off], sub.y[off], pos.along), tool)

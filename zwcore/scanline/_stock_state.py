@@ -16,9 +16,10 @@ from zwcore.grid.tools import Tool
 from zwcore.grid.zmap import ZMap
 from zwcore.scanline import _stock_kernels as _k
 from zwcore.scanline.results import ScanLines
+from zwcore.sim import CellBound, cell_bound_wanted
 
-__all__ = ["BLOCK", "Last", "PassMemo", "Positions", "Sim", "State", "Thin", "block_max",
-           "grow_blocks", "next_state"]
+__all__ = ["BLOCK", "Last", "PassMemo", "Positions", "Sim", "State", "TargetCL", "Thin",
+           "block_max", "grow_blocks", "next_state", "read_nodes"]
 
 F64 = NDArray[np.float64]
 
@@ -75,7 +76,7 @@ class PassMemo:
     def __init__(self) -> None:
         self._last: dict[int, tuple[ScanLines, Last]] = {}
         #: the target's drop-cutter once computed (``dropped``; ``None``: per position)
-        self.drop: F64 | None = None
+        self.drop: TargetCL | None = None
         self.dropped = False
 
     def find(self, lines: ScanLines, stride: int,
@@ -177,4 +178,51 @@ def grow_blocks(smax: F64, r: float, dx: float, dy: float) -> F64:
     reach = r + max(dx, dy)
     ga, gb = math.ceil(reach / (BLOCK * dy)), math.ceil(reach / (BLOCK * dx))
     out: F64 = ndimage.maximum_filter(smax, size=(2 * ga + 1, 2 * gb + 1), mode="nearest")
+    return out
+
+
+class TargetCL:
+    """A stage target's whole drop-cutter CL, with a small ball's per-cell bound
+    (:class:`zwcore.sim.CellBound`) computed on the nodes positions read, when they first
+    read them: a node's value is then the same whichever passes read it first (the
+    per-cell bound of a node does not depend on the others)."""
+
+    def __init__(self, cl: F64, model: F64, sx: float, sy: float, tool: Tool,
+                 threads: int | None, tolerance: float | None) -> None:
+        self.cl = np.ascontiguousarray(cl, dtype=np.float64)
+        self.sx, self.sy, self.threads = sx, sy, threads
+        small = cell_bound_wanted(tool, sx, sy, tolerance)
+        #: the per-cell bound on the model as dropped (later passes lift their own copies)
+        self.bound = CellBound(model.copy(), sx, sy, tool.radius) if small else None
+        self.done = np.zeros(cl.shape, dtype=bool) if small else None
+
+    @classmethod
+    def of(cls, cl: F64, model: F64, sx: float, sy: float, tool: Tool,
+           threads: int | None = None, tolerance: float | None = None) -> TargetCL:
+        """``tolerance``: the plan's scallop tolerance (:func:`zwcore.sim.cell_bound_wanted`
+        decides whether the ball takes the per-cell bound; None: never)."""
+        return cls(cl, model, sx, sy, tool, threads, tolerance)
+
+    def at(self, x: F64, y: F64) -> F64:
+        """The CL grid, final on every node a bilinear read at ``(x, y)`` weighs."""
+        if self.bound is not None and self.done is not None and x.size:
+            need = read_nodes(x, y, self.sx, self.sy, self.cl.shape)
+            need &= ~self.done
+            if need.any():
+                self.bound.apply(self.cl, threads=self.threads, where=need)
+                self.done |= need
+        return self.cl
+
+
+def read_nodes(x: F64, y: F64, sx: float, sy: float, shape: tuple[int, int]
+               ) -> NDArray[np.bool_]:
+    """The nodes :func:`interpolate` reads at ``(x, y)`` (a cell's four corners, clamped as
+    it clamps)."""
+    my, mx = shape
+    c0 = np.clip(np.floor(x / sx).astype(np.intp), 0, max(mx - 2, 0))
+    r0 = np.clip(np.floor(y / sy).astype(np.intp), 0, max(my - 2, 0))
+    out = np.zeros(shape, dtype=bool)
+    for dr in (0, 1):
+        for dc in (0, 1):
+            out[np.minimum(r0 + dr, my - 1), np.minimum(c0 + dc, mx - 1)] = True
     return out

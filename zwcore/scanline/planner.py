@@ -95,6 +95,7 @@ from zwcore.scanline.results import (
     ScanlinePlan,
     ScanlineStage,
 )
+from zwcore.sim import cell_tolerance
 
 __all__ = [
     "MAX_MODEL_NODES",
@@ -190,7 +191,10 @@ def plan_scanline(zmap: ZMap, tools: Sequence[Tool] | None = None, *, tolerance:
     st, chosen = _stages(zmap, mrr, first, ceiling, g, requested, library,
                          float(curvature_smoothing), notes, laps, chain, tol, early, cache)
     final: list[F64] = []
-    passes = stage_passes(zmap, chosen, st, tol, g, notes, final)
+    # one choice for the plan and its paths: on a grid coarse for some ball, every small
+    # ball takes the per-cell drop-cutter bound (zwcore.sim.cell_tolerance)
+    cells = cell_tolerance(library, zmap.dx, zmap.dy, tol)
+    passes = stage_passes(zmap, chosen, st, tol, g, notes, final, cells)
     laps("passes_simulated")
 
     stages, checks = figures(part, mrr.depth, zmap.dx, zmap.dy, passes, st, tol, g)
@@ -204,7 +208,8 @@ def plan_scanline(zmap: ZMap, tools: Sequence[Tool] | None = None, *, tolerance:
 
     return ScanlinePlan(
         stock_top=st, stock_top_source="request" if requested is not None else "default",
-        tolerance=user_tol, scallop_tolerance=tol, depth=mrr.depth, stages=tuple(stages),
+        tolerance=user_tol, scallop_tolerance=tol, cell_bound=cells is not None,
+        depth=mrr.depth, stages=tuple(stages),
         tool_sequence=_tool_sequence(stages), checks=checks, notes=tuple(notes),
         timings=tuple(laps.timings), reach=reach, finished=_finished(zmap.z, final, tol))
 

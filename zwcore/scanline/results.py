@@ -372,6 +372,10 @@ class ScanlinePlan:
         The share of it the plan's scallops, rest regions and ``finished`` hold,
         ``SCALLOP_SHARE * tolerance``; the rest is the tool paths' (chords, CL between
         the plan's positions).
+    cell_bound : bool
+        Whether small balls' CL takes the per-cell drop-cutter bound
+        (:func:`zwcore.sim.cell_tolerance`: the input grid is coarse for some ball of the
+        library); the tool paths take the same.
     depth : int
         Number of MRR levels below the input (the input is level ``depth``).
     stages : tuple of ScanlineStage
@@ -396,6 +400,7 @@ class ScanlinePlan:
     stock_top_source: Literal["request", "default"]
     tolerance: float
     scallop_tolerance: float
+    cell_bound: bool
     depth: int
     stages: tuple[ScanlineStage, ...]
     tool_sequence: tuple[str, ...]
@@ -410,3 +415,9 @@ class ScanlinePlan:
 def stage_at_nodes(stage: ScanlineStage, part: ZMap) -> NDArray[np.float64]:
     """A scan-line stage's model at the part's input nodes (bilinear), ``(ny, nx)``."""
     return bilinear_at_fine_nodes(stage.model, round(stage.spacing[0] / part.dx), part.shape)
+
+
+def plan_cells(plan: ScanlinePlan) -> float | None:
+    """The plan's choice for :func:`zwcore.sim.cell_bound_wanted` (0: small balls take the
+    per-cell bound; None: none)."""
+    return 0.0 if plan.cell_bound else None

@@ -9,11 +9,21 @@
   dilation, linear in the grid), ``_drop_bb`` (the same drop-cutter by branch and
   bound over tiles of offsets, for large tools: ``drop_cutter(method="pruned")``),
   ``_nodal`` (reach against the nodes: drop cutter and closing by branch and bound,
-  balls between nodes; exported below).
+  balls between nodes; exported below), ``_cells`` (small balls' per-cell bound of the
+  bilinear drop-cutter: the ball's curvature under each cell, ``CellBound``).
 """
 
+from zwcore.sim._cells import TIGHT_MAX_CELLS, CellBound, cells_within
 from zwcore.sim._nodal import ball_offsets, nodal_closing, nodal_drop_cutter, refine_rest
-from zwcore.sim.cutting import MAX_FOOTPRINT, closing, drop_cutter, envelope, simulation_work
+from zwcore.sim.cutting import (
+    MAX_FOOTPRINT,
+    cell_bound_wanted,
+    cell_tolerance,
+    closing,
+    drop_cutter,
+    envelope,
+    simulation_work,
+)
 from zwcore.sim.figures import (
     MAX_BOXES,
     DepthOfCut,
@@ -31,12 +41,17 @@ from zwcore.sim.figures import (
 __all__ = [
     "MAX_BOXES",
     "MAX_FOOTPRINT",
+    "TIGHT_MAX_CELLS",
+    "CellBound",
     "DepthOfCut",
     "PassSimulation",
     "RegionBox",
     "RestMaterial",
     "RestRegions",
     "ball_offsets",
+    "cell_bound_wanted",
+    "cell_tolerance",
+    "cells_within",
     "closing",
     "depth_of_cut",
     "drop_cutter",

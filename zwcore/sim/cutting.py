@@ -15,18 +15,21 @@ there. Both are rounded only upward (at most about 2e-5 mm).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 from numpy.typing import NDArray
 
 from zwcore.errors import InvalidInputError, LimitExceededError
 from zwcore.grid.tools import TOOL_KINDS, Tool
 from zwcore.grid.zmap import INTERPOLATIONS, Interpolation, ZMap
+from zwcore.sim._cells import TIGHT_MAX_CELLS, cells_within, tighten
 from zwcore.sim._drop_bb import drop_cutter_pruned
 from zwcore.sim._morph import dilate, erode
 from zwcore.sim._profiles import drop_profile, envelope_profile, footprint
 
-__all__ = ["MAX_FOOTPRINT", "closing", "drop_cutter", "envelope",
-           "simulation_work"]
+__all__ = ["MAX_FOOTPRINT", "cell_bound_wanted", "cell_tolerance", "closing", "drop_cutter",
+           "envelope", "simulation_work"]
 
 F64 = NDArray[np.float64]
 
@@ -63,7 +66,8 @@ def _check(tool: Tool, dx: float, dy: float, interpolation: str) -> None:
 
 def drop_cutter(part: ZMap, tool: Tool, interpolation: Interpolation = "bilinear",
                 method: str = "dilation", rows: NDArray[np.integer] | None = None,
-                threads: int | None = None) -> F64:
+                threads: int | None = None, cell_bound: bool = False,
+                where: NDArray[np.bool_] | None = None) -> F64:
     """Drop-cutter CL surface: the lowest tip height at each node that clears the part.
 
     Parameters
@@ -91,6 +95,14 @@ def drop_cutter(part: ZMap, tool: Tool, interpolation: Interpolation = "bilinear
         Threads of the ``pruned`` method (default: up to four) and of the dilation
         (default: two), as the cores this process may use allow; a caller that is itself
         one of several threads asks for 1.
+    cell_bound : bool
+        A ball's ``bilinear`` CL lowered to the per-cell bound of
+        :mod:`zwcore.sim._cells` (the ball's curvature under each cell; balls of at most
+        :data:`~zwcore.sim._cells.TIGHT_MAX_CELLS` cells): :func:`cell_bound_wanted`
+        says where the planes' gap matters.
+    where : (ny, nx) bool, optional
+        With ``cell_bound``: the nodes it is computed on (default all; the others keep
+        the plane bound).
 
     Returns
     -------
@@ -108,8 +120,45 @@ def drop_cutter(part: ZMap, tool: Tool, interpolation: Interpolation = "bilinear
     if method != "dilation" and interpolation == "bilinear":
         A, B = footprint(tool, part.dx, part.dy)
         if method == "pruned" or (2 * A + 1) * (2 * B + 1) > PRUNE_FOOTPRINT:
-            return drop_cutter_pruned(part, tool, rows, threads)
-    return dilate(part.z, drop_profile(tool, part.dx, part.dy, interpolation), threads)
+            cl = drop_cutter_pruned(part, tool, rows, threads)
+            return _tightened(part, tool, cl, rows, threads, cell_bound, where)
+    cl = dilate(part.z, drop_profile(tool, part.dx, part.dy, interpolation), threads)
+    if interpolation != "bilinear":
+        return cl
+    return _tightened(part, tool, cl, rows, threads, cell_bound, where)
+
+
+def cell_bound_wanted(tool: Tool, dx: float, dy: float, tolerance: float | None) -> bool:
+    """Whether a ball's CL on a ``dx`` x ``dy`` grid takes the per-cell bound: where the
+    planes' gap inside a cell, ``(dx² + dy²) / 8R``, exceeds ``tolerance`` (a plan's
+    scallop tolerance: there the plane bound alone would leave more than the plan may, so
+    the ball would finish nothing) and the ball covers at most
+    :data:`~zwcore.sim._cells.TIGHT_MAX_CELLS` cells. On finer grids the planes stay
+    (the per-cell bound follows a rough surface's detail the planes smooth over, and
+    doubled Mount Rushmore's program at 0.1 mm)."""
+    return (tolerance is not None and tool.kind == "ball"
+            and (dx * dx + dy * dy) / (8.0 * tool.radius) > tolerance
+            and cells_within(tool.radius, dx, dy) <= TIGHT_MAX_CELLS)
+
+
+def cell_tolerance(balls: Sequence[Tool], dx: float, dy: float, tolerance: float
+                   ) -> float | None:
+    """A plan's choice for :func:`cell_bound_wanted`: 0 (every small ball takes the
+    per-cell bound) when the planes' gap of some ball of its library exceeds the plan's
+    scallop ``tolerance`` on the input's ``dx`` x ``dy`` grid (a grid coarse for that
+    ball), else None (none does). One choice for all balls: a rest ball's closing
+    compared with the ball before's measures reach, not which bound each took."""
+    coarse = any(cell_bound_wanted(b, dx, dy, tolerance) for b in balls)
+    return 0.0 if coarse else None
+
+
+def _tightened(part: ZMap, tool: Tool, cl: F64, rows: NDArray[np.integer] | None,
+               threads: int | None, cell_bound: bool,
+               where: NDArray[np.bool_] | None) -> F64:
+    if not cell_bound or tool.kind != "ball" or cells_within(
+            tool.radius, part.dx, part.dy) > TIGHT_MAX_CELLS:
+        return cl
+    return tighten(part.z, part.dx, part.dy, tool.radius, cl, rows, threads, where)
 
 
 def envelope(cl: F64, tool: Tool, dx: float, dy: float,

@@ -24,7 +24,13 @@ from zwcore.grid.feeds import DEFAULT_RAPID_FEED
 from zwcore.grid.sampling import cells_at_fine_nodes
 from zwcore.grid.tools import Tool
 from zwcore.grid.zmap import ZMap, finite_number
-from zwcore.scanline.results import CHORD_SHARE, ScanlinePlan, ScanlineStage, stage_at_nodes
+from zwcore.scanline.results import (
+    CHORD_SHARE,
+    ScanlinePlan,
+    ScanlineStage,
+    plan_cells,
+    stage_at_nodes,
+)
 from zwcore.toolpath._polyline import PartBounds
 from zwcore.toolpath.contour_paths import contour_stage_path
 from zwcore.toolpath.parse import ProgramReader
@@ -336,7 +342,7 @@ def _scanline_stages(part: ZMap, plan: ScanlinePlan, cl_heights: CLHeights,
             rapid_feed=rapid_feed,
             # the stock only falls: the bound after the stages before holds (rest stages
             # with no whole lines of their own come down to it, not to the stock top)
-            stock_before=before, part_bounds=bounds,
+            stock_before=before, part_bounds=bounds, cell_tolerance=plan_cells(plan),
             # only the plan's last pass is re-cut from its own simulation: an earlier
             # ball's scallops are in the plan's simulated stock, so the rest regions of
             # the balls after it already cover them (and a large ball's closing at the
