@@ -70,3 +70,26 @@ def test_program_within_tolerance_where_the_plan_finishes_on_random_surfaces(see
     left, finished, _ = _program_left(wavy_part(n, dx, seed), tolerance)
     assert left.min() >= -1e-9
     assert left[finished].max() <= tolerance
+
+
+def test_coarse_grid_takes_the_per_cell_bound_and_finishes():
+    """At 257² (0.39 mm) the planes' gap of a Ø8 alone (0.0095 mm) is over the plan's 0.007:
+    one plane per cell held every small ball so high that the plan finished 0.6 % of the
+    part (its program within the tolerance on 20 %). With the ball's curvature under each
+    cell (``cell_bound``) it finishes most of it, and the program holds it there."""
+    part = synthetic(257)
+    plan = plan_scanline(part, tolerance=0.01)
+    assert plan.cell_bound
+    left, finished, _ = _program_left(part, 0.01)
+    assert finished.mean() > 0.5
+    assert left[finished].max() <= 0.01
+    assert (left <= 0.01).mean() > 0.8
+
+
+def test_fine_grid_keeps_the_planes():
+    """At 0.1 mm the Ø1's planes' gap (0.005 mm) is under 0.007: no per-cell bound (it
+    follows a scanned surface's detail into programs twice the size)."""
+    y, x = np.mgrid[0:40, 0:40] * 0.1
+    part = ZMap(np.sin(x) * np.cos(y), dx=0.1, dy=0.1)
+    assert not plan_scanline(part, tolerance=0.01).cell_bound
+    assert plan_scanline(ZMap(part.z[::3, ::3], dx=0.3, dy=0.3), tolerance=0.01).cell_bound
