@@ -25,9 +25,7 @@ from zwcore.grid.tools import Tool, default_tools
 from zwcore.grid.zmap import ZMap
 from zwcore.scanline._reach import ball_reach
 from zwcore.scanline.planner import plan_scanline
-from zwcore.scanline.results import plan_cells
 from zwcore.sim import (
-    cell_bound_wanted,
     drop_cutter,
     envelope,
     nodal_closing,
@@ -360,8 +358,7 @@ def test_rest_regions_cover_where_the_passes_before_leave_material() -> None:
         _resimulate(zmap, before, final)
         left = final[0] - zmap.z
         # the plan's own drop-cutter (the per-cell bound where its tolerance wants it)
-        cl = drop_cutter(zmap, s.tool, "bilinear", cell_bound=cell_bound_wanted(
-            s.tool, dx, dy, plan_cells(plan)))
+        cl = drop_cutter(zmap, s.tool, "bilinear", cell_bound=plan.cell_bound)
         mine = envelope(cl, s.tool, dx, dy, "bilinear") - zmap.z
         tol = plan.scallop_tolerance + 1e-6
         gain = (left > tol) & (left - mine > tol)

@@ -22,8 +22,8 @@ from zwcore.grid.tools import Tool
 from zwcore.grid.zmap import ZMap
 from zwcore.scanline import _stock
 from zwcore.scanline.planner import ScanlinePlan, plan_scanline
-from zwcore.scanline.results import ScanLines, ScanlineStage, plan_cells
-from zwcore.sim import cell_bound_wanted, drop_cutter
+from zwcore.scanline.results import ScanLines, ScanlineStage
+from zwcore.sim import drop_cutter
 
 DATA = pathlib.Path(__file__).resolve().parents[2] / "shared" / "data"
 
@@ -71,12 +71,11 @@ def _rounding(zmap: ZMap, plan: ScanlinePlan) -> float:
 
 
 def _cl_model(s: ScanlineStage, model: np.ndarray, x: np.ndarray, y: np.ndarray,
-              tolerance: float | None = None) -> np.ndarray:
-    """The drop-cutter on the model at the positions (the per-cell bound where the plan's
-    choice ``tolerance``, :func:`plan_cells`, wants it, as its simulation takes it)."""
+              cell_bound: bool = False) -> np.ndarray:
+    """The drop-cutter on the model at the positions (with the plan's per-cell bound
+    choice, as its simulation takes it)."""
     sx, sy = s.spacing
-    cl = drop_cutter(ZMap(model, dx=sx, dy=sy), s.tool,
-                     cell_bound=cell_bound_wanted(s.tool, sx, sy, tolerance))
+    cl = drop_cutter(ZMap(model, dx=sx, dy=sy), s.tool, cell_bound=cell_bound)
     return _bilinear(cl, sx, sy, x, y)
 
 
@@ -104,8 +103,8 @@ def _resimulate(zmap: ZMap, plan: ScanlinePlan, final: list[np.ndarray] | None =
             col = np.clip(np.rint(x / sx).astype(int), 0, s.region.shape[1] - 1)
             row = np.clip(np.rint(y / sy).astype(int), 0, s.region.shape[0] - 1)
             x, y = x[s.region[row, col]], y[s.region[row, col]]
-        cl_target = _cl_model(s, targets[(s.level, s.tool.id)], x, y, plan_cells(plan))
-        cl_path = _cl_model(s, s.model, x, y, plan_cells(plan))
+        cl_target = _cl_model(s, targets[(s.level, s.tool.id)], x, y, plan.cell_bound)
+        cl_path = _cl_model(s, s.model, x, y, plan.cell_bound)
         a, b = math.ceil(r / zmap.dy) + 1, math.ceil(r / zmap.dx) + 1
         oy, ox = np.mgrid[-a:a + 1, -b:b + 1]
         before = stock.copy()

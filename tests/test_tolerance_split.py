@@ -21,10 +21,9 @@ from hypothesis import strategies as st
 from bench.bench_scanline_core import synthetic
 from tests.test_toolpath import wavy_part
 from zwcore import ZMap, plan_scanline
-from zwcore.scanline.results import CHORD_SHARE, PATH_ALLOWANCE, SCALLOP_SHARE
+from zwcore.scanline.results import SCALLOP_SHARE
 from zwcore.toolpath import scanline_toolpaths
 from zwcore.toolpath.parse import parse_program
-from zwcore.toolpath.plans import CHORD_FRACTION
 
 
 def _program_left(part: ZMap, tolerance: float) -> tuple[np.ndarray, np.ndarray, float]:
@@ -42,12 +41,6 @@ def _program_left(part: ZMap, tolerance: float) -> tuple[np.ndarray, np.ndarray,
     assert (parse_program(tp.program).motion == 1).sum() > 0
     left = chk.machined - part.z
     return left, plan.finished, chk.finished_over_part_max
-
-
-def test_the_shares_add_up_to_the_tolerance():
-    assert CHORD_FRACTION == CHORD_SHARE
-    assert SCALLOP_SHARE + CHORD_SHARE + PATH_ALLOWANCE == pytest.approx(1.0)
-    assert 0.0 < SCALLOP_SHARE < 1.0 and PATH_ALLOWANCE > 0.0
 
 
 # (nodes a side, tolerance): the grids where the plan finishes most of the part. (On

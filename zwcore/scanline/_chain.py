@@ -54,9 +54,13 @@ class Chain:
     rho : (ny, nx) float64
         The part's concave radii (:func:`zwcore.scanline._reach.concave_radii`), for the
         rest rules and the reach figures (computed once per plan).
+    cell_bound : bool
+        The plan's choice of the per-cell drop-cutter bound for its small balls
+        (:func:`zwcore.sim.coarse_grid`), for its simulation, rest rules and paths.
     """
 
     balls: tuple[Tool, ...]
     main: MainBall
     smallest_everywhere: float
     rho: F64
+    cell_bound: bool = False

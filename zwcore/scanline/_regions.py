@@ -72,7 +72,7 @@ from zwcore.scanline._reach_cut import CuttingRegion, material_grid
 from zwcore.scanline._reach_grid import _pool_any, _upsample_where
 from zwcore.scanline._threads import both, each, split
 from zwcore.scanline._tool_choice import REST_FLUTE_SHARE, REST_MAX_CELLS, Level, rest_map
-from zwcore.sim import RegionBox
+from zwcore.sim import RegionBox, coarse_grid
 
 __all__ = ["TOOL_CHANGE_MIN", "TOOL_CHANGE_MM", "Chain", "MainBall", "finishing_chain",
            "flat_pick_feed", "region_boxes"]
@@ -711,4 +711,5 @@ def finishing_chain(z: F64, dx: float, dy: float, balls: list[Tool], tolerance: 
                                 f"{t.minutes:.4g} min" for j, t in zip(chain, times, strict=True))
                     + ")")
     smallest = area / flat_pick_feed(balls[-1].radius, tolerance)
-    return Chain(tuple(balls[j] for j in chain), main, smallest, reach.rho)
+    return Chain(tuple(balls[j] for j in chain), main, smallest, reach.rho,
+                 coarse_grid(balls, dx, dy, tolerance))

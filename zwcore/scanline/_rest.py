@@ -43,7 +43,6 @@ from zwcore.scanline._chain_time import flat_pick_feed
 from zwcore.scanline._reach import concave_radii, within_distance
 from zwcore.scanline._reach_cut import cutting_positions
 from zwcore.sim import (
-    cell_bound_wanted,
     drop_cutter,
     envelope,
     nodal_drop_cutter,
@@ -102,15 +101,14 @@ class RestShared:
         window): they depend on the part alone, so a ball's closing taken for its own
         seed serves again when it is the ball before (windows are block-aligned, so
         they often coincide).
-    cells : float or None
-        The plan's :func:`zwcore.sim.cell_tolerance`.
+    cell_bound : bool
+        The plan's choice of the per-cell drop-cutter bound (:func:`zwcore.sim.coarse_grid`).
     """
 
     ran: list[Tool]
     closings: dict[tuple[object, ...], tuple[F64, F64]] = field(default_factory=dict)
     rho: F64 | None = field(default=None, repr=False)
-    #: the plan's :func:`zwcore.sim.cell_tolerance` (0: small balls' per-cell bound)
-    cells: float | None = None
+    cell_bound: bool = False
 
 
 @dataclass(eq=False)
@@ -358,8 +356,7 @@ class RestRegion:
     def _window_cl(self, win: tuple[slice, slice], tool: Tool) -> F64:
         padded, inner = self._padded(win, tool)
         part = ZMap(padded, dx=self.part.dx, dy=self.part.dy)
-        return drop_cutter(part, tool, "bilinear", cell_bound=cell_bound_wanted(
-            tool, part.dx, part.dy, self.shared.cells))[inner]
+        return drop_cutter(part, tool, "bilinear", cell_bound=self.shared.cell_bound)[inner]
 
     def _window_closing(self, win: tuple[slice, slice], tool: Tool) -> tuple[F64, F64]:
         """Closing minus the part and drop-cutter CL on ``win`` (cached by window)."""
@@ -368,8 +365,7 @@ class RestRegion:
         if key not in cache:
             padded, inner = self._padded(win, tool)
             cl = drop_cutter(ZMap(padded, dx=self.part.dx, dy=self.part.dy), tool, "bilinear",
-                             cell_bound=cell_bound_wanted(tool, self.part.dx, self.part.dy,
-                                                          self.shared.cells))
+                             cell_bound=self.shared.cell_bound)
             closed = envelope(cl, tool, self.part.dx, self.part.dy, "bilinear")
             cache[key] = (closed[inner] - self.part.z[win], cl[inner])
         return cache[key]

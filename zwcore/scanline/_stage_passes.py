@@ -327,7 +327,7 @@ def _bounds(plan: _Plan) -> None:
 
 def passes(zmap: ZMap, chosen: list[Stage], stock_top: float, tolerance: float, g: float,
            notes: list[str] | None = None, final_stock: list[F64] | None = None,
-           cells: float | None = None) -> list[PassSpec]:
+           cell_bound: bool = False) -> list[PassSpec]:
     """All passes of the chosen stages (coarse to fine), simulated in turn.
 
     Parameters
@@ -343,15 +343,14 @@ def passes(zmap: ZMap, chosen: list[Stage], stock_top: float, tolerance: float, 
         Rounding guard (a few ulps of the heights in play).
     notes : list of str, optional
         Appended to where a stage cannot meet the flute rule by lifting.
-    cells : float, optional
-        The plan's :func:`zwcore.sim.cell_tolerance` (0: small balls take the per-cell
-        drop-cutter bound).
+    cell_bound : bool
+        Small balls take the per-cell drop-cutter bound (:func:`zwcore.sim.coarse_grid`).
     final_stock : list, optional
         Receives the simulated stock after the last pass, ``(ny, nx)`` float64, then the
         stock before the first finishing stage (the roughing's; the stock top when every
         stage finishes).
     """
-    plan = _Plan(zmap, stock_top, tolerance, g, notes, StockSim(zmap, stock_top, cells))
+    plan = _Plan(zmap, stock_top, tolerance, g, notes, StockSim(zmap, stock_top, cell_bound))
     prev: F64 | None = None
     prev_level = 0
     seen: list[_Seen] = []

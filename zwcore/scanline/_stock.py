@@ -180,11 +180,10 @@ class StockSim:
     stock_top : float
     """
 
-    def __init__(self, part: ZMap, stock_top: float, tolerance: float | None = None) -> None:
+    def __init__(self, part: ZMap, stock_top: float, cell_bound: bool = False) -> None:
         self.part = part
-        #: the plan's choice of the per-cell drop-cutter bound
-        #: (:func:`zwcore.sim.cell_tolerance`; None: none)
-        self.tolerance = tolerance
+        #: small balls take the per-cell drop-cutter bound (:func:`zwcore.sim.coarse_grid`)
+        self.cell_bound = cell_bound
         self.stock = np.full(part.shape, float(stock_top))
         self.zmax = block_max(part.z)
         #: a few ulps of the heights (:meth:`base_cl`)
@@ -389,10 +388,10 @@ def _first_state(sim: StockSim, model: F64, spacing: tuple[float, float], tool: 
     if target_cl is None and memo is not None:
         if not memo.dropped:  # the stage's target: the first pass's model
             memo.drop, memo.dropped = target_drop(model, sx, sy, tool, pos.size,
-                                                  sim.tolerance), True
+                                                  sim.cell_bound), True
         target_cl = memo.drop
     elif target_cl is None:
-        target_cl = target_drop(model, sx, sy, tool, pos.size, sim.tolerance)
+        target_cl = target_drop(model, sx, sy, tool, pos.size, sim.cell_bound)
     if lazy is not None and BOUNDS and pos.size >= BOUNDS_MIN:
         return lazy_state(sim, model, spacing, tool, thin.lines, thin, pos, target_cl, lazy)
     if target_cl is None:  # a large ball on a fine model: dropped on its nodes here only
@@ -458,11 +457,11 @@ def _lift(model: F64, spacing: tuple[float, float], pos: Positions, node: NDArra
 
 
 def target_drop(model: F64, sx: float, sy: float, tool: Tool, positions: int,
-                tolerance: float | None = None) -> TargetCL | None:
+                cell_bound: bool = False) -> TargetCL | None:
     """:func:`drop` of a stage's target, or ``None`` where dropping the ball at the pass's
-    ``positions`` alone costs less. Where the plan's scallop ``tolerance`` wants a small
-    ball's per-cell bound (:func:`zwcore.sim.cell_bound_wanted`), :meth:`TargetCL.at`
-    computes it on the nodes positions read, as they are read.
+    ``positions`` alone costs less. With ``cell_bound``, :meth:`TargetCL.at` computes a
+    small ball's per-cell bound (:mod:`zwcore.sim._cells`) on the nodes positions read,
+    as they are read.
 
     The whole-model drop is a grey dilation (:func:`zwcore.sim.drop_cutter`): about three
     vector operations per four offsets of the ball's footprint at every model node, done
@@ -479,13 +478,12 @@ def target_drop(model: F64, sx: float, sy: float, tool: Tool, positions: int,
     if simulation_work((1, 1), tool, sx, sy) <= PRUNE_FOOTPRINT:
         # a small element: the dilation is cheap (a Ø3 ball at 1025² and 0.1 mm, some
         # 0.1 s), on one thread (the plan's passes run on the plan's threads)
-        return TargetCL.of(drop(model, sx, sy, tool, threads=1), model, sx, sy, tool,
-                           threads=1, tolerance=tolerance)
+        return TargetCL(drop(model, sx, sy, tool, threads=1), model, sx, sy, tool, 1,
+                        cell_bound)
     work = model.size * math.pi * (tool.radius / sx + 1.0) * (tool.radius / sy + 1.0)
     if work <= 4 * MAX_PASS_WORK or (INCREMENTAL and model.size <= DROP_SHARE * positions
                                      and work <= MAX_DROP_WORK):
-        return TargetCL.of(drop(model, sx, sy, tool), model, sx, sy, tool,
-                           tolerance=tolerance)
+        return TargetCL(drop(model, sx, sy, tool), model, sx, sy, tool, None, cell_bound)
     return None
 
 

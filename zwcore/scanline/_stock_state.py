@@ -16,7 +16,7 @@ from zwcore.grid.tools import Tool
 from zwcore.grid.zmap import ZMap
 from zwcore.scanline import _stock_kernels as _k
 from zwcore.scanline.results import ScanLines
-from zwcore.sim import CellBound, cell_bound_wanted
+from zwcore.sim import CellBound, takes_cell_bound
 
 __all__ = ["BLOCK", "Last", "PassMemo", "Positions", "Sim", "State", "TargetCL", "Thin",
            "block_max", "grow_blocks", "next_state", "read_nodes"]
@@ -188,20 +188,13 @@ class TargetCL:
     per-cell bound of a node does not depend on the others)."""
 
     def __init__(self, cl: F64, model: F64, sx: float, sy: float, tool: Tool,
-                 threads: int | None, tolerance: float | None) -> None:
+                 threads: int | None, cell_bound: bool) -> None:
         self.cl = np.ascontiguousarray(cl, dtype=np.float64)
         self.sx, self.sy, self.threads = sx, sy, threads
-        small = cell_bound_wanted(tool, sx, sy, tolerance)
+        small = cell_bound and takes_cell_bound(tool, sx, sy)
         #: the per-cell bound on the model as dropped (later passes lift their own copies)
         self.bound = CellBound(model.copy(), sx, sy, tool.radius) if small else None
         self.done = np.zeros(cl.shape, dtype=bool) if small else None
-
-    @classmethod
-    def of(cls, cl: F64, model: F64, sx: float, sy: float, tool: Tool,
-           threads: int | None = None, tolerance: float | None = None) -> TargetCL:
-        """``tolerance``: the plan's scallop tolerance (:func:`zwcore.sim.cell_bound_wanted`
-        decides whether the ball takes the per-cell bound; None: never)."""
-        return cls(cl, model, sx, sy, tool, threads, tolerance)
 
     def at(self, x: F64, y: F64) -> F64:
         """The CL grid, final on every node a bilinear read at ``(x, y)`` weighs."""

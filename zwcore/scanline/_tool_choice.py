@@ -39,7 +39,6 @@ from zwcore.scanline._models import Target
 from zwcore.scanline._reach import ball_reach
 from zwcore.scanline._rest import RestRegion, RestShared
 from zwcore.scanline._threads import both, split
-from zwcore.sim import cell_tolerance
 
 __all__ = ["REST_FLUTE_SHARE", "REST_MAX_CELLS", "Level", "Stage", "StageReach", "ball_rest",
            "choose", "finishing_stages", "levels"]
@@ -205,8 +204,7 @@ def finishing_stages(levels: list[Level], chain: Chain, tolerance: float,
     main = chain.main
     out.append(Stage(finest, main.tool, [], 0.0, None,
                      StageReach(1.0, (), 1, main.cut_length, main.rest_max, main.reason)))
-    shared = RestShared([main.tool], rho=chain.rho,
-                        cells=cell_tolerance(library, part.dx, part.dy, tolerance))
+    shared = RestShared([main.tool], rho=chain.rho, cell_bound=chain.cell_bound)
     for tool in balls[1:]:
         rule = RestRegion(part, tool, tolerance, shared, last=tool is balls[-1])
         out.append(Stage(finest, tool, [], 0.0, rule, None))

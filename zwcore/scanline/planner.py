@@ -95,7 +95,6 @@ from zwcore.scanline.results import (
     ScanlinePlan,
     ScanlineStage,
 )
-from zwcore.sim import cell_tolerance
 
 __all__ = [
     "MAX_MODEL_NODES",
@@ -191,10 +190,8 @@ def plan_scanline(zmap: ZMap, tools: Sequence[Tool] | None = None, *, tolerance:
     st, chosen = _stages(zmap, mrr, first, ceiling, g, requested, library,
                          float(curvature_smoothing), notes, laps, chain, tol, early, cache)
     final: list[F64] = []
-    # one choice for the plan and its paths: on a grid coarse for some ball, every small
-    # ball takes the per-cell drop-cutter bound (zwcore.sim.cell_tolerance)
-    cells = cell_tolerance(library, zmap.dx, zmap.dy, tol)
-    passes = stage_passes(zmap, chosen, st, tol, g, notes, final, cells)
+    # one choice for the plan and its paths (Chain.cell_bound: zwcore.sim.coarse_grid)
+    passes = stage_passes(zmap, chosen, st, tol, g, notes, final, chain.cell_bound)
     laps("passes_simulated")
 
     stages, checks = figures(part, mrr.depth, zmap.dx, zmap.dy, passes, st, tol, g)
@@ -208,7 +205,7 @@ def plan_scanline(zmap: ZMap, tools: Sequence[Tool] | None = None, *, tolerance:
 
     return ScanlinePlan(
         stock_top=st, stock_top_source="request" if requested is not None else "default",
-        tolerance=user_tol, scallop_tolerance=tol, cell_bound=cells is not None,
+        tolerance=user_tol, scallop_tolerance=tol, cell_bound=chain.cell_bound,
         depth=mrr.depth, stages=tuple(stages),
         tool_sequence=_tool_sequence(stages), checks=checks, notes=tuple(notes),
         timings=tuple(laps.timings), reach=reach, finished=_finished(zmap.z, final, tol))

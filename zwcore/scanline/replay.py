@@ -31,7 +31,7 @@ from zwcore.grid.tools import Tool
 from zwcore.grid.zmap import ZMap
 from zwcore.scanline._levels import rounding_guard
 from zwcore.scanline._stock import StockSim, left_over, run_pass
-from zwcore.scanline.results import ScanlinePlan, plan_cells, stage_at_nodes
+from zwcore.scanline.results import ScanlinePlan, stage_at_nodes
 
 __all__ = ["PassReplay", "PlanReplay", "replay_passes"]
 
@@ -122,7 +122,7 @@ def replay_passes(part: ZMap, plan: ScanlinePlan) -> PlanReplay:
     -------
     PlanReplay
     """
-    sim = StockSim(part, plan.stock_top, plan_cells(plan))
+    sim = StockSim(part, plan.stock_top, plan.cell_bound)
     guard = _guard(part, plan)
     out: list[PassReplay] = []
     stages = plan.stages

@@ -374,7 +374,7 @@ class ScanlinePlan:
         the plan's positions).
     cell_bound : bool
         Whether small balls' CL takes the per-cell drop-cutter bound
-        (:func:`zwcore.sim.cell_tolerance`: the input grid is coarse for some ball of the
+        (:func:`zwcore.sim.coarse_grid`: the input grid is coarse for some ball of the
         library); the tool paths take the same.
     depth : int
         Number of MRR levels below the input (the input is level ``depth``).
@@ -415,9 +415,3 @@ class ScanlinePlan:
 def stage_at_nodes(stage: ScanlineStage, part: ZMap) -> NDArray[np.float64]:
     """A scan-line stage's model at the part's input nodes (bilinear), ``(ny, nx)``."""
     return bilinear_at_fine_nodes(stage.model, round(stage.spacing[0] / part.dx), part.shape)
-
-
-def plan_cells(plan: ScanlinePlan) -> float | None:
-    """The plan's choice for :func:`zwcore.sim.cell_bound_wanted` (0: small balls take the
-    per-cell bound; None: none)."""
-    return 0.0 if plan.cell_bound else None

@@ -18,11 +18,12 @@ from zwcore.sim._nodal import ball_offsets, nodal_closing, nodal_drop_cutter, re
 from zwcore.sim.cutting import (
     MAX_FOOTPRINT,
     cell_bound_wanted,
-    cell_tolerance,
     closing,
+    coarse_grid,
     drop_cutter,
     envelope,
     simulation_work,
+    takes_cell_bound,
 )
 from zwcore.sim.figures import (
     MAX_BOXES,
@@ -50,9 +51,9 @@ __all__ = [
     "RestRegions",
     "ball_offsets",
     "cell_bound_wanted",
-    "cell_tolerance",
     "cells_within",
     "closing",
+    "coarse_grid",
     "depth_of_cut",
     "drop_cutter",
     "envelope",
@@ -64,4 +65,5 @@ __all__ = [
     "rest_regions",
     "simulate_pass",
     "simulation_work",
+    "takes_cell_bound",
 ]

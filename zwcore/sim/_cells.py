@@ -21,23 +21,24 @@ where it is a concave parabola (closed form). ``p1`` is the cell's centre for ce
 the disc and the cell's point nearest the axis for cells the rim crosses.
 
 The kernel takes the max over every cell of the grid within the radius (cells beyond the
-grid carry no surface), skipping tiles of cells and then cells whose crude bound (highest
-corner less the ball's lowest point over them) cannot beat the best so far, and stops at
-the other method's value (it returns the least of the two: both bound the true CL from
-above). Rounded once in float64, then raised by a bound of that rounding.
+grid carry no surface), skipping tiles of cells whose crude bound (highest node less the
+ball's lowest point over them) and then cells whose plane or crude bound cannot beat the
+best so far, and stops at the other method's value (it returns the least of the two: both
+bound the true CL from above). Rounded once in float64, then raised by a bound of that rounding.
 """
 
 from __future__ import annotations
 
 import functools
 import math
-import os
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 from scipy import ndimage
+
+from zwcore.sim._drop_bb import THREADS
 
 __all__ = ["TIGHT_MAX_CELLS", "CellBound", "cells_within", "tighten"]
 
@@ -53,9 +54,6 @@ TILE = 4
 #: bound (highest corner less ``h(r_min)``): the ball's slope there would make the
 #: quadratic's terms large enough for rounding to matter.
 _RIM_GUARD = 1e-6
-#: Threads (bands of rows).
-THREADS = max(1, min(4, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity")
-                     else (os.cpu_count() or 1)))
 
 
 def cells_within(radius: float, dx: float, dy: float) -> int:
@@ -161,11 +159,18 @@ def _cell_max(z00: float, z10: float, z01: float, z11: float, c: F64) -> float:
 
 
 @njit(cache=True, nogil=True)
+def _first_look(z00: float, z10: float, z01: float, z11: float, c: F64) -> float:
+    """The least of a cell's plane bound (a corner less the tangent plane at ``p1``) and
+    its crude bound (the highest corner less ``h(r_min)``)."""
+    return min(max(max(z00 - c[8], z10 - c[9]), max(z01 - c[10], z11 - c[11])),
+               max(max(z00, z10), max(z01, z11)) - c[7])
+
+
+@njit(cache=True, nogil=True)
 def _cell_value(z00: float, z10: float, z01: float, z11: float, c: F64) -> float:
     """A cell's share of the CL bound: the least of its plane, crude and quadratic bounds."""
-    v = min(max(max(z00 - c[8], z10 - c[9]), max(z01 - c[10], z11 - c[11])),
-            max(max(z00, z10), max(z01, z11)) - c[7])
-    if c[5] > 0.0:
+    v = _first_look(z00, z10, z01, z11, c)
+    if c[5] > 0.0:  # (else a crude cell: its plane is hmin)
         v = min(v, _cell_max(z00, z10, z01, z11, c))
     return v
 
@@ -210,9 +215,7 @@ def _rows(z: F64, wmax: F64, pad: int, a: I64, b: I64, consts: F64, tiles: F64,
                     # a cell's value is the least of its three bounds, each >= its share
                     # of the true CL: so each first look (the tile's, the cell's) bounds
                     # it, and the max is the same whatever the order of the looks
-                    v = min(max(max(z00 - consts[n, 8], z10 - consts[n, 9]),
-                                max(z01 - consts[n, 10], z11 - consts[n, 11])),
-                            max(max(z00, z10), max(z01, z11)) - consts[n, 7])
+                    v = _first_look(z00, z10, z01, z11, consts[n])
                     if v <= best:
                         continue
                     if consts[n, 5] > 0.0:  # (else a crude cell: its plane is hmin)
@@ -239,7 +242,6 @@ class CellBound:
 
     def __init__(self, z: F64, dx: float, dy: float, radius: float) -> None:
         self.z = np.ascontiguousarray(z, np.float64)
-        self.radius = radius
         self.a, self.b, self.consts, self.tiles = _cells(radius, dx, dy)
         ny, nx = self.z.shape
         self.pad = int(max(np.abs(self.a).max(initial=0), np.abs(self.b).max(initial=0))) \

@@ -28,8 +28,8 @@ from zwcore.sim._drop_bb import drop_cutter_pruned
 from zwcore.sim._morph import dilate, erode
 from zwcore.sim._profiles import drop_profile, envelope_profile, footprint
 
-__all__ = ["MAX_FOOTPRINT", "cell_bound_wanted", "cell_tolerance", "closing", "drop_cutter",
-           "envelope", "simulation_work"]
+__all__ = ["MAX_FOOTPRINT", "cell_bound_wanted", "closing", "coarse_grid", "drop_cutter",
+           "envelope", "simulation_work", "takes_cell_bound"]
 
 F64 = NDArray[np.float64]
 
@@ -98,8 +98,8 @@ def drop_cutter(part: ZMap, tool: Tool, interpolation: Interpolation = "bilinear
     cell_bound : bool
         A ball's ``bilinear`` CL lowered to the per-cell bound of
         :mod:`zwcore.sim._cells` (the ball's curvature under each cell; balls of at most
-        :data:`~zwcore.sim._cells.TIGHT_MAX_CELLS` cells): :func:`cell_bound_wanted`
-        says where the planes' gap matters.
+        :data:`~zwcore.sim._cells.TIGHT_MAX_CELLS` cells, :func:`takes_cell_bound`):
+        :func:`coarse_grid` says where a plan wants it.
     where : (ny, nx) bool, optional
         With ``cell_bound``: the nodes it is computed on (default all; the others keep
         the plane bound).
@@ -128,35 +128,35 @@ def drop_cutter(part: ZMap, tool: Tool, interpolation: Interpolation = "bilinear
     return _tightened(part, tool, cl, rows, threads, cell_bound, where)
 
 
-def cell_bound_wanted(tool: Tool, dx: float, dy: float, tolerance: float | None) -> bool:
-    """Whether a ball's CL on a ``dx`` x ``dy`` grid takes the per-cell bound: where the
-    planes' gap inside a cell, ``(dx² + dy²) / 8R``, exceeds ``tolerance`` (a plan's
-    scallop tolerance: there the plane bound alone would leave more than the plan may, so
-    the ball would finish nothing) and the ball covers at most
-    :data:`~zwcore.sim._cells.TIGHT_MAX_CELLS` cells. On finer grids the planes stay
-    (the per-cell bound follows a rough surface's detail the planes smooth over, and
-    doubled Mount Rushmore's program at 0.1 mm)."""
-    return (tolerance is not None and tool.kind == "ball"
-            and (dx * dx + dy * dy) / (8.0 * tool.radius) > tolerance
-            and cells_within(tool.radius, dx, dy) <= TIGHT_MAX_CELLS)
+def takes_cell_bound(tool: Tool, dx: float, dy: float) -> bool:
+    """Whether ``cell_bound`` changes a tool's CL on a ``dx`` x ``dy`` grid: a ball whose
+    disc covers at most :data:`~zwcore.sim._cells.TIGHT_MAX_CELLS` cells."""
+    return tool.kind == "ball" and cells_within(tool.radius, dx, dy) <= TIGHT_MAX_CELLS
 
 
-def cell_tolerance(balls: Sequence[Tool], dx: float, dy: float, tolerance: float
-                   ) -> float | None:
-    """A plan's choice for :func:`cell_bound_wanted`: 0 (every small ball takes the
-    per-cell bound) when the planes' gap of some ball of its library exceeds the plan's
-    scallop ``tolerance`` on the input's ``dx`` x ``dy`` grid (a grid coarse for that
-    ball), else None (none does). One choice for all balls: a rest ball's closing
-    compared with the ball before's measures reach, not which bound each took."""
-    coarse = any(cell_bound_wanted(b, dx, dy, tolerance) for b in balls)
-    return 0.0 if coarse else None
+def cell_bound_wanted(tool: Tool, dx: float, dy: float, tolerance: float) -> bool:
+    """Whether the planes' gap of a ball inside a cell of a ``dx`` x ``dy`` grid,
+    ``(dx² + dy²) / 8R``, exceeds ``tolerance`` (a plan's scallop tolerance: the plane
+    bound alone would leave more than the plan may, so the ball would finish nothing),
+    for a ball that :func:`takes_cell_bound`."""
+    return (takes_cell_bound(tool, dx, dy)
+            and (dx * dx + dy * dy) / (8.0 * tool.radius) > tolerance)
+
+
+def coarse_grid(balls: Sequence[Tool], dx: float, dy: float, tolerance: float) -> bool:
+    """A plan's choice of ``cell_bound``: the input's ``dx`` x ``dy`` grid is coarse for
+    some ball of its library (:func:`cell_bound_wanted` at the plan's scallop
+    ``tolerance``). One choice for all its balls: a rest ball's closing compared with the
+    ball before's then measures reach, not which bound each took. On finer grids the
+    planes stay (the per-cell bound follows a rough surface's detail the planes smooth
+    over, and doubled Mount Rushmore's program at 0.1 mm)."""
+    return any(cell_bound_wanted(b, dx, dy, tolerance) for b in balls)
 
 
 def _tightened(part: ZMap, tool: Tool, cl: F64, rows: NDArray[np.integer] | None,
                threads: int | None, cell_bound: bool,
                where: NDArray[np.bool_] | None) -> F64:
-    if not cell_bound or tool.kind != "ball" or cells_within(
-            tool.radius, part.dx, part.dy) > TIGHT_MAX_CELLS:
+    if not (cell_bound and takes_cell_bound(tool, part.dx, part.dy)):
         return cl
     return tighten(part.z, part.dx, part.dy, tool.radius, cl, rows, threads, where)
 

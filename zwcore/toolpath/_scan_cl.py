@@ -15,7 +15,7 @@ from scipy import ndimage
 from zwcore.grid.tools import Tool
 from zwcore.grid.zmap import ZMap
 from zwcore.scanline.results import ScanlineStage
-from zwcore.sim import cell_bound_wanted, drop_cutter
+from zwcore.sim import drop_cutter
 from zwcore.sim.cutting import PRUNE_FOOTPRINT, footprint
 
 F64 = NDArray[np.float64]
@@ -26,15 +26,15 @@ CLHeights = Callable[[ZMap, Tool], F64]
 
 
 def sim_cl_heights(model: ZMap, tool: Tool, rows: NDArray[np.integer] | None = None,
-                   tolerance: float | None = None) -> F64:
+                   cell_bound: bool = False) -> F64:
     """The default :data:`CLHeights`: :func:`zwcore.sim.drop_cutter` on the bilinear model
     (never below the true drop-cutter height), by branch and bound for large tools
     (``method="auto"``: a Ø20 ball at the input's 0.1 mm spans 43,000 nodes); with
-    ``rows``, a large tool's CL on those rows only (the others may be NaN). ``tolerance``:
-    the plan's choice for the per-cell bound (:func:`zwcore.sim.cell_bound_wanted`, the
-    plan's :func:`zwcore.scanline.results.plan_cells`: the same CL as its simulation)."""
+    ``rows``, a large tool's CL on those rows only (the others may be NaN). ``cell_bound``:
+    the plan's choice of the per-cell bound (``ScanlinePlan.cell_bound``: the same CL as
+    its simulation)."""
     return drop_cutter(model, tool, "bilinear", method="auto", rows=rows,
-                       cell_bound=cell_bound_wanted(tool, model.dx, model.dy, tolerance))
+                       cell_bound=cell_bound)
 
 
 def _line_rows(offset: F64, spacing: float, n: int) -> NDArray[np.int64]:
@@ -47,7 +47,7 @@ def _line_rows(offset: F64, spacing: float, n: int) -> NDArray[np.int64]:
 
 
 def _stage_cl(part: ZMap, stage: ScanlineStage, mdl: F64, sx: float, sy: float,
-              cl_heights: CLHeights, whole: bool, tolerance: float | None = None) -> F64:
+              cl_heights: CLHeights, whole: bool, cell_bound: bool = False) -> F64:
     """The stage's CL grid on its model, ``(my, mx)``. With the default drop-cutter, only the
     rows (a pass along x) or columns (along y, on the transposed model) the stage's lines
     read are computed (the pruned method's values there are those of the whole grid; the
@@ -58,18 +58,18 @@ def _stage_cl(part: ZMap, stage: ScanlineStage, mdl: F64, sx: float, sy: float,
         return cl_heights(ZMap(mdl, part.x0, part.y0, sx, sy), stage.tool)
     if whole or not len(stage.lines.offset):
         return sim_cl_heights(ZMap(mdl, part.x0, part.y0, sx, sy), stage.tool,
-                              tolerance=tolerance)
+                              cell_bound=cell_bound)
     if stage.scan_direction == "x":
         rows = _line_rows(stage.lines.offset, sy, mdl.shape[0])
-        return _plateau_cl(ZMap(mdl, part.x0, part.y0, sx, sy), stage.tool, rows, tolerance)
+        return _plateau_cl(ZMap(mdl, part.x0, part.y0, sx, sy), stage.tool, rows, cell_bound)
     cols = _line_rows(stage.lines.offset, sx, mdl.shape[1])
     # the ball and the pruned bounds are symmetric in x and y: the transposed model's rows
     return _plateau_cl(ZMap(np.ascontiguousarray(mdl.T), part.y0, part.x0, sy, sx),
-                       stage.tool, cols, tolerance).T
+                       stage.tool, cols, cell_bound).T
 
 
 def _plateau_cl(model: ZMap, tool: Tool, rows: NDArray[np.int64],
-                tolerance: float | None = None) -> F64:
+                cell_bound: bool = False) -> F64:
     """:func:`sim_cl_heights` on ``rows``, except at the nodes no node within the tool's
     reach rises above (a depth pass's model is flat wherever the part lies below it): the
     tip centred there meets the surface at the node itself, and nothing higher within the
@@ -80,7 +80,7 @@ def _plateau_cl(model: ZMap, tool: Tool, rows: NDArray[np.int64],
     wy, wx = footprint(tool, model.dx, model.dy)  # ceil(R / spacing) + 1 each way
     if (2 * wy + 1) * (2 * wx + 1) <= PRUNE_FOOTPRINT:
         # small tools: every row at once anyway
-        return sim_cl_heights(model, tool, rows, tolerance)
+        return sim_cl_heights(model, tool, rows, cell_bound)
     z = model.z
     sub = z[rows]
     flat = sub >= ndimage.maximum_filter(z, size=(2 * wy + 1, 2 * wx + 1),
@@ -95,7 +95,7 @@ def _plateau_cl(model: ZMap, tool: Tool, rows: NDArray[np.int64],
         crop = ZMap(np.ascontiguousarray(z[r0:r1, c0:c1]), model.x0 + c0 * model.dx,
                     model.y0 + r0 * model.dy, model.dx, model.dy)
         need = np.unique(rows[need_r])
-        cl = sim_cl_heights(crop, tool, need - r0, tolerance)
+        cl = sim_cl_heights(crop, tool, need - r0, cell_bound)
         rr, cc = rows[need_r], need_c
         out[rr, cc] = cl[rr - r0, cc - c0]
     return out

@@ -28,7 +28,6 @@ from zwcore.scanline.results import (
     CHORD_SHARE,
     ScanlinePlan,
     ScanlineStage,
-    plan_cells,
     stage_at_nodes,
 )
 from zwcore.toolpath._polyline import PartBounds
@@ -342,7 +341,7 @@ def _scanline_stages(part: ZMap, plan: ScanlinePlan, cl_heights: CLHeights,
             rapid_feed=rapid_feed,
             # the stock only falls: the bound after the stages before holds (rest stages
             # with no whole lines of their own come down to it, not to the stock top)
-            stock_before=before, part_bounds=bounds, cell_tolerance=plan_cells(plan),
+            stock_before=before, part_bounds=bounds, cell_bound=plan.cell_bound,
             # only the plan's last pass is re-cut from its own simulation: an earlier
             # ball's scallops are in the plan's simulated stock, so the rest regions of
             # the balls after it already cover them (and a large ball's closing at the

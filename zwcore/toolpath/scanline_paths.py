@@ -334,7 +334,7 @@ def scanline_stage_path(part: ZMap, stage: ScanlineStage, index: int, cutting: C
                         rapid_feed: float = DEFAULT_RAPID_FEED,
                         stock_before: F64 | None = None,
                         part_bounds: PartBounds | None = None,
-                        cell_tolerance: float | None = None) -> StagePath:
+                        cell_bound: bool = False) -> StagePath:
     """Tool path of one scan-line stage.
 
     Parameters
@@ -382,10 +382,9 @@ def scanline_stage_path(part: ZMap, stage: ScanlineStage, index: int, cutting: C
     part_bounds : PartBounds, optional
         The part's block bounds for the gouge measure, shared by a plan's stages (built
         once per part and block size instead of once per stage); default: this stage's.
-    cell_tolerance : float, optional
-        The plan's choice (:func:`zwcore.scanline.results.plan_cells`): with the default
-        ``cl_heights``, a small ball takes the per-cell drop-cutter bound where the plan's
-        simulation took it (:func:`zwcore.sim.cell_bound_wanted`).
+    cell_bound : bool
+        The plan's choice (``ScanlinePlan.cell_bound``): with the default ``cl_heights``,
+        small balls take the per-cell drop-cutter bound as the plan's simulation did.
 
     Returns
     -------
@@ -401,7 +400,7 @@ def scanline_stage_path(part: ZMap, stage: ScanlineStage, index: int, cutting: C
     sx, sy = stage.spacing if spacing is None else spacing
     cl = _stage_cl(part, stage, mdl, sx, sy, cl_heights,
                    whole=scallop_tolerance is not None and region is None,
-                   tolerance=cell_tolerance)
+                   cell_bound=cell_bound)
     # the CL on the part's own nodes (a finishing pass): the scallop pass can compare with it
     on_nodes = (abs(sx - part.dx) <= 1e-9 * part.dx and abs(sy - part.dy) <= 1e-9 * part.dy
                 and cl.shape[0] >= part.shape[0] and cl.shape[1] >= part.shape[1])
